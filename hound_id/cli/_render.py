@@ -1,0 +1,35 @@
+"""Rendering helpers shared by the commands: JSON to stdout, figures and files written atomically."""
+
+from __future__ import annotations
+
+import json
+import sys
+from pathlib import Path
+from typing import Any
+
+from rich.console import Console
+
+from hound_id import io
+
+console = Console()
+err_console = Console(stderr=True)
+
+
+def print_json(data: Any) -> None:
+    """Print machine-readable output (the ``--json`` of every command)."""
+    sys.stdout.write(json.dumps(data, indent=2) + "\n")
+    sys.stdout.flush()
+
+
+def warn(message: str) -> None:
+    """A non-fatal remark on stderr."""
+    err_console.print(f"[yellow]warning:[/yellow] {message}", highlight=False, soft_wrap=True)
+
+
+def save_figure(fig: Any, path: Path) -> None:
+    """Save a matplotlib figure as PNG, atomically."""
+    if path.suffix.lower() != ".png":
+        from hound_id.errors import OutputError
+
+        raise OutputError(f"{path}: plots are written as PNG; give a file name ending in .png", path=str(path))
+    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=120))

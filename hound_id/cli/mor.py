@@ -1,0 +1,112 @@
+"""``hound-id mor``: operating regions of a motor or of every joint of a robot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.table import Table
+
+from hound_id.cli._render import console, print_json, save_figure, warn
+from hound_id.errors import HoundIdError
+from hound_id.units import RPM_PER_RAD_S
+
+
+def mor(
+    spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec YAML: the motor-side region."),
+    robot: Optional[Path] = typer.Option(None, "--robot", help="Robot YAML: joint-space regions and URDF boxes."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG plot of the region(s) to this file."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/mor/1 or mor-robot/1)."),
+) -> None:
+    """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot)."""
+    if (spec is None) == (robot is None):
+        raise HoundIdError("mor: give exactly one of --spec MOTOR.yaml or --robot ROBOT.yaml")
+    if spec is not None:
+        _mor_spec(spec, plot, json_out)
+    else:
+        assert robot is not None
+        _mor_robot(robot, plot, json_out)
+
+
+def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.spec import load_motor_spec, spec_warnings
+
+    spec = load_motor_spec(path)
+    region = operating_region(spec)
+    warnings = spec_warnings(spec)
+    for w in warnings:
+        warn(w)
+    if plot is not None:
+        from hound_id.mor.plot import plot_region
+
+        save_figure(plot_region(region), plot)
+    if json_out:
+        data = region.to_dict()
+        data.update(spec=spec.to_dict(), warnings=list(warnings), plot=str(plot) if plot else None)
+        print_json(data)
+        return
+    table = Table(title=f"Operating region of {spec.name} (motor side)", title_justify="left")
+    table.add_column("quantity")
+    table.add_column("SI", justify="right")
+    table.add_column("also", justify="right")
+    rows = [
+        ("torque constant Kt", f"{spec.kt:.4g} N m/A", ""),
+        ("speed constant Kv", f"{spec.kv:.4g} rad/s/V", f"{spec.kv * RPM_PER_RAD_S:.4g} rpm/V"),
+        ("resistance R (model)", f"{spec.resistance:.4g} ohm", ""),
+        ("bus voltage", f"{spec.bus_voltage:.4g} V", ""),
+        ("torque limit", f"{region.torque_limit:.4g} N m",
+         "driver-limited" if region.torque_limit < spec.peak_torque else "peak torque"),
+        ("stall torque Kt V/R", f"{region.stall_torque:.4g} N m", ""),
+        ("no-load speed Kv V", f"{region.no_load_speed:.4g} rad/s", f"{region.no_load_speed * RPM_PER_RAD_S:.0f} rpm"),
+        ("corner speed", f"{region.corner_speed:.4g} rad/s", f"{region.corner_speed * RPM_PER_RAD_S:.0f} rpm"),
+        ("overspeed", f"{region.overspeed:.4g} rad/s", f"{region.overspeed * RPM_PER_RAD_S:.0f} rpm"),
+        ("back-EMF damping Kt/(R Kv)", f"{region.back_emf_damping:.4g} N m s/rad", ""),
+    ]
+    if region.max_speed is not None:
+        rows.append(("rated max speed", f"{region.max_speed:.4g} rad/s", f"{region.max_speed * RPM_PER_RAD_S:.0f} rpm"))
+    for row in rows:
+        table.add_row(*row)
+    console.print(table)
+    verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
+    console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
+    if plot is not None:
+        console.print(f"plot written to {plot}", highlight=False)
+
+
+def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
+    from hound_id.mor.joint_space import robot_regions
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.spec import spec_warnings
+
+    robot = load_robot(path)
+    for spec in {s.name: s for s in robot.motor_specs.values()}.values():
+        for w in spec_warnings(spec):
+            warn(w)
+    regions = robot_regions(robot)
+    if plot is not None:
+        from hound_id.mor.plot import plot_robot
+
+        save_figure(plot_robot(regions), plot)
+    if json_out:
+        data = regions.to_dict()
+        data["plot"] = str(plot) if plot else None
+        print_json(data)
+        return
+    table = Table(title=f"Joint-space limits of {robot.name} (joint side)", title_justify="left")
+    for col in ("joint", "transmission", "inner effort [N m]", "inner velocity [rad/s]",
+                "outer effort [N m]", "outer velocity [rad/s]"):
+        table.add_column(col, justify="left" if col in ("joint", "transmission") else "right")
+    for jr in regions.joints:
+        kind = jr.transmission + (" (coupled)" if jr.coupled else "")
+        table.add_row(jr.joint, kind, f"{jr.inner_box.effort:.4g}", f"{jr.inner_box.velocity:.4g}",
+                      f"{jr.outer_box.effort:.4g}", f"{jr.outer_box.velocity:.4g}")
+    console.print(table)
+    console.print("inner box: every command inside is feasible whatever the coupled joints do within theirs; "
+                  "outer box: bounds of what is reachable at all.", highlight=False)
+    if plot is not None:
+        console.print(f"plot written to {plot}", highlight=False)
+
+
+__all__ = ["mor", "HoundIdError"]

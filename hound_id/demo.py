@@ -1,0 +1,108 @@
+"""``hound-id demo``: run every part that exists on the shipped samples.
+
+Each step writes its JSON and plots into the output folder and returns one line of
+summary. Later capabilities add steps to :data:`STEPS`.
+"""
+
+from __future__ import annotations
+
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from hound_id import io
+from hound_id.samples import samples_dir
+
+SCHEMA = "hound-id/demo/1"
+
+
+@dataclass(frozen=True)
+class StepResult:
+    """Outcome of one demo step."""
+
+    name: str
+    """Step name."""
+    summary: str
+    """One line for the user."""
+    files: tuple[str, ...]
+    """Files written (relative to the output folder)."""
+    figures: dict[str, float]
+    """Headline numbers, SI."""
+
+
+def _save_png(fig: object, path: Path) -> None:
+    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=110))  # type: ignore[attr-defined]
+
+
+def step_motor_regions(out: Path) -> StepResult:
+    """Operating region of every sample motor: JSON and plot."""
+    from hound_id.mor.plot import plot_region
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.spec import load_motor_spec
+
+    files, parts, figures = [], [], {}
+    for spec_file in sorted((samples_dir() / "motors").glob("*.yaml")):
+        spec = load_motor_spec(spec_file)
+        region = operating_region(spec)
+        io.write_json(out / f"mor_{spec.name}.json", region.to_dict())
+        _save_png(plot_region(region), out / f"mor_{spec.name}.png")
+        files += [f"mor_{spec.name}.json", f"mor_{spec.name}.png"]
+        parts.append(f"{spec.name}: {region.torque_limit:.3g} N m up to {region.corner_speed:.4g} rad/s")
+        figures[f"{spec.name}.corner_speed"] = region.corner_speed
+    return StepResult("motor regions", "; ".join(parts), tuple(files), figures)
+
+
+def step_robot_regions(out: Path) -> StepResult:
+    """Joint-space regions, URDF boxes and the saturation study of every sample robot."""
+    from hound_id.mor.joint_space import robot_regions
+    from hound_id.mor.plot import plot_robot
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.saturation import box_study, saturation_for
+
+    files, parts, figures = [], [], {}
+    for robot_file in sorted((samples_dir() / "robots").glob("*.yaml")):
+        robot = load_robot(robot_file)
+        regions = robot_regions(robot)
+        sat = saturation_for(robot)
+        inner = np.array([[j.inner_box.effort, j.inner_box.velocity] for j in regions.joints])
+        outer = np.array([[j.outer_box.effort, j.outer_box.velocity] for j in regions.joints])
+        study = box_study(sat, inner, outer, samples=20_000, seed=0)
+        data = regions.to_dict()
+        data["box_study"] = study.to_dict()
+        io.write_json(out / f"mor_robot_{robot.name}.json", data)
+        _save_png(plot_robot(regions), out / f"mor_robot_{robot.name}.png")
+        files += [f"mor_robot_{robot.name}.json", f"mor_robot_{robot.name}.png"]
+        parts.append(
+            f"{robot.name}: {study.outer_infeasible:.1%} of commands inside the URDF outer box are infeasible "
+            f"(mean clip {study.outer_mean_clip:.3g} N m); {study.inner_infeasible:.1%} inside the inner box"
+        )
+        figures[f"{robot.name}.outer_infeasible"] = study.outer_infeasible
+        figures[f"{robot.name}.inner_infeasible"] = study.inner_infeasible
+    return StepResult("robot regions and saturation", "; ".join(parts), tuple(files), figures)
+
+
+STEPS: tuple[Callable[[Path], StepResult], ...] = (step_motor_regions, step_robot_regions)
+
+
+def run_demo(out: Path, on_step: Callable[[str], None] | None = None) -> list[StepResult]:
+    """Run every demo step into ``out`` (created if missing) and write ``summary.json``."""
+    out.mkdir(parents=True, exist_ok=True)
+    results = []
+    for step in STEPS:
+        if on_step is not None:
+            on_step((step.__doc__ or step.__name__).splitlines()[0])
+        results.append(step(out))
+    io.write_json(out / "summary.json", summary_dict(out, results))
+    return results
+
+
+def summary_dict(out: Path, results: list[StepResult]) -> dict[str, object]:
+    """JSON-ready summary, schema ``hound-id/demo/1``."""
+    return {
+        "schema": SCHEMA,
+        "out": str(out),
+        "steps": [{"name": r.name, "summary": r.summary, "files": list(r.files), "figures": r.figures}
+                  for r in results],
+    }

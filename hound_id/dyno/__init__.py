@@ -1,0 +1,1 @@
+"""Dynamometer logs in, fitted motor models out (acquisition, effects, fitting, diagnosis)."""

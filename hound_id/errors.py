@@ -1,0 +1,58 @@
+"""One exception family for hound-id.
+
+Every error the library raises on bad input is a :class:`HoundIdError`. Each
+subclass also inherits the matching builtin, so ``except ValueError`` in user
+code keeps working. The CLI catches :class:`HoundIdError`, prints its message on
+one line and exits with status 2; anything else is a bug and keeps its traceback.
+
+Messages name the file, the field (or row), what was found, what was expected,
+and how to fix it. The offending values are kept as attributes.
+"""
+
+from __future__ import annotations
+
+from typing import Any
+
+
+class HoundIdError(Exception):
+    """Base of every error hound-id raises on bad input or an impossible request."""
+
+    def __init__(self, message: str, **details: Any) -> None:
+        super().__init__(message)
+        self.message = message
+        self.details = details
+        for key, value in details.items():
+            setattr(self, key, value)
+
+    def __str__(self) -> str:
+        return self.message
+
+
+class UnitError(HoundIdError, ValueError):
+    """A quantity has the wrong physical dimension or cannot be parsed."""
+
+
+class SpecError(HoundIdError, ValueError):
+    """A motor spec sheet is missing a field, has an unknown key or a non-physical value."""
+
+
+class TransmissionError(HoundIdError, ValueError):
+    """A transmission matrix is malformed, singular or inconsistent with its joints."""
+
+
+class RobotError(HoundIdError, ValueError):
+    """A robot description is inconsistent (joints, motors, transmissions)."""
+
+
+class SaturationError(HoundIdError, ValueError):
+    """Arrays given to the saturation have the wrong shape or type."""
+
+
+class OutputError(HoundIdError, OSError):
+    """An output file could not be written."""
+
+
+def where(source: str | None, field: str | None = None) -> str:
+    """Format the 'file: field' prefix used in every message."""
+    parts = [p for p in (source, f"field '{field}'" if field else None) if p]
+    return ": ".join(parts) if parts else "input"

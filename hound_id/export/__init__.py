@@ -1,0 +1,1 @@
+"""Parameter bundles and simulator/trainer formats."""

@@ -1,0 +1,1 @@
+"""Foot geometry, mass properties, leg model and foot optimisation."""

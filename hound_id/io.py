@@ -1,0 +1,89 @@
+"""Atomic output: every file hound-id writes appears whole or not at all.
+
+Writers produce a temporary file beside the target and ``os.replace`` it into
+place, so a crash, a full disk or Ctrl-C never leaves a half-written output.
+"""
+
+from __future__ import annotations
+
+import json
+import os
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
+from pathlib import Path
+from typing import IO, Any
+
+import yaml
+
+from hound_id.errors import OutputError, SpecError
+
+
+@contextmanager
+def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
+    """Yield a temporary path beside ``path``; on success rename it onto ``path``.
+
+    Raises:
+        OutputError: The folder does not exist or the file cannot be written.
+    """
+    target = Path(path)
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise OutputError(
+            f"{target}: folder {folder} does not exist; create it or choose another output path",
+            path=str(target),
+        )
+    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
+    os.close(fd)
+    tmp = Path(tmp_name)
+    try:
+        yield tmp
+        os.replace(tmp, target)
+    except OSError as err:
+        raise OutputError(f"{target}: cannot write ({err.strerror or err})", path=str(target)) from err
+    finally:
+        if tmp.exists():
+            tmp.unlink()
+
+
+def write_text(path: str | os.PathLike[str], text: str) -> None:
+    """Write ``text`` to ``path`` atomically (UTF-8)."""
+    with atomic_path(path) as tmp:
+        tmp.write_text(text, encoding="utf-8")
+
+
+def write_with(path: str | os.PathLike[str], writer: Callable[[IO[bytes]], Any]) -> None:
+    """Call ``writer`` with a binary file object and move the result onto ``path`` atomically."""
+    with atomic_path(path) as tmp, tmp.open("wb") as handle:
+        writer(handle)
+
+
+def write_json(path: str | os.PathLike[str], data: Any) -> None:
+    """Write ``data`` as indented JSON atomically."""
+    write_text(path, json.dumps(data, indent=2) + "\n")
+
+
+def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
+    """Read a YAML file, turning I/O and syntax problems into one-line :class:`SpecError`.
+
+    Args:
+        path: File to read.
+        what: What the file should be ("motor spec", "robot"), for messages.
+    """
+    source = Path(path)
+    try:
+        text = source.read_text(encoding="utf-8")
+    except FileNotFoundError as err:
+        raise SpecError(f"{source}: file not found; expected a {what} YAML file", path=str(source)) from err
+    except (OSError, UnicodeDecodeError) as err:
+        raise SpecError(f"{source}: cannot read the {what} file ({err})", path=str(source)) from err
+    try:
+        return yaml.safe_load(text)
+    except yaml.YAMLError as err:
+        mark = getattr(err, "problem_mark", None)
+        line = f" line {mark.line + 1}" if mark is not None else ""
+        problem = getattr(err, "problem", None) or str(err).splitlines()[0]
+        raise SpecError(
+            f"{source}:{line} is not valid YAML ({problem}); fix the syntax of the {what} file",
+            path=str(source),
+        ) from err

@@ -1,0 +1,223 @@
+"""Joint-space operating regions and the rectangular boxes a URDF can hold.
+
+For a transmission group with velocity map A (k joints, k motors) the feasible
+joint states are {(tau_j, qd) : (A^T tau_j)_m, (A^-1 qd)_m in MOR_m for every
+motor m}: a polytope in 2k dimensions. For each joint hound-id reports
+
+* the **section**: the joint's (tau, qd) region with the other joints of its group
+  at zero torque and speed;
+* the **projection**: every (tau, qd) the joint can reach for some feasible state
+  of the others (exact: the image of the product of the motor polygons);
+* the **outer box**: the bounds of the projection, what is reachable at all;
+* the **inner box**: the symmetric box |tau_i| <= T_i, |qd_i| <= W_i, for all joints
+  of the group at once, every point of which is feasible whatever the coupled
+  joints do within their own boxes. Among all such boxes hound-id picks the one of
+  largest volume (max sum of log T_i + log W_i, which does not depend on units).
+  For an uncoupled motor whose torque limit is below half its stall torque this is
+  (torque limit, corner speed) mapped through the gear.
+
+Box containment is exact: for a symmetric box the worst case of each motor
+constraint is sum_i |P_mi| T_i + sum_i |Q_mi| W_i (P = A^T, Q = A^-1).
+"""
+
+from __future__ import annotations
+
+import itertools
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.errors import RobotError
+from hound_id.mor.region import OperatingRegion, halfspace_polygon, operating_region
+from hound_id.mor.robot import Robot
+from hound_id.mor.transmission import Transmission
+
+SCHEMA = "hound-id/mor-robot/1"
+
+
+def _frozen(a: Any) -> NDArray[np.float64]:
+    out = np.array(a, dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class Box:
+    """A symmetric rectangular limit, joint side."""
+
+    effort: float
+    """|tau| <= effort [N m]."""
+    velocity: float
+    """|qd| <= velocity [rad/s]."""
+
+    def to_dict(self) -> dict[str, float]:
+        return {"effort": self.effort, "velocity": self.velocity}
+
+
+@dataclass(frozen=True)
+class JointRegion:
+    """Operating region of one joint, joint side (N m, rad/s)."""
+
+    joint: str
+    """Joint name."""
+    motors: tuple[str, ...]
+    """Motors of its transmission group."""
+    transmission: str
+    """Kind of the transmission group."""
+    coupled: bool
+    """Whether the group couples joints."""
+    section: NDArray[np.float64]
+    """Vertices (tau, qd), counter-clockwise, with the other joints of the group at rest and unloaded."""
+    projection: NDArray[np.float64]
+    """Vertices (tau, qd), counter-clockwise, of everything reachable with the others free."""
+    inner_box: Box
+    """Box whose every point is feasible while the coupled joints stay in their inner boxes."""
+    outer_box: Box
+    """Bounds of the projection."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "joint": self.joint,
+            "motors": list(self.motors),
+            "transmission": self.transmission,
+            "coupled": self.coupled,
+            "inner_box": self.inner_box.to_dict(),
+            "outer_box": self.outer_box.to_dict(),
+            "section_vertices": self.section.tolist(),
+            "projection_vertices": self.projection.tolist(),
+        }
+
+
+@dataclass(frozen=True)
+class RobotRegions:
+    """Joint-space regions of every joint of a robot, in joint order."""
+
+    robot: str
+    joints: tuple[JointRegion, ...]
+    motors: tuple[OperatingRegion, ...]
+    """Motor regions in motor-vector order."""
+    transmissions: tuple[Transmission, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready content, schema ``hound-id/mor-robot/1`` (SI, joint side unless stated)."""
+        return {
+            "schema": SCHEMA,
+            "robot": self.robot,
+            "units": {"effort": "N m", "velocity": "rad/s", "motors": "motor side"},
+            "joints": [j.to_dict() for j in self.joints],
+            "transmissions": [
+                {"type": t.kind, "joints": list(t.joints), "motors": list(t.motors), "A": t.A.tolist()}
+                for t in self.transmissions
+            ],
+            "motors": [r.to_dict() for r in self.motors],
+        }
+
+
+def _group_constraints(tx: Transmission, regions: list[OperatingRegion]) -> tuple[np.ndarray, np.ndarray]:
+    """Rows G, h with G [tau_j; qd] <= h describing the group's feasible joint states."""
+    k = len(tx.joints)
+    P, Q = tx.A.T, tx.A_inv  # tau_m = P tau_j, omega_m = Q qd
+    rows, rhs = [], []
+    for m, region in enumerate(regions):
+        for a, b in zip(region.A, region.b, strict=True):
+            rows.append(np.concatenate([a[0] * P[m], a[1] * Q[m]]))
+            rhs.append(b)
+    G, h = np.array(rows), np.array(rhs)
+    assert G.shape[1] == 2 * k
+    return G, h
+
+
+def _section(tx: Transmission, G: np.ndarray, h: np.ndarray, i: int) -> np.ndarray:
+    k = len(tx.joints)
+    return halfspace_polygon(G[:, [i, k + i]], h)
+
+
+def _projection(tx: Transmission, regions: list[OperatingRegion], i: int) -> np.ndarray:
+    """Image of the product of the motor polygons, projected on joint i's (tau, qd)."""
+    from scipy.spatial import ConvexHull
+
+    P_inv_row = tx.A_inv.T[i]  # tau_j = A^-T tau_m
+    A_row = tx.A[i]  # qd = A omega_m
+    points = [
+        (float(P_inv_row @ np.array([v[0] for v in combo])), float(A_row @ np.array([v[1] for v in combo])))
+        for combo in itertools.product(*(r.vertices for r in regions))
+    ]
+    pts = np.unique(np.round(np.array(points), 12), axis=0)
+    verts = pts[ConvexHull(pts).vertices]
+    start = int(np.lexsort((-verts[:, 1], -verts[:, 0]))[0])
+    return np.roll(verts, -start, axis=0)
+
+
+def _inner_boxes(tx: Transmission, regions: list[OperatingRegion]) -> list[Box]:
+    """Largest-volume symmetric box per joint contained in the group's feasible set."""
+    from scipy.optimize import minimize
+
+    k = len(tx.joints)
+    P, Q = np.abs(tx.A.T), np.abs(tx.A_inv)
+    rows, rhs = [], []
+    for m, r in enumerate(regions):
+        a_tau, a_omega = r.A[0]  # voltage+ row: (R/Kt, 1/Kv)
+        rows.append(np.concatenate([P[m], np.zeros(k)]))
+        rhs.append(r.torque_limit)
+        rows.append(np.concatenate([a_tau * P[m], a_omega * Q[m]]))
+        rhs.append(r.b[0])
+        if r.max_speed is not None:
+            rows.append(np.concatenate([np.zeros(k), Q[m]]))
+            rhs.append(r.max_speed)
+    M, c = np.array(rows), np.array(rhs)
+    # Work in y = log of each half-width, scaled so every constraint reads M' exp(y) <= 1.
+    Mn = M / c[:, None]
+    # Start inside: every variable at a small share of what its tightest row allows.
+    start = np.log(0.1 / (2 * k) / Mn.max(axis=0))
+
+    def cons(y: np.ndarray) -> np.ndarray:
+        return 1.0 - Mn @ np.exp(y)
+
+    def cons_jac(y: np.ndarray) -> np.ndarray:
+        return -Mn * np.exp(y)[None, :]
+
+    res = minimize(
+        lambda y: -float(np.sum(y)),
+        start,
+        jac=lambda y: -np.ones_like(y),
+        constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}],
+        method="SLSQP",
+        options={"maxiter": 500, "ftol": 1e-12},
+    )
+    y = res.x
+    # Guard against a hair of infeasibility from the solver: shrink uniformly onto the boundary.
+    worst = float(np.max(Mn @ np.exp(y)))
+    if not res.success or not np.isfinite(worst):
+        raise RobotError(f"inner box of {', '.join(tx.joints)}: optimiser failed ({res.message})")
+    x = np.exp(y) / max(worst, 1.0)
+    return [Box(effort=float(x[i]), velocity=float(x[k + i])) for i in range(k)]
+
+
+def robot_regions(robot: Robot) -> RobotRegions:
+    """Joint-space regions and URDF boxes for every joint of ``robot``."""
+    motor_regions = {m: operating_region(robot.motor_specs[m]) for m in robot.motors}
+    per_joint: dict[str, JointRegion] = {}
+    for tx in robot.transmissions:
+        regions = [motor_regions[m] for m in tx.motors]
+        G, h = _group_constraints(tx, regions)
+        boxes = _inner_boxes(tx, regions)
+        for i, joint in enumerate(tx.joints):
+            proj = _projection(tx, regions, i)
+            per_joint[joint] = JointRegion(
+                joint=joint,
+                motors=tx.motors,
+                transmission=tx.kind,
+                coupled=tx.coupled,
+                section=_frozen(_section(tx, G, h, i)),
+                projection=_frozen(proj),
+                inner_box=boxes[i],
+                outer_box=Box(effort=float(np.max(np.abs(proj[:, 0]))), velocity=float(np.max(np.abs(proj[:, 1])))),
+            )
+    return RobotRegions(
+        robot=robot.name,
+        joints=tuple(per_joint[j] for j in robot.joints),
+        motors=tuple(motor_regions[m] for m in robot.motors),
+        transmissions=robot.transmissions,
+    )

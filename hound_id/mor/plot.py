@@ -1,0 +1,98 @@
+"""Plots of operating regions (matplotlib, Agg backend; imported only when plotting)."""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING
+
+import numpy as np
+
+from hound_id.mor.joint_space import RobotRegions
+from hound_id.mor.region import OperatingRegion
+
+if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.figure import Figure
+
+
+def _figure(rows: int, cols: int, size: tuple[float, float]) -> Figure:
+    import matplotlib
+
+    matplotlib.use("Agg")
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=size, layout="constrained")
+    fig.subplots(rows, cols, squeeze=False)
+    return fig
+
+
+def _closed(v: np.ndarray) -> np.ndarray:
+    return np.vstack([v, v[:1]])
+
+
+def _box(ax, effort: float, velocity: float, **kw) -> None:  # type: ignore[no-untyped-def]
+    xs = [-effort, effort, effort, -effort, -effort]
+    ys = [-velocity, -velocity, velocity, velocity, -velocity]
+    ax.plot(xs, ys, **kw)
+
+
+def plot_region(region: OperatingRegion) -> Figure:
+    """The motor's region in (torque, speed) with quadrants labelled, against the URDF box.
+
+    The URDF box is what a rectangular joint limit would claim: the torque limit at
+    every speed up to the no-load (or rated maximum) speed. Its corners in the
+    motoring quadrants (1 and 3) lie outside the region.
+    """
+    fig = _figure(1, 1, (7.5, 6.0))
+    ax = fig.axes[0]
+    v = region.vertices
+    ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label="operating region (MOR)")
+    ax.plot(*_closed(v).T, color="tab:blue", lw=1.8)
+    w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
+    _box(ax, region.torque_limit, w_box, color="tab:red", ls="--", lw=1.4,
+         label=f"URDF box: |tau|<={region.torque_limit:.3g} N m, |omega|<={w_box:.4g} rad/s")
+    _box(ax, region.torque_limit, min(region.corner_speed, w_box), color="tab:green", ls=":", lw=1.6,
+         label="inner box (full torque up to corner speed)")
+    tl, w = region.torque_limit, max(region.overspeed, w_box)
+    ax.axhline(0, color="0.4", lw=0.8)
+    ax.axvline(0, color="0.4", lw=0.8)
+    for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
+        ax.text(sx * 0.55 * tl, sy * 0.85 * w, text, ha="center", va="center", fontsize=10, color="0.25")
+    ax.plot([region.torque_limit], [region.corner_speed], "o", color="k", ms=4)
+    ax.annotate(f"corner {region.corner_speed:.4g} rad/s", (region.torque_limit, region.corner_speed),
+                textcoords="offset points", xytext=(-10, 8), ha="right", fontsize=8)
+    ax.set_xlim(-1.35 * tl, 1.35 * tl)
+    ax.set_ylim(-1.15 * w, 1.15 * w)
+    ax.set_xlabel("motor torque tau [N m]")
+    ax.set_ylabel("motor speed omega [rad/s]")
+    ax.set_title(f"{region.motor}: stall {region.stall_torque:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
+                 f"overspeed {region.overspeed:.4g} rad/s", fontsize=9)
+    ax.legend(loc="lower left", fontsize=8)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def plot_robot(regions: RobotRegions) -> Figure:
+    """One panel per joint: reachable projection, section with the others at rest, inner and outer boxes."""
+    n = len(regions.joints)
+    cols = 3 if n >= 3 else n
+    rows = -(-n // cols)
+    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    for ax, jr in zip(fig.axes, regions.joints, strict=False):
+        p = jr.projection
+        ax.fill(p[:, 0], p[:, 1], color="tab:blue", alpha=0.2, label="reachable (others free)")
+        ax.plot(*_closed(jr.section).T, color="tab:blue", lw=1.4, label="others at rest")
+        _box(ax, jr.outer_box.effort, jr.outer_box.velocity, color="tab:red", ls="--", lw=1.1, label="outer box")
+        _box(ax, jr.inner_box.effort, jr.inner_box.velocity, color="tab:green", ls=":", lw=1.6, label="inner box")
+        ax.axhline(0, color="0.5", lw=0.6)
+        ax.axvline(0, color="0.5", lw=0.6)
+        tag = " (coupled)" if jr.coupled else ""
+        ax.set_title(f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s",
+                     fontsize=8)
+        ax.set_xlabel("joint torque [N m]", fontsize=8)
+        ax.set_ylabel("joint speed [rad/s]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    for ax in fig.axes[n:]:
+        ax.set_visible(False)
+    fig.axes[0].legend(fontsize=6, loc="lower left")
+    fig.suptitle(f"{regions.robot}: joint-space operating regions", fontsize=11)
+    return fig

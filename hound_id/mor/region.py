@@ -1,0 +1,167 @@
+"""The motor operating region (MOR) of the paper, motor side.
+
+For x = (tau, omega) the quasi-static DC model gives (paper, eq. 2)
+
+    -V_bus <= (R/Kt) tau + omega/Kv <= V_bus,
+
+intersected with |tau| <= tau_lim, where tau_lim = min(tau_peak, Kt i_max), and
+with |omega| <= omega_max when the spec gives a maximum speed. The band between
+the voltage lines is a parallelogram; cut by the torque limits it is a hexagon,
+wider in the braking quadrants (2 and 4), where back-EMF adds to the bus.
+
+Characteristic values (physics notes): stall torque Kt V/R, no-load speed Kv V,
+corner speed Kv (V - R tau_lim/Kt) (the highest speed with full motoring torque),
+overspeed Kv (V + R tau_lim/Kt) (past it not even full braking torque keeps the
+current inside its limit; see :func:`torque_interval` for what the saturation
+returns there).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike, NDArray
+
+from hound_id.mor.spec import MotorSpec
+
+SCHEMA = "hound-id/mor/1"
+
+
+def _frozen(a: ArrayLike) -> NDArray[np.float64]:
+    out = np.array(a, dtype=np.float64)
+    out.setflags(write=False)
+    return out
+
+
+@dataclass(frozen=True)
+class OperatingRegion:
+    """The convex operating region of one motor in (torque, speed), motor side, SI units."""
+
+    motor: str
+    """Name of the motor."""
+    A: NDArray[np.float64]
+    """Half-space normals, shape (m, 2), rows (a_tau, a_omega); the region is A x <= b."""
+    b: NDArray[np.float64]
+    """Half-space offsets, shape (m,); units follow each row (V, N m or rad/s)."""
+    labels: tuple[str, ...]
+    """Name of each half-space row (voltage+, voltage-, torque+, torque-, speed+, speed-)."""
+    vertices: NDArray[np.float64]
+    """Polygon vertices (tau [N m], omega [rad/s]), counter-clockwise, shape (k, 2)."""
+    stall_torque: float
+    """Kt V_bus / R [N m]: torque on the voltage line at zero speed."""
+    no_load_speed: float
+    """Kv V_bus [rad/s]: speed on the voltage line at zero torque."""
+    corner_speed: float
+    """Kv (V_bus - R tau_lim / Kt) [rad/s]: highest speed at which the full torque limit can motor."""
+    overspeed: float
+    """Kv (V_bus + R tau_lim / Kt) [rad/s]: beyond it the full braking torque exceeds the voltage line."""
+    torque_limit: float
+    """tau_lim = min(peak torque, Kt i_max) [N m]."""
+    max_speed: float | None
+    """Rated maximum speed [rad/s] if the spec gives one."""
+    back_emf_damping: float
+    """Slope of the voltage lines, Kt / (R Kv) [N m s/rad]."""
+
+    def contains(self, tau: ArrayLike, omega: ArrayLike, rtol: float = 1e-9) -> NDArray[np.bool_]:
+        """Whether each (tau [N m], omega [rad/s]) pair lies in the region (with a relative tolerance)."""
+        x = np.stack(np.broadcast_arrays(np.asarray(tau, float), np.asarray(omega, float)), axis=-1)
+        slack = x @ self.A.T - self.b
+        return np.all(slack <= rtol * np.maximum(self.b, 1.0), axis=-1)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready content, schema ``hound-id/mor/1`` (SI, motor side)."""
+        return {
+            "schema": SCHEMA,
+            "motor": self.motor,
+            "halfspaces": {"A": self.A.tolist(), "b": self.b.tolist(), "labels": list(self.labels)},
+            "vertices": self.vertices.tolist(),
+            "stall_torque": self.stall_torque,
+            "no_load_speed": self.no_load_speed,
+            "corner_speed": self.corner_speed,
+            "overspeed": self.overspeed,
+            "torque_limit": self.torque_limit,
+            "max_speed": self.max_speed,
+            "back_emf_damping": self.back_emf_damping,
+            "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V"},
+        }
+
+
+def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
+    """Vertices (counter-clockwise) of the bounded 2-D polygon {x : A x <= b}.
+
+    Rows whose normal is zero are dropped (they must then have b >= 0). The
+    polygon must contain the origin strictly (b > 0), which holds for every
+    region hound-id builds since all limits are positive.
+    """
+    from scipy.spatial import ConvexHull, HalfspaceIntersection
+
+    A = np.asarray(A, float)
+    b = np.asarray(b, float)
+    keep = np.linalg.norm(A, axis=1) > 1e-14 * max(1.0, float(np.abs(A).max(initial=0.0)))
+    A, b = A[keep], b[keep]
+    if np.any(b <= 0):
+        raise ValueError("halfspace_polygon needs the origin strictly inside (all b > 0)")
+    # Scale each row to a unit normal so the mixed units (V, N m, rad/s) do not upset qhull.
+    norm = np.linalg.norm(A, axis=1)
+    hs = np.column_stack([A / norm[:, None], -b / norm])
+    points = HalfspaceIntersection(hs, np.zeros(2)).intersections
+    hull = ConvexHull(points)
+    verts = points[hull.vertices]  # counter-clockwise for 2-D hulls
+    start = int(np.lexsort((-verts[:, 1], -verts[:, 0]))[0])  # max torque, then max speed
+    return np.roll(verts, -start, axis=0)
+
+
+def operating_region(spec: MotorSpec) -> OperatingRegion:
+    """Build the operating region of a motor from its spec."""
+    r_over_kt = spec.resistance / spec.kt
+    inv_kv = 1.0 / spec.kv
+    tau_lim = spec.torque_limit
+    rows = [
+        ("voltage+", (r_over_kt, inv_kv), spec.bus_voltage),
+        ("voltage-", (-r_over_kt, -inv_kv), spec.bus_voltage),
+        ("torque+", (1.0, 0.0), tau_lim),
+        ("torque-", (-1.0, 0.0), tau_lim),
+    ]
+    if spec.max_speed is not None:
+        rows += [("speed+", (0.0, 1.0), spec.max_speed), ("speed-", (0.0, -1.0), spec.max_speed)]
+    A = np.array([r[1] for r in rows])
+    b = np.array([r[2] for r in rows])
+    corner = spec.kv * (spec.bus_voltage - r_over_kt * tau_lim)
+    return OperatingRegion(
+        motor=spec.name,
+        A=_frozen(A),
+        b=_frozen(b),
+        labels=tuple(r[0] for r in rows),
+        vertices=_frozen(halfspace_polygon(A, b)),
+        stall_torque=spec.stall_torque,
+        no_load_speed=spec.no_load_speed,
+        corner_speed=corner,
+        overspeed=spec.kv * (spec.bus_voltage + r_over_kt * tau_lim),
+        torque_limit=tau_lim,
+        max_speed=spec.max_speed,
+        back_emf_damping=spec.back_emf_damping,
+    )
+
+
+def torque_interval(
+    omega: ArrayLike, region: OperatingRegion
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Feasible motor torque interval [lo, hi] at speed ``omega`` [rad/s].
+
+    Inside |omega| <= overspeed this is exactly the region's slice at that speed.
+    Past overspeed the slice is empty; the interval collapses to the full braking
+    torque, -sign(omega) tau_lim, which is what a current-limited drive applies
+    when the back-EMF outruns the bus (and what Isaac Lab's ``DCMotor`` returns).
+    Past ``max_speed`` (if given) only braking torque (sign opposite to omega, or
+    zero) passes, as a drive's speed limiter does.
+    """
+    omega = np.asarray(omega, float)
+    tl = region.torque_limit
+    lo = np.clip(-region.stall_torque - region.back_emf_damping * omega, -tl, tl)
+    hi = np.clip(region.stall_torque - region.back_emf_damping * omega, -tl, tl)
+    if region.max_speed is not None:
+        hi = np.where(omega > region.max_speed, np.minimum(hi, 0.0), hi)
+        lo = np.where(omega < -region.max_speed, np.maximum(lo, 0.0), lo)
+    return lo, hi

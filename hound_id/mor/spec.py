@@ -1,0 +1,239 @@
+"""Motor spec sheets: unit-aware YAML in, an SI :class:`MotorSpec` out.
+
+Conventions (the quasi-static DC model of the paper, eq. 1):
+
+* ``V = R i + omega / Kv`` and ``tau = Kt i``, with ``i`` the current the torque
+  constant is quoted for. ``resistance`` is the R that makes this hold for the
+  given Kt, i.e. the DC-equivalent resistance of the model.
+* A datasheet usually gives the line-to-line resistance instead. Put it under
+  ``resistance_line_to_line``; it is converted with the ``commutation`` key:
+
+  - ``foc`` (default; sinusoidal field-oriented control with space-vector
+    modulation, Kt per peak phase amp): the phase-voltage amplitude is limited to
+    V_bus/sqrt(3) and the q-axis equation is v_q = R_ph i_q + omega_e lambda, so
+    scaling by sqrt(3) gives R = sqrt(3) R_ph = (sqrt(3)/2) R_line-to-line.
+  - ``six_step`` (trapezoidal commutation, two phases in series, Kt per DC amp):
+    R = R_line-to-line.
+
+* Plain numbers are SI; strings carry units (see :mod:`hound_id.units`).
+* For a consistent spec Kt * Kv is 1 (DC convention) or about sqrt(3)/2 = 0.87
+  (FOC, Kt per peak phase amp, Kv from the line-to-line back-EMF). A product
+  outside 1 +/- 15 % is flagged: it is almost always a unit mix-up.
+"""
+
+from __future__ import annotations
+
+import difflib
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, fields
+from pathlib import Path
+from typing import Any
+
+from hound_id.errors import SpecError, where
+from hound_id.io import read_yaml
+from hound_id.units import to_si
+
+SCHEMA = "hound-id/motor/1"
+
+#: Relative disagreement between Kt and 1/Kv above which a spec is flagged.
+KT_KV_TOLERANCE = 0.15
+
+#: R_model / R_line-to-line for each commutation (see module docstring).
+LINE_TO_LINE_FACTOR = {"foc": math.sqrt(3.0) / 2.0, "six_step": 1.0}
+
+# key -> (physical kind, required)
+_QUANTITY_KEYS: dict[str, tuple[str, bool]] = {
+    "kt": ("torque_constant", True),
+    "kv": ("speed_constant", True),
+    "resistance": ("resistance", False),
+    "resistance_line_to_line": ("resistance", False),
+    "bus_voltage": ("voltage", True),
+    "peak_torque": ("torque", True),
+    "max_current": ("current", False),
+    "max_speed": ("angular_velocity", False),
+    "rotor_inertia": ("inertia", False),
+    "inductance": ("inductance", False),
+}
+_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed")
+KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
+
+
+@dataclass(frozen=True)
+class MotorSpec:
+    """A motor as its spec sheet describes it, in SI units (motor side, before any gearbox)."""
+
+    name: str
+    """Motor name."""
+    kt: float
+    """Torque constant [N m/A]."""
+    kv: float
+    """Speed constant [rad/s/V]."""
+    resistance: float
+    """DC-equivalent winding resistance of the model V = R i + omega/Kv [ohm]."""
+    bus_voltage: float
+    """Supply (bus) voltage [V]."""
+    peak_torque: float
+    """Peak torque, where the current-torque curve deviates 20 % from linear [N m]."""
+    max_current: float | None = None
+    """Driver current limit [A], if any."""
+    max_speed: float | None = None
+    """Rated maximum speed [rad/s], if any."""
+    rotor_inertia: float | None = None
+    """Rotor inertia [kg m^2], if known."""
+    inductance: float | None = None
+    """Winding inductance [H], if known."""
+    pole_pairs: int | None = None
+    """Number of pole pairs, if known."""
+    source: str | None = None
+    """Where the numbers came from."""
+    assumed: tuple[str, ...] = ()
+    """Fields whose values are assumed rather than sourced."""
+
+    @property
+    def torque_limit(self) -> float:
+        """Torque limit actually in force: min(peak torque, Kt * max current) [N m]."""
+        if self.max_current is None:
+            return self.peak_torque
+        return min(self.peak_torque, self.kt * self.max_current)
+
+    @property
+    def stall_torque(self) -> float:
+        """Torque at zero speed on the voltage line, Kt V_bus / R [N m]."""
+        return self.kt * self.bus_voltage / self.resistance
+
+    @property
+    def no_load_speed(self) -> float:
+        """Speed at zero torque on the voltage line, Kv V_bus [rad/s]."""
+        return self.kv * self.bus_voltage
+
+    @property
+    def back_emf_damping(self) -> float:
+        """Slope of the voltage line, Kt / (R Kv) [N m s/rad]."""
+        return self.kt / (self.resistance * self.kv)
+
+    def to_dict(self) -> dict[str, Any]:
+        """SI values keyed by field name, with the units in the key docs (schema hound-id/motor/1)."""
+        out: dict[str, Any] = {"schema": SCHEMA}
+        for f in fields(self):
+            value = getattr(self, f.name)
+            out[f.name] = list(value) if isinstance(value, tuple) else value
+        return out
+
+
+def spec_warnings(spec: MotorSpec) -> tuple[str, ...]:
+    """Plausibility checks that do not make a spec invalid but usually mean a mistake."""
+    out: list[str] = []
+    product = spec.kt * spec.kv
+    if abs(product - 1.0) > KT_KV_TOLERANCE:
+        out.append(
+            f"{spec.name}: Kt = {spec.kt:.4g} N m/A and 1/Kv = {1 / spec.kv:.4g} V s/rad disagree by "
+            f"{abs(product - 1) * 100:.0f} % (Kt*Kv = {product:.3g}, expected 0.87 (FOC) to 1 (DC)); "
+            "check for rpm/V given as rad/s/V, or Kt per RMS amp"
+        )
+    if spec.torque_limit > spec.stall_torque:
+        out.append(
+            f"{spec.name}: torque limit {spec.torque_limit:.4g} N m exceeds the stall torque "
+            f"{spec.stall_torque:.4g} N m; the voltage limit, not the peak torque, bounds the region at rest"
+        )
+    return tuple(out)
+
+
+def _suggest(key: str) -> str:
+    close = difflib.get_close_matches(key, KNOWN_KEYS, n=1)
+    return f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(KNOWN_KEYS)}"
+
+
+def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
+    """Validate a parsed spec-sheet mapping and convert it to SI.
+
+    Args:
+        data: The parsed YAML (a mapping).
+        source: File name, for messages.
+
+    Raises:
+        SpecError: Missing, unknown or non-physical fields.
+        UnitError: A quantity with the wrong dimension.
+    """
+    if not isinstance(data, Mapping):
+        raise SpecError(
+            f"{where(source)}: found {type(data).__name__}, expected a mapping of spec fields "
+            f"(name, kt, kv, resistance, bus_voltage, peak_torque, ...)",
+            found=data,
+        )
+    unknown = [k for k in data if k not in KNOWN_KEYS]
+    if unknown:
+        key = str(unknown[0])
+        raise SpecError(f"{where(source, key)}: unknown key; {_suggest(key)}", field=key)
+    schema = data.get("schema", SCHEMA)
+    if schema != SCHEMA:
+        raise SpecError(f"{where(source, 'schema')}: found {schema!r}, expected {SCHEMA!r}", field="schema")
+
+    values: dict[str, float] = {}
+    for key, (kind, required) in _QUANTITY_KEYS.items():
+        if key not in data or data[key] is None:
+            if required:
+                raise SpecError(
+                    f"{where(source, key)}: missing; add it (see the spec-sheet section of the README)",
+                    field=key,
+                )
+            continue
+        value = to_si(data[key], kind, source=source, field=key)
+        if value <= 0.0:
+            raise SpecError(
+                f"{where(source, key)}: found {data[key]!r}, expected a positive value", field=key, found=data[key]
+            )
+        values[key] = value
+
+    commutation = data.get("commutation", "foc")
+    if commutation not in LINE_TO_LINE_FACTOR:
+        raise SpecError(
+            f"{where(source, 'commutation')}: found {commutation!r}, expected one of "
+            f"{', '.join(sorted(LINE_TO_LINE_FACTOR))}",
+            field="commutation",
+        )
+    if "resistance" in values and "resistance_line_to_line" in values:
+        raise SpecError(
+            f"{where(source, 'resistance_line_to_line')}: both 'resistance' and 'resistance_line_to_line' "
+            "given; keep one (the model resistance, or the datasheet line-to-line value to convert)",
+            field="resistance_line_to_line",
+        )
+    if "resistance_line_to_line" in values:
+        values["resistance"] = values.pop("resistance_line_to_line") * LINE_TO_LINE_FACTOR[commutation]
+    if "resistance" not in values:
+        raise SpecError(
+            f"{where(source, 'resistance')}: missing; give 'resistance' (model value) or "
+            "'resistance_line_to_line' (datasheet value, converted by 'commutation')",
+            field="resistance",
+        )
+
+    pole_pairs = data.get("pole_pairs")
+    if pole_pairs is not None and (isinstance(pole_pairs, bool) or not isinstance(pole_pairs, int) or pole_pairs < 1):
+        raise SpecError(
+            f"{where(source, 'pole_pairs')}: found {pole_pairs!r}, expected a positive integer",
+            field="pole_pairs",
+        )
+    name = data.get("name")
+    if not isinstance(name, str) or not name.strip():
+        raise SpecError(f"{where(source, 'name')}: missing or empty; give the motor a name", field="name")
+    src = data.get("source")
+    if src is not None and not isinstance(src, str):
+        raise SpecError(f"{where(source, 'source')}: found {src!r}, expected text", field="source")
+    assumed = data.get("assumed", [])
+    if not isinstance(assumed, list) or any(a not in _QUANTITY_KEYS and a != "pole_pairs" for a in assumed):
+        raise SpecError(
+            f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names",
+            field="assumed",
+        )
+    return MotorSpec(
+        name=name.strip(),
+        pole_pairs=pole_pairs,
+        source=src,
+        assumed=tuple(assumed),
+        **values,
+    )
+
+
+def load_motor_spec(path: str | Path) -> MotorSpec:
+    """Read and validate a motor spec YAML file (see module docstring for its conventions)."""
+    return motor_spec_from_mapping(read_yaml(path, "motor spec"), source=str(path))

@@ -1,0 +1,137 @@
+"""Quantity parsing: the only place hound-id converts units.
+
+Inputs may be plain numbers, which are taken as SI (N m/A, rad/s/V, ohm, V, N m,
+A, rad/s, kg m^2, H), or strings with units that pint understands
+(``"95 rpm/V"``, ``"120 mohm"``, ``"0.087 N*m/A"``). Everything is converted
+once, here, to SI floats; code past this module works in SI only.
+
+Two datasheet habits get special treatment:
+
+* ``Nm`` (newton metre) is read as ``N*m``; pint alone would read nanometre.
+* ``Hz`` is refused for angular speeds: it is ambiguous between rev/s and rad/s.
+  Write ``rps``, ``rpm`` or ``rad/s``.
+"""
+
+from __future__ import annotations
+
+import math
+import re
+from functools import lru_cache
+from typing import TYPE_CHECKING, Any
+
+from hound_id.errors import UnitError, where
+
+if TYPE_CHECKING:  # pragma: no cover
+    import pint
+
+#: Name of each physical kind hound-id reads -> (SI unit for pint, human label, example).
+KINDS: dict[str, tuple[str, str, str]] = {
+    "angular_velocity": ("rad/s", "an angular speed", "'6000 rpm' or 628.3 (rad/s)"),
+    "current": ("A", "a current", "'70 A' or 70"),
+    "dimensionless": ("dimensionless", "a plain number", "7.5"),
+    "inductance": ("H", "an inductance", "'85 uH' or 8.5e-5"),
+    "inertia": ("kg*m**2", "a moment of inertia", "'120 kg*mm^2' or 1.2e-4"),
+    "resistance": ("ohm", "a resistance", "'120 mohm' or 0.12"),
+    "speed_constant": ("rad/s/V", "a speed constant", "'95 rpm/V' or 9.95 (rad/s/V)"),
+    "torque": ("N*m", "a torque", "'8 N*m' or 8"),
+    "torque_constant": ("N*m/A", "a torque constant", "'0.087 N*m/A' or 0.087"),
+    "voltage": ("V", "a voltage", "'81 V' or 81"),
+}
+
+_NM = re.compile(r"(?<![A-Za-z])([munk]?)Nm(?![A-Za-z])")
+
+
+@lru_cache(maxsize=1)
+def registry() -> pint.UnitRegistry:
+    """The process-wide pint registry (built on first use; pint is slow to load)."""
+    import pint
+
+    return pint.UnitRegistry()
+
+
+def _normalise(text: str) -> str:
+    return _NM.sub(r"\1N*m", text.strip())
+
+
+def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None = None) -> float:
+    """Convert a spec value to an SI float of the given physical kind.
+
+    Args:
+        value: A plain number (already SI) or a string with units.
+        kind: One of :data:`KINDS`.
+        source: File the value came from, for messages.
+        field: Field name, for messages.
+
+    Returns:
+        The value in the SI unit of ``kind`` (see :data:`KINDS`).
+
+    Raises:
+        UnitError: The value is not a number or quantity, has the wrong dimension,
+            or is not finite.
+    """
+    si_unit, label, example = KINDS[kind]
+    loc = where(source, field)
+    if isinstance(value, bool) or value is None:
+        raise UnitError(
+            f"{loc}: found {value!r}, expected {label} such as {example}",
+            found=value,
+            expected=si_unit,
+        )
+    if isinstance(value, (int, float)):
+        result = float(value)
+    elif isinstance(value, str):
+        result = _parse_string(value, kind, loc)
+    else:
+        raise UnitError(
+            f"{loc}: found {type(value).__name__} {value!r}, expected {label} such as {example}",
+            found=value,
+            expected=si_unit,
+        )
+    if not math.isfinite(result):
+        raise UnitError(f"{loc}: found {value!r}, expected a finite {label.split(' ', 1)[1]}",
+                        found=value, expected=si_unit)
+    return result
+
+
+def _parse_string(text: str, kind: str, loc: str) -> float:
+    import pint
+
+    si_unit, label, example = KINDS[kind]
+    ureg = registry()
+    try:
+        quantity = ureg.Quantity(_normalise(text))
+    except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError) as err:
+        raise UnitError(
+            f"{loc}: cannot read {text!r} as a quantity ({err}); expected {label} such as {example}",
+            found=text,
+            expected=si_unit,
+        ) from err
+    if kind == "angular_velocity" or kind == "speed_constant":
+        if "hertz" in str(quantity.units) or "Hz" in text:
+            raise UnitError(
+                f"{loc}: {text!r} uses Hz, which is ambiguous for an angular speed "
+                "(rev/s or rad/s?); write it in rps, rpm or rad/s",
+                found=text,
+                expected=si_unit,
+            )
+    target = ureg.Unit(si_unit)
+    if quantity.dimensionality != target.dimensionality:
+        raise UnitError(
+            f"{loc}: found {text!r} with dimension {quantity.dimensionality}, expected {label} "
+            f"in units of {si_unit} (for example {example}); fix the unit",
+            found=text,
+            expected=si_unit,
+        )
+    return float(quantity.to(target).magnitude)
+
+
+def format_si(value: float, kind: str) -> str:
+    """Render an SI float with its unit, e.g. ``"9.948 rad/s/V"``."""
+    unit = KINDS[kind][0].replace("**", "^")
+    if kind == "dimensionless":
+        return f"{value:.4g}"
+    return f"{value:.4g} {unit}"
+
+
+#: Factors for derived display units (SI value * factor = display value).
+RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
