@@ -28,6 +28,10 @@ from hound_id.mor.spec import MotorSpec
 
 SCHEMA = "hound-id/mor/1"
 
+#: Relative tolerance on the rated maximum speed before the braking-only rule applies,
+#: so states computed on the boundary (polygon vertices) count as inside.
+SPEED_TOLERANCE = 1e-9
+
 
 def _frozen(a: ArrayLike) -> NDArray[np.float64]:
     out = np.array(a, dtype=np.float64)
@@ -162,6 +166,7 @@ def torque_interval(
     lo = np.clip(-region.stall_torque - region.back_emf_damping * omega, -tl, tl)
     hi = np.clip(region.stall_torque - region.back_emf_damping * omega, -tl, tl)
     if region.max_speed is not None:
-        hi = np.where(omega > region.max_speed, np.minimum(hi, 0.0), hi)
-        lo = np.where(omega < -region.max_speed, np.maximum(lo, 0.0), lo)
+        limit = region.max_speed * (1.0 + SPEED_TOLERANCE)
+        hi = np.where(omega > limit, np.minimum(hi, 0.0), hi)
+        lo = np.where(omega < -limit, np.maximum(lo, 0.0), lo)
     return lo, hi

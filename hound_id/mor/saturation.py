@@ -25,7 +25,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.errors import SaturationError
-from hound_id.mor.region import operating_region
+from hound_id.mor.region import SPEED_TOLERANCE, operating_region
 from hound_id.mor.robot import Robot
 
 
@@ -95,13 +95,14 @@ class Saturation:
         # u = qd @ speed_map is back_emf_damping * omega_m, folded into one product.
         speed_map = self.A_inv.T * self.back_emf_damping[None, :]
         arrays = (self.A, self.A_inv, speed_map, self.stall_torque, self.torque_limit,
-                  self.max_speed / 1.0, self.back_emf_damping)
+                  self.max_speed * (1.0 + SPEED_TOLERANCE))
         if key[0] == "torch":
             import torch
 
-            consts = tuple(torch.as_tensor(a, dtype=like.dtype, device=like.device) for a in arrays)
+            tensors = tuple(torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in arrays)
         else:
-            consts = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in arrays)
+            tensors = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in arrays)
+        consts = (*tensors, bool(np.isfinite(self.max_speed).any()))
         self._cache[key] = consts
         return consts
 
@@ -135,21 +136,25 @@ class Saturation:
         return self._bounds(qd, self._constants(qd))
 
     def _bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
-        _, A_inv, speed_map, stall, tl, wmax, damping = consts
-        u = qd @ speed_map
+        _, A_inv, speed_map, stall, tl, wmax, has_max_speed = consts
+        u = qd @ speed_map  # back-EMF damping * motor speed
         if _is_torch(qd):
             import torch
 
-            hi = torch.minimum(torch.maximum(stall - u, -tl), tl)
-            lo = torch.minimum(torch.maximum(-stall - u, -tl), tl)
-            if bool(torch.isfinite(wmax).any()):
+            hi = torch.clamp(stall - u, -tl, tl)
+            lo = torch.clamp(u.neg_().sub_(stall), -tl, tl)
+            if has_max_speed:
                 omega = qd @ A_inv.T
                 hi = torch.where(omega > wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        hi = np.clip(stall - u, -tl, tl)
-        lo = np.clip(-stall - u, -tl, tl)
-        if np.isfinite(wmax).any():
+        hi = stall - u
+        np.maximum(hi, -tl, out=hi)
+        np.minimum(hi, tl, out=hi)
+        lo = np.subtract(-stall, u, out=u)
+        np.maximum(lo, -tl, out=lo)
+        np.minimum(lo, tl, out=lo)
+        if has_max_speed:
             omega = qd @ A_inv.T
             hi = np.where(omega > wmax, np.minimum(hi, 0.0), hi)
             lo = np.where(omega < -wmax, np.maximum(lo, 0.0), lo)
@@ -169,8 +174,10 @@ class Saturation:
         if _is_torch(tau):
             import torch
 
-            return torch.minimum(torch.maximum(tau_m, lo), hi) @ A_inv
-        return np.minimum(np.maximum(tau_m, lo), hi) @ A_inv
+            return torch.clamp(tau_m, lo, hi) @ A_inv
+        np.maximum(tau_m, lo, out=tau_m)
+        np.minimum(tau_m, hi, out=tau_m)
+        return tau_m @ A_inv
 
     def violation(self, tau: Any, qd: Any) -> Any:
         """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n)."""
@@ -206,10 +213,10 @@ def dc_motor_clip(effort: Any, vel: Any, saturation_effort: Any, velocity_limit:
         top = torch.clamp(saturation_effort * (1.0 - v / velocity_limit), max=effort_limit)
         bottom = torch.clamp(saturation_effort * (-1.0 - v / velocity_limit), min=-effort_limit)
         return torch.clamp(effort, bottom, top)
-    v = np.clip(vel, -vel_at_limit, vel_at_limit)
+    v = np.minimum(np.maximum(vel, -vel_at_limit), vel_at_limit)
     top = np.minimum(saturation_effort * (1.0 - v / velocity_limit), effort_limit)
     bottom = np.maximum(saturation_effort * (-1.0 - v / velocity_limit), -effort_limit)
-    return np.clip(effort, bottom, top)
+    return np.minimum(np.maximum(effort, bottom), top)
 
 
 @dataclass(frozen=True)

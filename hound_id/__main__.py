@@ -1,0 +1,3 @@
+from hound_id.cli import main
+
+main()

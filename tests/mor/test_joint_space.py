@@ -1,0 +1,97 @@
+import itertools
+
+import numpy as np
+import pytest
+from scipy.optimize import linprog
+
+from hound_id.mor.joint_space import _group_constraints, robot_regions
+from hound_id.mor.region import operating_region
+from hound_id.mor.robot import load_robot
+from hound_id.mor.saturation import saturation_for
+from tests.conftest import ROBOT, SMALL_MOTOR
+
+MIXED = f"""
+name: mixed
+motor_specs: {{s: {SMALL_MOTOR}}}
+joints: [a, h, k, p, q]
+transmissions:
+  - {{type: ratio, joints: [a], motors: [ma], motor_spec: s, ratios: [-6.0]}}
+  - {{type: hollow_shaft, joints: [h, k], motors: [mh, mk], motor_spec: s, hip_ratio: 9, knee_ratio: 6}}
+  - {{type: matrix, joints: [p, q], motors: [mp, mq], motor_spec: s, matrix: [[0.1, 0.03], [-0.02, 0.12]]}}
+"""
+
+
+@pytest.fixture(scope="module")
+def sample():
+    robot = load_robot(ROBOT)
+    return robot, robot_regions(robot), saturation_for(robot)
+
+
+@pytest.fixture
+def mixed(write_yaml):
+    robot = load_robot(write_yaml("mixed.yaml", MIXED))
+    return robot, robot_regions(robot), saturation_for(robot)
+
+
+def test_uncoupled_inner_box_is_torque_limit_to_corner_speed(sample):
+    robot, regions, _ = sample
+    jr = regions.joints[robot.joints.index("FL_HAA")]
+    motor = operating_region(robot.motor_specs["FL_HAA_motor"])
+    assert jr.inner_box.effort == pytest.approx(9.0 * motor.torque_limit, rel=1e-6)
+    assert jr.inner_box.velocity == pytest.approx(motor.corner_speed / 9.0, rel=1e-6)
+    assert jr.outer_box.velocity == pytest.approx(motor.overspeed / 9.0, rel=1e-9)
+
+
+@pytest.mark.parametrize("which", ["sample", "mixed"])
+def test_every_corner_of_the_inner_boxes_is_feasible_and_the_boxes_are_tight(which, request):
+    robot, regions, sat = request.getfixturevalue(which)
+    T = np.array([j.inner_box.effort for j in regions.joints])
+    W = np.array([j.inner_box.velocity for j in regions.joints])
+    for tx in robot.transmissions:
+        idx = [robot.joints.index(j) for j in tx.joints]
+        corners = []
+        for signs in itertools.product([-1.0, 1.0], repeat=2 * len(idx)):
+            tau, qd = np.zeros(robot_n := len(robot.joints)), np.zeros(robot_n)
+            tau[idx] = np.array(signs[: len(idx)]) * T[idx]
+            qd[idx] = np.array(signs[len(idx):]) * W[idx]
+            corners.append((tau, qd))
+        tau = np.array([c[0] for c in corners])
+        qd = np.array([c[1] for c in corners])
+        assert sat.violation(tau, qd).max() <= 1e-7
+        grown = sat.violation(tau * 1.001, qd * 1.001)
+        assert grown.max() > 0.0, f"inner box of {tx.joints} is not tight"
+
+
+@pytest.mark.parametrize("which", ["sample", "mixed"])
+def test_outer_box_matches_an_independent_linear_program(which, request):
+    robot, regions, _ = request.getfixturevalue(which)
+    for tx in robot.transmissions:
+        motor_regions = [operating_region(robot.motor_specs[m]) for m in tx.motors]
+        G, h = _group_constraints(tx, motor_regions)
+        k = len(tx.joints)
+        for i, joint in enumerate(tx.joints):
+            jr = regions.joints[robot.joints.index(joint)]
+            for col, bound in ((i, jr.outer_box.effort), (k + i, jr.outer_box.velocity)):
+                c = np.zeros(2 * k)
+                c[col] = -1.0
+                res = linprog(c, A_ub=G, b_ub=h, bounds=[(None, None)] * (2 * k), method="highs")
+                assert res.status == 0
+                assert -res.fun == pytest.approx(bound, rel=1e-7)
+
+
+def test_sections_lie_inside_projections_and_are_feasible(mixed):
+    robot, regions, sat = mixed
+    for i, jr in enumerate(regions.joints):
+        tau = np.zeros((len(jr.section), len(robot.joints)))
+        qd = np.zeros_like(tau)
+        tau[:, i], qd[:, i] = jr.section[:, 0], jr.section[:, 1]
+        assert sat.violation(tau, qd).max() <= 1e-7 * np.abs(jr.section).max()
+        assert np.abs(jr.section[:, 0]).max() <= jr.outer_box.effort * (1 + 1e-9)
+        assert np.abs(jr.section[:, 1]).max() <= jr.outer_box.velocity * (1 + 1e-9)
+
+
+def test_json(sample):
+    data = sample[1].to_dict()
+    assert data["schema"] == "hound-id/mor-robot/1"
+    assert [j["joint"] for j in data["joints"]] == list(sample[0].joints)
+    assert {"inner_box", "outer_box", "section_vertices", "projection_vertices"} <= set(data["joints"][1])

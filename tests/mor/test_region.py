@@ -1,0 +1,101 @@
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hound_id.mor.region import halfspace_polygon, operating_region, torque_interval
+from hound_id.mor.spec import MotorSpec, load_motor_spec
+from tests.conftest import MOTOR, SMALL_MOTOR
+
+
+@st.composite
+def specs(draw, with_speed=None):
+    kt = draw(st.floats(0.01, 2.0))
+    kv = draw(st.floats(0.8, 1.2)) / kt
+    has_speed = draw(st.booleans()) if with_speed is None else with_speed
+    return MotorSpec(
+        name="h",
+        kt=kt,
+        kv=kv,
+        resistance=draw(st.floats(0.01, 5.0)),
+        bus_voltage=draw(st.floats(5.0, 400.0)),
+        peak_torque=draw(st.floats(0.1, 100.0)),
+        max_current=draw(st.one_of(st.none(), st.floats(1.0, 300.0))),
+        max_speed=draw(st.floats(10.0, 3000.0)) if has_speed else None,
+    )
+
+
+def signed_area(v):
+    x, y = v[:, 0], v[:, 1]
+    return 0.5 * float(np.sum(x * np.roll(y, -1) - np.roll(x, -1) * y))
+
+
+def test_characteristic_values_of_the_sample():
+    spec = load_motor_spec(MOTOR)
+    r = operating_region(spec)
+    tl = 0.138 * 70
+    assert r.stall_torque == pytest.approx(spec.kt * spec.bus_voltage / spec.resistance)
+    assert r.no_load_speed == pytest.approx(spec.kv * spec.bus_voltage)
+    assert r.corner_speed == pytest.approx(spec.kv * (spec.bus_voltage - spec.resistance * tl / spec.kt))
+    assert r.overspeed == pytest.approx(spec.kv * (spec.bus_voltage + spec.resistance * tl / spec.kt))
+    # Without a speed limit the region is the voltage band cut by the torque limits: a parallelogram.
+    assert len(r.vertices) == 4
+    assert np.any(np.all(np.isclose(r.vertices, [tl, r.corner_speed]), axis=1))
+
+
+def test_speed_limit_cuts_the_corners():
+    r = operating_region(load_motor_spec(SMALL_MOTOR))
+    assert len(r.vertices) == 6
+    assert np.max(np.abs(r.vertices[:, 1])) == pytest.approx(r.max_speed)
+
+
+@settings(max_examples=200, deadline=None)
+@given(specs())
+def test_vertices_are_counter_clockwise_and_on_the_boundary(spec):
+    r = operating_region(spec)
+    v = r.vertices
+    assert signed_area(v) > 0
+    slack = v @ r.A.T - r.b
+    tol = 1e-9 * np.maximum(r.b, 1.0)
+    assert np.all(slack <= tol)
+    assert np.all(np.sum(np.abs(slack) <= 1e-7 * np.maximum(r.b, 1.0), axis=1) >= 2)  # each vertex: 2 active rows
+    assert r.contains(0.0, 0.0)
+    # The region is centrally symmetric.
+    assert np.allclose(np.sort(v, axis=0), np.sort(-v, axis=0), atol=1e-9 * np.abs(v).max())
+
+
+@settings(max_examples=200, deadline=None)
+@given(specs(), st.floats(-1.5, 1.5))
+def test_torque_interval_is_the_slice_of_the_region(spec, frac):
+    r = operating_region(spec)
+    omega = frac * r.overspeed
+    lo, hi = torque_interval(omega, r)
+    if r.max_speed is not None and abs(omega) > r.max_speed:
+        # Past the rated speed only braking torque passes.
+        assert (hi <= 0.0) if omega > 0 else (lo >= 0.0)
+        return
+    if abs(omega) > r.overspeed:
+        # Past overspeed: full braking torque.
+        assert lo == pytest.approx(hi) and hi == pytest.approx(-np.sign(omega) * r.torque_limit)
+        return
+    assert lo <= hi
+    assert r.contains(lo, omega) and r.contains(hi, omega)
+    scale = max(r.torque_limit, 1.0)
+    assert not r.contains(hi + 1e-6 * scale, omega)
+    assert not r.contains(lo - 1e-6 * scale, omega)
+
+
+def test_halfspace_polygon_square():
+    A = np.array([[1, 0], [-1, 0], [0, 1], [0, -1], [0, 0]])
+    v = halfspace_polygon(A, np.array([1.0, 1.0, 2.0, 2.0, 1.0]))
+    assert signed_area(v) == pytest.approx(8.0)
+    with pytest.raises(ValueError):
+        halfspace_polygon(A[:4], np.array([1.0, -1.0, 1.0, 1.0]))
+
+
+def test_region_json_schema():
+    data = operating_region(load_motor_spec(MOTOR)).to_dict()
+    assert data["schema"] == "hound-id/mor/1"
+    for key in ("motor", "halfspaces", "vertices", "stall_torque", "no_load_speed", "corner_speed", "overspeed"):
+        assert key in data
+    assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"])

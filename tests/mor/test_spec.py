@@ -1,0 +1,102 @@
+import math
+
+import pytest
+
+from hound_id.errors import SpecError, UnitError
+from hound_id.mor.spec import LINE_TO_LINE_FACTOR, load_motor_spec, motor_spec_from_mapping, spec_warnings
+from tests.conftest import MOTOR, SMALL_MOTOR
+
+BASE = {"name": "m", "kt": 0.1, "kv": 10.0, "resistance": 0.2, "bus_voltage": 48.0, "peak_torque": 3.0}
+
+
+def test_samples_load_with_units_converted():
+    small = load_motor_spec(SMALL_MOTOR)
+    assert small.kv == pytest.approx(100 * 2 * math.pi / 60)
+    assert small.resistance == pytest.approx(0.31)
+    assert small.max_speed == pytest.approx(2000 * 2 * math.pi / 60)
+    assert small.rotor_inertia == pytest.approx(0.6e-4)
+    hound = load_motor_spec(MOTOR)
+    assert hound.torque_limit == pytest.approx(0.138 * 70)  # driver-limited below the 12 N m peak
+    assert spec_warnings(hound) == () and spec_warnings(small) == ()
+
+
+def test_same_motor_in_si_numbers_and_in_datasheet_units_is_the_same_spec():
+    si = motor_spec_from_mapping(dict(BASE, max_speed=500.0, rotor_inertia=1e-4))
+    units = motor_spec_from_mapping({
+        "name": "m", "kt": "100 mNm/A", "kv": f"{10 * 60 / (2 * math.pi)} rpm/V", "resistance": "200 mohm",
+        "bus_voltage": "48000 mV", "peak_torque": "3 N*m", "max_speed": f"{500 / (2 * math.pi)} rps",
+        "rotor_inertia": "1 kg*cm^2",
+    })
+    for field in ("kt", "kv", "resistance", "bus_voltage", "peak_torque", "max_speed", "rotor_inertia"):
+        assert getattr(units, field) == pytest.approx(getattr(si, field), rel=1e-12), field
+
+
+@pytest.mark.parametrize(("commutation", "factor"), [("foc", math.sqrt(3) / 2), ("six_step", 1.0)])
+def test_line_to_line_resistance_is_converted(commutation, factor):
+    data = {k: v for k, v in BASE.items() if k != "resistance"}
+    spec = motor_spec_from_mapping(dict(data, resistance_line_to_line="0.3 ohm", commutation=commutation))
+    assert spec.resistance == pytest.approx(0.3 * factor)
+    assert LINE_TO_LINE_FACTOR[commutation] == pytest.approx(factor)
+
+
+def test_foc_conversion_matches_the_physics_notes():
+    # Feeding R_ll into the DC formula overstates the slope by about 15 %.
+    assert 1 / LINE_TO_LINE_FACTOR["foc"] - 1 == pytest.approx(0.155, abs=0.005)
+
+
+@pytest.mark.parametrize(
+    ("change", "error", "match"),
+    [
+        ({"kt": None}, SpecError, "field 'kt': missing"),
+        ({"peak_torque": None}, SpecError, "field 'peak_torque': missing"),
+        ({"kvv": 3}, SpecError, "field 'kvv': unknown key; did you mean 'kv'"),
+        ({"kv": "10 V"}, UnitError, "field 'kv'.*dimension"),
+        ({"resistance": -0.1}, SpecError, "field 'resistance'.*positive"),
+        ({"bus_voltage": 0}, SpecError, "field 'bus_voltage'.*positive"),
+        ({"resistance_line_to_line": 0.2}, SpecError, "both 'resistance' and"),
+        ({"commutation": "trapezoid"}, SpecError, "commutation"),
+        ({"pole_pairs": 2.5}, SpecError, "pole_pairs.*positive integer"),
+        ({"name": ""}, SpecError, "field 'name'"),
+        ({"schema": "hound-id/motor/9"}, SpecError, "schema"),
+        ({"assumed": ["colour"]}, SpecError, "assumed"),
+    ],
+)
+def test_bad_specs_name_the_field(change, error, match):
+    data = dict(BASE)
+    for key, value in change.items():
+        if value is None:
+            data.pop(key, None)
+        else:
+            data[key] = value
+    with pytest.raises(error, match=match):
+        motor_spec_from_mapping(data, source="motor.yaml")
+
+
+def test_missing_resistance_says_which_keys_work():
+    data = {k: v for k, v in BASE.items() if k != "resistance"}
+    with pytest.raises(SpecError, match="resistance_line_to_line"):
+        motor_spec_from_mapping(data)
+
+
+def test_file_problems(write_yaml, tmp_path):
+    with pytest.raises(SpecError, match="file not found"):
+        load_motor_spec(tmp_path / "nope.yaml")
+    with pytest.raises(SpecError, match="line 3 is not valid YAML"):
+        load_motor_spec(write_yaml("bad.yaml", "name: x\nkt: [1,\n"))
+    with pytest.raises(SpecError, match="expected a mapping"):
+        load_motor_spec(write_yaml("list.yaml", "- 1\n- 2\n"))
+
+
+def test_kt_kv_mixup_warns():
+    # Kv in rpm/V typed as rad/s/V: off by 9.5x.
+    spec = motor_spec_from_mapping(dict(BASE, kt=0.087, kv=95.0))
+    (warning,) = spec_warnings(spec)
+    assert "disagree" in warning and "rpm/V" in warning
+    # FOC convention (Kt = 8.27 / Kv[rpm/V]) is within tolerance.
+    foc = motor_spec_from_mapping(dict(BASE, kt=8.27 / 95, kv="95 rpm/V"))
+    assert spec_warnings(foc) == ()
+
+
+def test_torque_limit_above_stall_warns():
+    spec = motor_spec_from_mapping(dict(BASE, resistance=5.0))  # stall 0.96 N m < 3 N m peak
+    assert any("stall torque" in w for w in spec_warnings(spec))
