@@ -48,6 +48,10 @@ class SaturationError(HoundIdError, ValueError):
     """Arrays given to the saturation have the wrong shape or type."""
 
 
+class TableError(HoundIdError, ValueError):
+    """A data table (CSV or Parquet) cannot be read or lacks the columns needed."""
+
+
 class OutputError(HoundIdError, OSError):
     """An output file could not be written."""
 

@@ -24,6 +24,7 @@ app = typer.Typer(
     rich_markup_mode=None,
 )
 app.command("mor", no_args_is_help=True)(_mor.mor)
+app.command("saturate", no_args_is_help=True)(_mor.saturate)
 app.command("demo")(_demo.demo)
 
 

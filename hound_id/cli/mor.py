@@ -95,18 +95,62 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
         print_json(data)
         return
     table = Table(title=f"Joint-space limits of {robot.name} (joint side)", title_justify="left")
-    for col in ("joint", "transmission", "inner effort [N m]", "inner velocity [rad/s]",
-                "outer effort [N m]", "outer velocity [rad/s]"):
+    for col in ("joint", "transmission", "inner N m", "inner rad/s", "outer N m", "outer rad/s"):
         table.add_column(col, justify="left" if col in ("joint", "transmission") else "right")
     for jr in regions.joints:
-        kind = jr.transmission + (" (coupled)" if jr.coupled else "")
+        kind = jr.transmission + ("*" if jr.coupled else "")
         table.add_row(jr.joint, kind, f"{jr.inner_box.effort:.4g}", f"{jr.inner_box.velocity:.4g}",
                       f"{jr.outer_box.effort:.4g}", f"{jr.outer_box.velocity:.4g}")
     console.print(table)
-    console.print("inner box: every command inside is feasible whatever the coupled joints do within theirs; "
+    console.print("* coupled. inner box: every command inside is feasible whatever the coupled joints do within theirs; "
                   "outer box: bounds of what is reachable at all.", highlight=False)
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
 
 
-__all__ = ["mor", "HoundIdError"]
+def saturate(
+    commands: Path = typer.Argument(..., help="CSV or Parquet with tau_<joint> [N m] and qd_<joint> [rad/s] columns."),
+    robot: Path = typer.Option(..., "--robot", help="Robot YAML whose motors and transmissions apply."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Write the table with tau_sat_<joint> columns added."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: each motor's commands against its region."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/saturate/1)."),
+) -> None:
+    """Saturate a log of joint torque commands exactly as the method does in training."""
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.saturation import saturate_log
+    from hound_id.tables import read_table, write_table
+
+    rob = load_robot(robot)
+    frame = read_table(commands)
+    log = saturate_log(rob, frame, source=str(commands))
+    if out is not None:
+        result = frame.copy()
+        for i, joint in enumerate(log.joints):
+            result[f"tau_sat_{joint}"] = log.tau_sat[:, i]
+        write_table(result, out)
+    if plot is not None:
+        from hound_id.mor.plot import plot_log_saturation
+        from hound_id.mor.region import operating_region
+
+        regions = tuple(operating_region(rob.motor_specs[m]) for m in rob.motors)
+        save_figure(plot_log_saturation(log, regions), plot)
+    summary = log.to_dict()
+    if json_out:
+        summary.update(out=str(out) if out else None, plot=str(plot) if plot else None)
+        print_json(summary)
+        return
+    console.print(f"{summary['rows']} commands, {summary['violating_fraction']:.1%} outside some motor's region",
+                  highlight=False)
+    table = Table(title="clipping per joint (joint side) and motor", title_justify="left")
+    for col in ("joint", "max clip [N m]", "mean clip [N m]", "motor", "motor clipped"):
+        table.add_column(col, justify="left" if col in ("joint", "motor") else "right")
+    for j, m in zip(summary["joints"], summary["motors"], strict=True):
+        table.add_row(j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"],
+                      f"{m['clipped_fraction']:.1%}")
+    console.print(table)
+    for path, what in ((out, "table"), (plot, "plot")):
+        if path is not None:
+            console.print(f"{what} written to {path}", highlight=False)
+
+
+__all__ = ["mor", "saturate"]

@@ -8,6 +8,7 @@ import numpy as np
 
 from hound_id.mor.joint_space import RobotRegions
 from hound_id.mor.region import OperatingRegion
+from hound_id.mor.saturation import LogSaturation
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
@@ -95,4 +96,32 @@ def plot_robot(regions: RobotRegions) -> Figure:
         ax.set_visible(False)
     fig.axes[0].legend(fontsize=6, loc="lower left")
     fig.suptitle(f"{regions.robot}: joint-space operating regions", fontsize=11)
+    return fig
+
+
+def plot_log_saturation(log: LogSaturation, regions: tuple[OperatingRegion, ...]) -> Figure:
+    """Per motor: the region, the commanded (tau, omega) trajectory and the saturated one (paper, Fig. 8a)."""
+    n = len(log.motors)
+    cols = 3 if n >= 3 else n
+    rows = -(-n // cols)
+    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    clipped = log.motor_clipped
+    for i, (ax, region) in enumerate(zip(fig.axes, regions, strict=False)):
+        v = region.vertices
+        ax.fill(v[:, 0], v[:, 1], color="0.85", label="MOR")
+        ax.plot(*_closed(v).T, color="0.4", lw=1.0)
+        ax.plot(log.motor_torque_cmd[:, i], log.motor_speed[:, i], color="tab:red", lw=0.9, label="command")
+        ax.plot(log.motor_torque_sat[:, i], log.motor_speed[:, i], color="tab:blue", lw=1.1, ls="--",
+                label="saturated")
+        ax.axhline(0, color="0.5", lw=0.6)
+        ax.axvline(0, color="0.5", lw=0.6)
+        ax.set_title(f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", fontsize=8)
+        ax.set_xlabel("motor torque [N m]", fontsize=8)
+        ax.set_ylabel("motor speed [rad/s]", fontsize=8)
+        ax.tick_params(labelsize=7)
+        ax.grid(alpha=0.3)
+    for ax in fig.axes[n:]:
+        ax.set_visible(False)
+    fig.axes[0].legend(fontsize=6, loc="lower left")
+    fig.suptitle("torque commands against each motor's operating region", fontsize=11)
     return fig

@@ -18,6 +18,7 @@ for an uncoupled joint, and as the benchmark's baseline.
 
 from __future__ import annotations
 
+import threading
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -35,8 +36,26 @@ def _frozen(a: Any) -> NDArray[np.float64]:
     return out
 
 
+#: Cached operator sets (dtype, device, batch shape) kept per Saturation.
+_CACHE_SIZE = 16
+
+
 def _is_torch(x: Any) -> bool:
     return type(x).__module__.startswith("torch")
+
+
+def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
+    np.maximum(x, lo, out=out)
+    return np.minimum(out, hi, out=out)
+
+
+def _ops(like: Any) -> tuple[Any, Any, Any]:
+    """(matmul, subtract, clip) with ``out=`` in the array library of ``like``."""
+    if _is_torch(like):
+        import torch
+
+        return torch.matmul, torch.sub, torch.clamp
+    return np.matmul, np.subtract, _np_clip
 
 
 @dataclass(frozen=True)
@@ -84,25 +103,35 @@ class Saturation:
         return len(self.joints)
 
     def _constants(self, like: Any) -> tuple[Any, ...]:
-        """Operators in the array library, dtype and device of ``like`` (cached)."""
-        if _is_torch(like):
-            key: Any = ("torch", like.dtype, like.device)
-        else:
-            key = ("numpy", like.dtype)
+        """Operators in the array library, dtype, device and batch shape of ``like`` (cached).
+
+        Per-motor limits are stored expanded to the full batch shape: elementwise
+        operations on equal shapes run several times faster than broadcasting a
+        (n,) vector, in numpy and torch alike (and Isaac Lab stores its limits so).
+        """
+        torch_like = _is_torch(like)
+        shape = tuple(like.shape)
+        key: Any = ("torch", like.dtype, like.device, shape) if torch_like else ("numpy", like.dtype, shape)
         hit = self._cache.get(key)
         if hit is not None:
             return hit
         # u = qd @ speed_map is back_emf_damping * omega_m, folded into one product.
         speed_map = self.A_inv.T * self.back_emf_damping[None, :]
-        arrays = (self.A, self.A_inv, speed_map, self.stall_torque, self.torque_limit,
-                  self.max_speed * (1.0 + SPEED_TOLERANCE))
-        if key[0] == "torch":
+        wmax = self.max_speed * (1.0 + SPEED_TOLERANCE)
+        matrices = (self.A, self.A_inv, speed_map)
+        vectors = (self.stall_torque, -self.stall_torque, self.torque_limit, -self.torque_limit, wmax)
+        if torch_like:
             import torch
 
-            tensors = tuple(torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in arrays)
+            mats = tuple(torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in matrices)
+            vecs = tuple(torch.tensor(np.array(v), dtype=like.dtype, device=like.device).expand(shape).contiguous()
+                         for v in vectors)
         else:
-            tensors = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in arrays)
-        consts = (*tensors, bool(np.isfinite(self.max_speed).any()))
+            mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
+            vecs = tuple(np.ascontiguousarray(np.broadcast_to(v.astype(like.dtype), shape)) for v in vectors)
+        consts = (*mats, *vecs, bool(np.isfinite(self.max_speed).any()))
+        if len(self._cache) >= _CACHE_SIZE:
+            self._cache.pop(next(iter(self._cache)))
         self._cache[key] = consts
         return consts
 
@@ -136,23 +165,23 @@ class Saturation:
         return self._bounds(qd, self._constants(qd))
 
     def _bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
-        _, A_inv, speed_map, stall, tl, wmax, has_max_speed = consts
+        _, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
         u = qd @ speed_map  # back-EMF damping * motor speed
         if _is_torch(qd):
             import torch
 
-            hi = torch.clamp(stall - u, -tl, tl)
-            lo = torch.clamp(u.neg_().sub_(stall), -tl, tl)
+            hi = torch.clamp(stall - u, neg_tl, tl)
+            lo = torch.clamp(neg_stall - u, neg_tl, tl)
             if has_max_speed:
                 omega = qd @ A_inv.T
                 hi = torch.where(omega > wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        hi = stall - u
-        np.maximum(hi, -tl, out=hi)
+        hi = np.subtract(stall, u)
+        np.maximum(hi, neg_tl, out=hi)
         np.minimum(hi, tl, out=hi)
-        lo = np.subtract(-stall, u, out=u)
-        np.maximum(lo, -tl, out=lo)
+        lo = np.subtract(neg_stall, u, out=u)
+        np.maximum(lo, neg_tl, out=lo)
         np.minimum(lo, tl, out=lo)
         if has_max_speed:
             omega = qd @ A_inv.T
@@ -165,19 +194,68 @@ class Saturation:
 
         Returns joint torques (same type, dtype and device as ``tau``) whose motor
         torques lie in each motor's operating region at its current speed.
+        Commands already inside pass bit-for-bit unchanged.
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
         A, A_inv = consts[0], consts[1]
-        lo, hi = self._bounds(qd, consts)
-        tau_m = tau @ A
-        if _is_torch(tau):
+        if _is_torch(tau) and (tau.requires_grad or qd.requires_grad):
             import torch
 
-            return torch.clamp(tau_m, lo, hi) @ A_inv
-        np.maximum(tau_m, lo, out=tau_m)
-        np.minimum(tau_m, hi, out=tau_m)
-        return tau_m @ A_inv
+            lo, hi = self._bounds(qd, consts)
+            tau_m = tau @ A
+            return tau + (torch.clamp(tau_m, lo, hi) - tau_m) @ A_inv
+        return self._saturate_in_place(tau, qd, consts)
+
+    def _saturate_in_place(self, tau: Any, qd: Any, consts: tuple[Any, ...]) -> Any:
+        """The same clip with intermediates in reused per-thread buffers.
+
+        Large temporaries cost more in allocation (page faults) than in arithmetic on
+        the CPU, so only the returned array is new. Not used under autograd.
+
+        Clipping to the voltage band and then to the torque box equals clipping to
+        their intersection whenever it is non-empty (interval projections compose),
+        and gives the full braking torque past overspeed, as :func:`torque_interval`.
+        """
+        A, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
+        matmul, subtract, clip = _ops(tau)
+        u, v, tau_m = self._workspace(tau)
+        matmul(qd, speed_map, out=u)  # back-EMF damping * motor speed
+        matmul(tau, A, out=tau_m)
+        subtract(neg_stall, u, out=v)  # lower voltage line
+        subtract(stall, u, out=u)  # upper voltage line
+        clip(tau_m, v, u, out=v)
+        clip(v, neg_tl, tl, out=v)
+        if has_max_speed:  # past the rated speed only braking torque passes
+            omega = qd @ A_inv.T
+            if _is_torch(tau):
+                import torch
+
+                torch.where(omega > wmax, torch.clamp(v, max=0.0), v, out=v)
+                torch.where(omega < -wmax, torch.clamp(v, min=0.0), v, out=v)
+            else:
+                np.minimum(v, 0.0, out=v, where=omega > wmax)
+                np.maximum(v, 0.0, out=v, where=omega < -wmax)
+        subtract(v, tau_m, out=v)  # motor-space correction, exactly 0 where nothing clipped
+        out = matmul(v, A_inv)
+        out += tau
+        return out
+
+    def _workspace(self, like: Any) -> tuple[Any, Any, Any]:
+        """Three scratch arrays shaped like ``like``, private to the calling thread."""
+        key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
+        hit = self._cache.get(key)
+        if hit is None:
+            if _is_torch(like):
+                import torch
+
+                hit = tuple(torch.empty_like(like) for _ in range(3))
+            else:
+                hit = tuple(np.empty_like(like) for _ in range(3))
+            if len(self._cache) >= _CACHE_SIZE:
+                self._cache.pop(next(iter(self._cache)))
+            self._cache[key] = hit
+        return hit
 
     def violation(self, tau: Any, qd: Any) -> Any:
         """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n)."""
@@ -197,15 +275,18 @@ def saturation_for(robot: Robot) -> Saturation:
     return Saturation.from_robot(robot)
 
 
-def dc_motor_clip(effort: Any, vel: Any, saturation_effort: Any, velocity_limit: Any, effort_limit: Any) -> Any:
+def dc_motor_clip(effort: Any, vel: Any, saturation_effort: Any, velocity_limit: Any, effort_limit: Any,
+                  vel_at_limit: Any = None) -> Any:
     """Per-joint DC-motor clip as in Isaac Lab ``DCMotor._clip_effort`` and mjlab ``DcMotorActuator``.
 
     All quantities joint side: saturation_effort = stall torque [N m], velocity_limit =
     no-load speed [rad/s], effort_limit = peak torque [N m]. The velocity is first
-    clamped to the speed where the torque-speed line meets -effort_limit.
+    clamped to the speed where the torque-speed line meets -effort_limit
+    (``vel_at_limit``; computed here unless given, as Isaac Lab caches it at start-up).
     Works on numpy arrays and torch tensors.
     """
-    vel_at_limit = velocity_limit * (1.0 + effort_limit / saturation_effort)
+    if vel_at_limit is None:
+        vel_at_limit = velocity_limit * (1.0 + effort_limit / saturation_effort)
     if _is_torch(effort):
         import torch
 
@@ -264,4 +345,98 @@ def box_study(sat: Saturation, inner: NDArray[np.float64], outer: NDArray[np.flo
         outer_mean_clip=results[0][1],
         inner_infeasible=results[1][0],
         max_violation_after=max(results[0][2], results[1][2]),
+    )
+
+
+@dataclass(frozen=True)
+class LogSaturation:
+    """A log of joint torque commands saturated by the MOR, with what was clipped."""
+
+    joints: tuple[str, ...]
+    """Joint order of the arrays."""
+    motors: tuple[str, ...]
+    """Motor order of the motor-space arrays."""
+    tau_cmd: NDArray[np.float64]
+    """Commanded joint torques [N m], shape (rows, n)."""
+    qd: NDArray[np.float64]
+    """Joint velocities [rad/s], shape (rows, n)."""
+    tau_sat: NDArray[np.float64]
+    """Saturated joint torques [N m], shape (rows, n)."""
+    motor_torque_cmd: NDArray[np.float64]
+    """Commanded motor torques [N m], shape (rows, n)."""
+    motor_torque_sat: NDArray[np.float64]
+    """Saturated motor torques [N m], shape (rows, n)."""
+    motor_speed: NDArray[np.float64]
+    """Motor speeds [rad/s], shape (rows, n)."""
+
+    @property
+    def motor_clipped(self) -> NDArray[np.bool_]:
+        """Whether each motor torque command was outside the region, shape (rows, n)."""
+        tol = 1e-9 * np.maximum(1.0, np.abs(self.motor_torque_cmd))
+        return np.abs(self.motor_torque_sat - self.motor_torque_cmd) > tol
+
+    def to_dict(self) -> dict[str, Any]:
+        """Summary, schema ``hound-id/saturate/1``."""
+        clipped = self.motor_clipped
+        clip = np.abs(self.tau_sat - self.tau_cmd)
+        return {
+            "schema": "hound-id/saturate/1",
+            "rows": int(self.tau_cmd.shape[0]),
+            "violating_fraction": float(np.any(clipped, axis=1).mean()),
+            "joints": [
+                {"joint": j, "max_clip": float(clip[:, i].max()), "mean_clip": float(clip[:, i].mean())}
+                for i, j in enumerate(self.joints)
+            ],
+            "motors": [
+                {"motor": m, "clipped_fraction": float(clipped[:, i].mean())} for i, m in enumerate(self.motors)
+            ],
+            "units": {"clip": "N m (joint side)"},
+        }
+
+
+def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSaturation:
+    """Saturate a log with columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] for every joint.
+
+    Args:
+        robot: The robot whose motors and transmissions apply.
+        columns: A mapping (or DataFrame) of column name -> 1-D numeric array.
+        source: File name, for messages.
+
+    Raises:
+        TableError: A column is missing or holds a non-finite value.
+    """
+    from hound_id.errors import TableError
+
+    arrays = {}
+    for prefix in ("tau", "qd"):
+        stacked = []
+        for joint in robot.joints:
+            name = f"{prefix}_{joint}"
+            if name not in columns:
+                raise TableError(
+                    f"{source}: column '{name}' missing; expected tau_<joint> [N m] and qd_<joint> [rad/s] "
+                    f"for every joint ({', '.join(robot.joints)})",
+                    column=name,
+                )
+            try:
+                values = np.asarray(columns[name], dtype=float)
+            except (TypeError, ValueError) as err:
+                raise TableError(f"{source}: column '{name}' is not numeric", column=name) from err
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                raise TableError(
+                    f"{source}: column '{name}' row {int(bad[0]) + 1} holds {values[bad[0]]}; "
+                    "expected a finite number (drop or fill such rows first)",
+                    column=name, row=int(bad[0]) + 1,
+                )
+            stacked.append(values)
+        arrays[prefix] = np.column_stack(stacked)
+    sat = saturation_for(robot)
+    tau, qd = arrays["tau"], arrays["qd"]
+    tau_sat = sat(tau, qd)
+    tau_m, omega = sat.motor_state(tau, qd)
+    tau_m_sat, _ = sat.motor_state(tau_sat, qd)
+    return LogSaturation(
+        joints=robot.joints, motors=robot.motors, tau_cmd=_frozen(tau), qd=_frozen(qd), tau_sat=_frozen(tau_sat),
+        motor_torque_cmd=_frozen(tau_m), motor_torque_sat=_frozen(tau_m_sat), motor_speed=_frozen(omega),
     )

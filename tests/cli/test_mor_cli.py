@@ -1,0 +1,121 @@
+import json
+import math
+
+import pytest
+
+from tests.conftest import MOTOR, ROBOT, SMALL_MOTOR, run_cli
+
+PNG_MAGIC = b"\x89PNG\r\n\x1a\n"
+
+
+def assert_one_line_error(proc, *fragments):
+    assert proc.returncode == 2, proc.stderr
+    assert "Traceback" not in proc.stderr
+    lines = [line for line in proc.stderr.splitlines() if line.strip()]
+    assert len(lines) == 1, proc.stderr
+    for fragment in fragments:
+        assert fragment in lines[0], lines[0]
+    assert proc.stdout == ""
+
+
+def test_mor_spec_json(tmp_path):
+    proc = run_cli("mor", "--spec", str(MOTOR), "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/mor/1"
+    assert data["motor"] == "hound_ilm85"
+    assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"]) == 4
+    assert data["corner_speed"] < data["no_load_speed"] < data["overspeed"]
+    assert data["stall_torque"] == pytest.approx(0.138 * 81 / (math.sqrt(3) / 2 * 0.115))
+
+
+def test_mor_spec_table_and_plot(tmp_path):
+    plot = tmp_path / "region.png"
+    proc = run_cli("mor", "--spec", str(SMALL_MOTOR), "--plot", str(plot))
+    assert proc.returncode == 0, proc.stderr
+    assert "corner speed" in proc.stdout and "1504 rpm" in proc.stdout
+    assert plot.read_bytes().startswith(PNG_MAGIC)
+    assert [p.name for p in tmp_path.iterdir()] == ["region.png"]  # no temporary left behind
+
+
+def test_user_spec_in_other_units_and_line_to_line(write_yaml):
+    spec = write_yaml("mine.yaml", """
+name: my_motor
+kt: 52 mNm/A
+kv: 190 rpm/V
+resistance_line_to_line: 0.25 ohm
+bus_voltage: 24000 mV
+peak_torque: 1.6 N*m
+max_current: 30 A
+max_speed: 4500 rpm
+rotor_inertia: 0.3 kg*cm^2
+""")
+    proc = run_cli("mor", "--spec", str(spec), "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["spec"]["kv"] == pytest.approx(190 * 2 * math.pi / 60)
+    assert data["spec"]["resistance"] == pytest.approx(0.25 * math.sqrt(3) / 2)
+    assert data["max_speed"] == pytest.approx(4500 * 2 * math.pi / 60)
+    assert data["warnings"] == []
+
+
+def test_kt_kv_mixup_is_a_warning_not_an_error(write_yaml):
+    spec = write_yaml("mix.yaml", "name: m\nkt: 0.087\nkv: 95\nresistance: 0.12\nbus_voltage: 48\npeak_torque: 3\n")
+    proc = run_cli("mor", "--spec", str(spec), "--json")
+    assert proc.returncode == 0
+    assert "warning:" in proc.stderr and "disagree" in proc.stderr
+    assert json.loads(proc.stdout)["warnings"]
+
+
+@pytest.mark.parametrize(
+    ("text", "fragments"),
+    [
+        ("name: m\nkv: 10\nresistance: 1\nbus_voltage: 24\npeak_torque: 1\n", ["field 'kt': missing"]),
+        ("name: m\nkt: 0.1\nkv: 10 V\nresistance: 1\nbus_voltage: 24\npeak_torque: 1\n", ["field 'kv'", "10 V"]),
+        ("name: m\nkt: 0.1\nkv: 10\nresistnace: 1\nbus_voltage: 24\npeak_torque: 1\n",
+         ["'resistnace'", "did you mean 'resistance'"]),
+        ("name: m\nkt: 0.1\nkv: 10\nresistance: -1\nbus_voltage: 24\npeak_torque: 1\n", ["positive"]),
+        ("name: m\nkt: [0.1\n", ["not valid YAML"]),
+    ],
+)
+def test_bad_spec_files(write_yaml, text, fragments):
+    path = write_yaml("bad.yaml", text)
+    assert_one_line_error(run_cli("mor", "--spec", str(path), "--json"), "bad.yaml", *fragments)
+
+
+def test_bad_invocations(tmp_path):
+    assert_one_line_error(run_cli("mor", "--spec", str(tmp_path / "none.yaml")), "file not found")
+    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--robot", str(ROBOT)), "exactly one of")
+    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "no" / "x.png")),
+                          "does not exist")
+    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "x.pdf")), "PNG")
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_mor_robot_json_and_plot(tmp_path):
+    plot = tmp_path / "robot.png"
+    proc = run_cli("mor", "--robot", str(ROBOT), "--json", "--plot", str(plot))
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/mor-robot/1"
+    assert len(data["joints"]) == 12
+    kfe = next(j for j in data["joints"] if j["joint"] == "FL_KFE")
+    assert kfe["coupled"] and kfe["inner_box"]["velocity"] < kfe["outer_box"]["velocity"]
+    assert plot.read_bytes().startswith(PNG_MAGIC)
+
+
+def test_mor_robot_table():
+    proc = run_cli("mor", "--robot", str(ROBOT))
+    assert proc.returncode == 0, proc.stderr
+    assert "FL_KFE" in proc.stdout and "inner box" in proc.stdout
+
+
+def test_bad_robot_file(write_yaml):
+    path = write_yaml("r.yaml", f"name: r\nmotor_specs: {{m: {MOTOR}}}\njoints: [a]\ntransmissions: []\n")
+    assert_one_line_error(run_cli("mor", "--robot", str(path)), "r.yaml", "transmissions")
+
+
+def test_help_and_version():
+    proc = run_cli("--help")
+    assert proc.returncode == 0 and "mor" in proc.stdout and "demo" in proc.stdout
+    assert run_cli("--version").stdout.startswith("hound-id ")
