@@ -81,8 +81,10 @@ def main() -> None:
     # The baseline holds its limits as full (envs, joints) arrays, as Isaac Lab does, with the
     # corner speed precomputed at start-up.
     vel_at_limit = vel_limit * (1.0 + eff_limit / sat_effort)
-    consts32 = [np.ascontiguousarray(np.broadcast_to(a, tau.shape), dtype=np.float32)
-                for a in (sat_effort, vel_limit, eff_limit, vel_at_limit)]
+    consts32 = [
+        np.ascontiguousarray(np.broadcast_to(a, tau.shape), dtype=np.float32)
+        for a in (sat_effort, vel_limit, eff_limit, vel_at_limit)
+    ]
 
     def timed(base, ours) -> tuple[float, float]:  # type: ignore[no-untyped-def]
         """Best time per call of each, measured in alternating rounds so drift hits both alike."""
@@ -106,8 +108,10 @@ def main() -> None:
         tc = [torch.from_numpy(c) for c in consts32]
         results["torch-cpu"] = timed(lambda: dc_motor_clip(tt, tq, *tc), lambda: sat(tt, tq))
 
-    figures = {k: {"per_joint_clip_us": b * 1e6, "coupled_mor_clip_us": o * 1e6, "ratio": o / b}
-               for k, (b, o) in results.items()}
+    figures = {
+        k: {"per_joint_clip_us": b * 1e6, "coupled_mor_clip_us": o * 1e6, "ratio": o / b}
+        for k, (b, o) in results.items()
+    }
     print(json.dumps({"allocator_pinned": pinned, "joints": sat.n, "results": figures}))
 
 
@@ -116,8 +120,10 @@ def report(args: argparse.Namespace) -> None:
     cmd = [sys.executable, __file__, "--worker", "--envs", str(args.envs), "--repeats", str(args.repeats)]
     if args.raw_malloc:
         cmd.append("--raw-malloc")
-    runs = [json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
-            for _ in range(args.processes)]
+    runs = [
+        json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+        for _ in range(args.processes)
+    ]
     summary = {}
     for backend in runs[0]["results"]:
         rows = [r["results"][backend] for r in runs]
@@ -130,16 +136,31 @@ def report(args: argparse.Namespace) -> None:
             "coupled_mor_clip_us_median": statistics.median(r["coupled_mor_clip_us"] for r in rows),
         }
     if args.json:
-        print(json.dumps({"schema": "hound-id/bench-saturation/1", "envs": args.envs, "joints": runs[0]["joints"],
-                          "processes": args.processes, "allocator_pinned": runs[0]["allocator_pinned"],
-                          "target_ratio": 1.5, "results": summary}, indent=2))
+        print(
+            json.dumps(
+                {
+                    "schema": "hound-id/bench-saturation/1",
+                    "envs": args.envs,
+                    "joints": runs[0]["joints"],
+                    "processes": args.processes,
+                    "allocator_pinned": runs[0]["allocator_pinned"],
+                    "target_ratio": 1.5,
+                    "results": summary,
+                },
+                indent=2,
+            )
+        )
         return
-    print(f"saturation of {args.envs} envs x {runs[0]['joints']} joints, median of {args.processes} processes "
-          f"(target ratio <= 1.5); malloc thresholds {'pinned' if runs[0]['allocator_pinned'] else 'default'}")
+    print(
+        f"saturation of {args.envs} envs x {runs[0]['joints']} joints, median of {args.processes} processes "
+        f"(target ratio <= 1.5); malloc thresholds {'pinned' if runs[0]['allocator_pinned'] else 'default'}"
+    )
     for backend, f in summary.items():
-        print(f"  {backend:10s} per-joint DC clip {f['per_joint_clip_us_median']:7.1f} us   coupled MOR clip "
-              f"{f['coupled_mor_clip_us_median']:7.1f} us   ratio {f['ratio_median']:.2f} "
-              f"(range {f['ratio_min']:.2f}-{f['ratio_max']:.2f})")
+        print(
+            f"  {backend:10s} per-joint DC clip {f['per_joint_clip_us_median']:7.1f} us   coupled MOR clip "
+            f"{f['coupled_mor_clip_us_median']:7.1f} us   ratio {f['ratio_median']:.2f} "
+            f"(range {f['ratio_min']:.2f}-{f['ratio_max']:.2f})"
+        )
 
 
 if __name__ == "__main__":

@@ -83,7 +83,32 @@ def step_robot_regions(out: Path) -> StepResult:
     return StepResult("robot regions and saturation", "; ".join(parts), tuple(files), figures)
 
 
-STEPS: tuple[Callable[[Path], StepResult], ...] = (step_motor_regions, step_robot_regions)
+def step_saturate_log(out: Path) -> StepResult:
+    """Saturate the sample command log as training does; plot it against each motor's region."""
+    from hound_id.mor.plot import plot_log_saturation
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.saturation import saturate_log
+    from hound_id.tables import read_table
+
+    robot = load_robot(samples_dir() / "robots" / "hound_like.yaml")
+    log_file = samples_dir() / "commands" / "hound_like_running.csv"
+    log = saturate_log(robot, read_table(log_file), source=str(log_file))
+    summary = log.to_dict()
+    io.write_json(out / "saturate_hound_like_running.json", summary)
+    regions = tuple(operating_region(robot.motor_specs[m]) for m in robot.motors)
+    _save_png(plot_log_saturation(log, regions), out / "saturate_hound_like_running.png")
+    worst = max(summary["joints"], key=lambda j: j["max_clip"])
+    return StepResult(
+        "saturate a command log",
+        f"{summary['violating_fraction']:.1%} of {summary['rows']} commands outside the MOR; "
+        f"largest clip {worst['max_clip']:.3g} N m at {worst['joint']}",
+        ("saturate_hound_like_running.json", "saturate_hound_like_running.png"),
+        {"violating_fraction": summary["violating_fraction"]},
+    )
+
+
+STEPS: tuple[Callable[[Path], StepResult], ...] = (step_motor_regions, step_robot_regions, step_saturate_log)
 
 
 def run_demo(out: Path, on_step: Callable[[str], None] | None = None) -> list[StepResult]:
@@ -103,6 +128,7 @@ def summary_dict(out: Path, results: list[StepResult]) -> dict[str, object]:
     return {
         "schema": SCHEMA,
         "out": str(out),
-        "steps": [{"name": r.name, "summary": r.summary, "files": list(r.files), "figures": r.figures}
-                  for r in results],
+        "steps": [
+            {"name": r.name, "summary": r.summary, "files": list(r.files), "figures": r.figures} for r in results
+        ],
     }

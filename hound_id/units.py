@@ -88,8 +88,9 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
             expected=si_unit,
         )
     if not math.isfinite(result):
-        raise UnitError(f"{loc}: found {value!r}, expected a finite {label.split(' ', 1)[1]}",
-                        found=value, expected=si_unit)
+        raise UnitError(
+            f"{loc}: found {value!r}, expected a finite {label.split(' ', 1)[1]}", found=value, expected=si_unit
+        )
     return result
 
 
@@ -99,7 +100,7 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
     si_unit, label, example = KINDS[kind]
     ureg = registry()
     try:
-        quantity = ureg.Quantity(_normalise(text))
+        quantity: Any = ureg.Quantity(_normalise(text))
     except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError) as err:
         raise UnitError(
             f"{loc}: cannot read {text!r} as a quantity ({err}); expected {label} such as {example}",

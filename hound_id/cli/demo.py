@@ -17,16 +17,23 @@ def demo(
     """Run every part of hound-id on data/samples and write plots and JSON into a folder."""
     from hound_id.demo import STEPS, run_demo, summary_dict
 
-    with Progress(TextColumn("{task.description}"), BarColumn(), TextColumn("{task.completed}/{task.total}"),
-                  TimeElapsedColumn(), console=err_console, transient=True) as progress:
+    columns = (
+        TextColumn("{task.description}"),
+        BarColumn(),
+        TextColumn("{task.completed}/{task.total}"),
+        TimeElapsedColumn(),
+    )
+    with Progress(*columns, console=err_console, transient=True) as progress:
         task = progress.add_task("demo", total=len(STEPS))
+        done = 0
 
         def on_step(name: str) -> None:
-            progress.update(task, description=name)
-            if progress.tasks[0].description != "demo":
-                progress.advance(task, 0)
+            nonlocal done
+            progress.update(task, description=name, completed=done)
+            done += 1
 
-        results = run_demo(out, on_step=lambda name: (on_step(name), progress.advance(task)))
+        results = run_demo(out, on_step=on_step)
+        progress.update(task, completed=done)
     if json_out:
         print_json(summary_dict(out, results))
         return

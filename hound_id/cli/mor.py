@@ -56,8 +56,11 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         ("speed constant Kv", f"{spec.kv:.4g} rad/s/V", f"{spec.kv * RPM_PER_RAD_S:.4g} rpm/V"),
         ("resistance R (model)", f"{spec.resistance:.4g} ohm", ""),
         ("bus voltage", f"{spec.bus_voltage:.4g} V", ""),
-        ("torque limit", f"{region.torque_limit:.4g} N m",
-         "driver-limited" if region.torque_limit < spec.peak_torque else "peak torque"),
+        (
+            "torque limit",
+            f"{region.torque_limit:.4g} N m",
+            "driver-limited" if region.torque_limit < spec.peak_torque else "peak torque",
+        ),
         ("stall torque Kt V/R", f"{region.stall_torque:.4g} N m", ""),
         ("no-load speed Kv V", f"{region.no_load_speed:.4g} rad/s", f"{region.no_load_speed * RPM_PER_RAD_S:.0f} rpm"),
         ("corner speed", f"{region.corner_speed:.4g} rad/s", f"{region.corner_speed * RPM_PER_RAD_S:.0f} rpm"),
@@ -99,11 +102,20 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
         table.add_column(col, justify="left" if col in ("joint", "transmission") else "right")
     for jr in regions.joints:
         kind = jr.transmission + ("*" if jr.coupled else "")
-        table.add_row(jr.joint, kind, f"{jr.inner_box.effort:.4g}", f"{jr.inner_box.velocity:.4g}",
-                      f"{jr.outer_box.effort:.4g}", f"{jr.outer_box.velocity:.4g}")
+        table.add_row(
+            jr.joint,
+            kind,
+            f"{jr.inner_box.effort:.4g}",
+            f"{jr.inner_box.velocity:.4g}",
+            f"{jr.outer_box.effort:.4g}",
+            f"{jr.outer_box.velocity:.4g}",
+        )
     console.print(table)
-    console.print("* coupled. inner box: every command inside is feasible whatever the coupled joints do within theirs; "
-                  "outer box: bounds of what is reachable at all.", highlight=False)
+    console.print(
+        "* coupled. inner box: every command inside is feasible whatever the coupled joints do within theirs; "
+        "outer box: bounds of what is reachable at all.",
+        highlight=False,
+    )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
 
@@ -139,14 +151,16 @@ def saturate(
         summary.update(out=str(out) if out else None, plot=str(plot) if plot else None)
         print_json(summary)
         return
-    console.print(f"{summary['rows']} commands, {summary['violating_fraction']:.1%} outside some motor's region",
-                  highlight=False)
+    console.print(
+        f"{summary['rows']} commands, {summary['violating_fraction']:.1%} outside some motor's region", highlight=False
+    )
     table = Table(title="clipping per joint (joint side) and motor", title_justify="left")
     for col in ("joint", "max clip [N m]", "mean clip [N m]", "motor", "motor clipped"):
         table.add_column(col, justify="left" if col in ("joint", "motor") else "right")
     for j, m in zip(summary["joints"], summary["motors"], strict=True):
-        table.add_row(j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"],
-                      f"{m['clipped_fraction']:.1%}")
+        table.add_row(
+            j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"], f"{m['clipped_fraction']:.1%}"
+        )
     console.print(table)
     for path, what in ((out, "table"), (plot, "plot")):
         if path is not None:

@@ -48,24 +48,47 @@ def plot_region(region: OperatingRegion) -> Figure:
     ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label="operating region (MOR)")
     ax.plot(*_closed(v).T, color="tab:blue", lw=1.8)
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
-    _box(ax, region.torque_limit, w_box, color="tab:red", ls="--", lw=1.4,
-         label=f"URDF box: |tau|<={region.torque_limit:.3g} N m, |omega|<={w_box:.4g} rad/s")
-    _box(ax, region.torque_limit, min(region.corner_speed, w_box), color="tab:green", ls=":", lw=1.6,
-         label="inner box (full torque up to corner speed)")
+    _box(
+        ax,
+        region.torque_limit,
+        w_box,
+        color="tab:red",
+        ls="--",
+        lw=1.4,
+        label=f"URDF box: |tau|<={region.torque_limit:.3g} N m, |omega|<={w_box:.4g} rad/s",
+    )
+    _box(
+        ax,
+        region.torque_limit,
+        min(region.corner_speed, w_box),
+        color="tab:green",
+        ls=":",
+        lw=1.6,
+        label="inner box (full torque up to corner speed)",
+    )
     tl, w = region.torque_limit, max(region.overspeed, w_box)
     ax.axhline(0, color="0.4", lw=0.8)
     ax.axvline(0, color="0.4", lw=0.8)
     for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
         ax.text(sx * 0.55 * tl, sy * 0.85 * w, text, ha="center", va="center", fontsize=10, color="0.25")
     ax.plot([region.torque_limit], [region.corner_speed], "o", color="k", ms=4)
-    ax.annotate(f"corner {region.corner_speed:.4g} rad/s", (region.torque_limit, region.corner_speed),
-                textcoords="offset points", xytext=(-10, 8), ha="right", fontsize=8)
+    ax.annotate(
+        f"corner {region.corner_speed:.4g} rad/s",
+        (region.torque_limit, region.corner_speed),
+        textcoords="offset points",
+        xytext=(-10, 8),
+        ha="right",
+        fontsize=8,
+    )
     ax.set_xlim(-1.35 * tl, 1.35 * tl)
     ax.set_ylim(-1.15 * w, 1.15 * w)
     ax.set_xlabel("motor torque tau [N m]")
     ax.set_ylabel("motor speed omega [rad/s]")
-    ax.set_title(f"{region.motor}: stall {region.stall_torque:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
-                 f"overspeed {region.overspeed:.4g} rad/s", fontsize=9)
+    ax.set_title(
+        f"{region.motor}: stall {region.stall_torque:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
+        f"overspeed {region.overspeed:.4g} rad/s",
+        fontsize=9,
+    )
     ax.legend(loc="lower left", fontsize=8)
     ax.grid(alpha=0.3)
     return fig
@@ -86,8 +109,9 @@ def plot_robot(regions: RobotRegions) -> Figure:
         ax.axhline(0, color="0.5", lw=0.6)
         ax.axvline(0, color="0.5", lw=0.6)
         tag = " (coupled)" if jr.coupled else ""
-        ax.set_title(f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s",
-                     fontsize=8)
+        ax.set_title(
+            f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s", fontsize=8
+        )
         ax.set_xlabel("joint torque [N m]", fontsize=8)
         ax.set_ylabel("joint speed [rad/s]", fontsize=8)
         ax.tick_params(labelsize=7)
@@ -111,8 +135,7 @@ def plot_log_saturation(log: LogSaturation, regions: tuple[OperatingRegion, ...]
         ax.fill(v[:, 0], v[:, 1], color="0.85", label="MOR")
         ax.plot(*_closed(v).T, color="0.4", lw=1.0)
         ax.plot(log.motor_torque_cmd[:, i], log.motor_speed[:, i], color="tab:red", lw=0.9, label="command")
-        ax.plot(log.motor_torque_sat[:, i], log.motor_speed[:, i], color="tab:blue", lw=1.1, ls="--",
-                label="saturated")
+        ax.plot(log.motor_torque_sat[:, i], log.motor_speed[:, i], color="tab:blue", lw=1.1, ls="--", label="saturated")
         ax.axhline(0, color="0.5", lw=0.6)
         ax.axvline(0, color="0.5", lw=0.6)
         ax.set_title(f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", fontsize=8)

@@ -101,15 +101,15 @@ def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     """
     from scipy.spatial import ConvexHull, HalfspaceIntersection
 
-    A = np.asarray(A, float)
-    b = np.asarray(b, float)
-    keep = np.linalg.norm(A, axis=1) > 1e-14 * max(1.0, float(np.abs(A).max(initial=0.0)))
-    A, b = A[keep], b[keep]
-    if np.any(b <= 0):
+    normals = np.asarray(A, float)
+    offsets = np.asarray(b, float)
+    keep = np.linalg.norm(normals, axis=1) > 1e-14 * max(1.0, float(np.abs(normals).max(initial=0.0)))
+    normals, offsets = normals[keep], offsets[keep]
+    if np.any(offsets <= 0):
         raise ValueError("halfspace_polygon needs the origin strictly inside (all b > 0)")
     # Scale each row to a unit normal so the mixed units (V, N m, rad/s) do not upset qhull.
-    norm = np.linalg.norm(A, axis=1)
-    hs = np.column_stack([A / norm[:, None], -b / norm])
+    norm = np.linalg.norm(normals, axis=1)
+    hs = np.column_stack([normals / norm[:, None], -offsets / norm])
     points = HalfspaceIntersection(hs, np.zeros(2)).intersections
     hull = ConvexHull(points)
     verts = points[hull.vertices]  # counter-clockwise for 2-D hulls
@@ -149,9 +149,7 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
     )
 
 
-def torque_interval(
-    omega: ArrayLike, region: OperatingRegion
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+def torque_interval(omega: ArrayLike, region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Feasible motor torque interval [lo, hi] at speed ``omega`` [rad/s].
 
     Inside |omega| <= overspeed this is exactly the region's slice at that speed.

@@ -145,9 +145,13 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
         transmissions.append(_transmission(tx, what, specs, motor_specs))
         for j in transmissions[-1].joints:
             if j not in joints:
-                raise RobotError(f"{what}: joint {j!r} is not in 'joints'; add it there or fix the name", field="joints")
+                raise RobotError(
+                    f"{what}: joint {j!r} is not in 'joints'; add it there or fix the name", field="joints"
+                )
             if j in covered:
-                raise RobotError(f"{what}: joint {j!r} is already driven by transmissions[{covered[j]}]", field="joints")
+                raise RobotError(
+                    f"{what}: joint {j!r} is already driven by transmissions[{covered[j]}]", field="joints"
+                )
             covered[j] = t
     missing = [j for j in joints if j not in covered]
     if missing:
@@ -156,8 +160,13 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
     if not isinstance(name, str) or not name:
         raise _err(source, "field 'name'", f"found {name!r}, expected text")
     src = data.get("source")
-    return Robot(name=name, joints=tuple(joints), transmissions=tuple(transmissions), motor_specs=motor_specs,
-                 source=src if isinstance(src, str) else None)
+    return Robot(
+        name=name,
+        joints=tuple(joints),
+        transmissions=tuple(transmissions),
+        motor_specs=motor_specs,
+        source=src if isinstance(src, str) else None,
+    )
 
 
 def _transmission(tx: Any, what: str, specs: Mapping[str, MotorSpec], out_specs: dict[str, MotorSpec]) -> Transmission:

@@ -123,9 +123,13 @@ class Saturation:
         if torch_like:
             import torch
 
-            mats = tuple(torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in matrices)
-            vecs = tuple(torch.tensor(np.array(v), dtype=like.dtype, device=like.device).expand(shape).contiguous()
-                         for v in vectors)
+            mats: tuple[Any, ...] = tuple(
+                torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in matrices
+            )
+            vecs: tuple[Any, ...] = tuple(
+                torch.tensor(np.array(v), dtype=like.dtype, device=like.device).expand(shape).contiguous()
+                for v in vectors
+            )
         else:
             mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
             vecs = tuple(np.ascontiguousarray(np.broadcast_to(v.astype(like.dtype), shape)) for v in vectors)
@@ -275,8 +279,9 @@ def saturation_for(robot: Robot) -> Saturation:
     return Saturation.from_robot(robot)
 
 
-def dc_motor_clip(effort: Any, vel: Any, saturation_effort: Any, velocity_limit: Any, effort_limit: Any,
-                  vel_at_limit: Any = None) -> Any:
+def dc_motor_clip(
+    effort: Any, vel: Any, saturation_effort: Any, velocity_limit: Any, effort_limit: Any, vel_at_limit: Any = None
+) -> Any:
     """Per-joint DC-motor clip as in Isaac Lab ``DCMotor._clip_effort`` and mjlab ``DcMotorActuator``.
 
     All quantities joint side: saturation_effort = stall torque [N m], velocity_limit =
@@ -319,8 +324,9 @@ class BoxStudy:
         return {k: getattr(self, k) for k in self.__dataclass_fields__}
 
 
-def box_study(sat: Saturation, inner: NDArray[np.float64], outer: NDArray[np.float64],
-              samples: int = 100_000, seed: int = 0) -> BoxStudy:
+def box_study(
+    sat: Saturation, inner: NDArray[np.float64], outer: NDArray[np.float64], samples: int = 100_000, seed: int = 0
+) -> BoxStudy:
     """Draw commands uniformly in the inner and outer boxes and saturate them.
 
     Args:
@@ -337,8 +343,9 @@ def box_study(sat: Saturation, inner: NDArray[np.float64], outer: NDArray[np.flo
         tau, qd = u[0] * box[:, 0], u[1] * box[:, 1]
         clipped = sat(tau, qd)
         changed = np.any(np.abs(clipped - tau) > 1e-9 * np.maximum(1.0, np.abs(tau)), axis=-1)
-        results.append((float(changed.mean()), float(np.abs(clipped - tau).mean()),
-                        float(sat.violation(clipped, qd).max())))
+        results.append(
+            (float(changed.mean()), float(np.abs(clipped - tau).mean()), float(sat.violation(clipped, qd).max()))
+        )
     return BoxStudy(
         samples=samples,
         outer_infeasible=results[0][0],
@@ -427,7 +434,8 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
                 raise TableError(
                     f"{source}: column '{name}' row {int(bad[0]) + 1} holds {values[bad[0]]}; "
                     "expected a finite number (drop or fill such rows first)",
-                    column=name, row=int(bad[0]) + 1,
+                    column=name,
+                    row=int(bad[0]) + 1,
                 )
             stacked.append(values)
         arrays[prefix] = np.column_stack(stacked)
@@ -437,6 +445,12 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
     tau_m, omega = sat.motor_state(tau, qd)
     tau_m_sat, _ = sat.motor_state(tau_sat, qd)
     return LogSaturation(
-        joints=robot.joints, motors=robot.motors, tau_cmd=_frozen(tau), qd=_frozen(qd), tau_sat=_frozen(tau_sat),
-        motor_torque_cmd=_frozen(tau_m), motor_torque_sat=_frozen(tau_m_sat), motor_speed=_frozen(omega),
+        joints=robot.joints,
+        motors=robot.motors,
+        tau_cmd=_frozen(tau),
+        qd=_frozen(qd),
+        tau_sat=_frozen(tau_sat),
+        motor_torque_cmd=_frozen(tau_m),
+        motor_torque_sat=_frozen(tau_m_sat),
+        motor_speed=_frozen(omega),
     )

@@ -138,6 +138,8 @@ def hollow_shaft(
     """
     gh, gk = float(hip_ratio), float(knee_ratio)
     if not (np.isfinite(gh) and np.isfinite(gk)) or gh == 0.0 or gk == 0.0:
-        raise TransmissionError(f"{what}: hip_ratio {hip_ratio!r} and knee_ratio {knee_ratio!r} must be finite and non-zero")
+        raise TransmissionError(
+            f"{what}: hip_ratio {hip_ratio!r} and knee_ratio {knee_ratio!r} must be finite and non-zero"
+        )
     A = [[1.0 / gh, 0.0], [-1.0 / (gh * gk), 1.0 / gk]]
     return from_matrix(joints, motors, A, kind="hollow_shaft", what=what)

@@ -39,7 +39,9 @@ def test_mor_spec_table_and_plot(tmp_path):
 
 
 def test_user_spec_in_other_units_and_line_to_line(write_yaml):
-    spec = write_yaml("mine.yaml", """
+    spec = write_yaml(
+        "mine.yaml",
+        """
 name: my_motor
 kt: 52 mNm/A
 kv: 190 rpm/V
@@ -49,7 +51,8 @@ peak_torque: 1.6 N*m
 max_current: 30 A
 max_speed: 4500 rpm
 rotor_inertia: 0.3 kg*cm^2
-""")
+""",
+    )
     proc = run_cli("mor", "--spec", str(spec), "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
@@ -72,8 +75,10 @@ def test_kt_kv_mixup_is_a_warning_not_an_error(write_yaml):
     [
         ("name: m\nkv: 10\nresistance: 1\nbus_voltage: 24\npeak_torque: 1\n", ["field 'kt': missing"]),
         ("name: m\nkt: 0.1\nkv: 10 V\nresistance: 1\nbus_voltage: 24\npeak_torque: 1\n", ["field 'kv'", "10 V"]),
-        ("name: m\nkt: 0.1\nkv: 10\nresistnace: 1\nbus_voltage: 24\npeak_torque: 1\n",
-         ["'resistnace'", "did you mean 'resistance'"]),
+        (
+            "name: m\nkt: 0.1\nkv: 10\nresistnace: 1\nbus_voltage: 24\npeak_torque: 1\n",
+            ["'resistnace'", "did you mean 'resistance'"],
+        ),
         ("name: m\nkt: 0.1\nkv: 10\nresistance: -1\nbus_voltage: 24\npeak_torque: 1\n", ["positive"]),
         ("name: m\nkt: [0.1\n", ["not valid YAML"]),
     ],
@@ -86,8 +91,9 @@ def test_bad_spec_files(write_yaml, text, fragments):
 def test_bad_invocations(tmp_path):
     assert_one_line_error(run_cli("mor", "--spec", str(tmp_path / "none.yaml")), "file not found")
     assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--robot", str(ROBOT)), "exactly one of")
-    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "no" / "x.png")),
-                          "does not exist")
+    assert_one_line_error(
+        run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "no" / "x.png")), "does not exist"
+    )
     assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "x.pdf")), "PNG")
     assert list(tmp_path.iterdir()) == []
 

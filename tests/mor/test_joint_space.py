@@ -53,7 +53,7 @@ def test_every_corner_of_the_inner_boxes_is_feasible_and_the_boxes_are_tight(whi
         for signs in itertools.product([-1.0, 1.0], repeat=2 * len(idx)):
             tau, qd = np.zeros(robot_n := len(robot.joints)), np.zeros(robot_n)
             tau[idx] = np.array(signs[: len(idx)]) * T[idx]
-            qd[idx] = np.array(signs[len(idx):]) * W[idx]
+            qd[idx] = np.array(signs[len(idx) :]) * W[idx]
             corners.append((tau, qd))
         tau = np.array([c[0] for c in corners])
         qd = np.array([c[1] for c in corners])

@@ -87,14 +87,19 @@ def uncoupled_robot(draw):
     for i in range(k):
         kt = draw(st.floats(0.02, 1.0))
         specs[f"m{i}"] = MotorSpec(
-            name=f"m{i}", kt=kt, kv=draw(st.floats(0.85, 1.1)) / kt, resistance=draw(st.floats(0.02, 3.0)),
-            bus_voltage=draw(st.floats(12.0, 100.0)), peak_torque=draw(st.floats(0.2, 20.0)),
+            name=f"m{i}",
+            kt=kt,
+            kv=draw(st.floats(0.85, 1.1)) / kt,
+            resistance=draw(st.floats(0.02, 3.0)),
+            bus_voltage=draw(st.floats(12.0, 100.0)),
+            peak_torque=draw(st.floats(0.2, 20.0)),
             max_current=draw(st.one_of(st.none(), st.floats(2.0, 100.0))),
         )
         g = draw(st.floats(1.0, 30.0)) * draw(st.sampled_from([1.0, -1.0]))
         ratios.append(g)
-        transmissions.append({"type": "ratio", "joints": [f"j{i}"], "motors": [f"m{i}"], "motor_spec": f"m{i}",
-                              "ratios": [g]})
+        transmissions.append(
+            {"type": "ratio", "joints": [f"j{i}"], "motors": [f"m{i}"], "motor_spec": f"m{i}", "ratios": [g]}
+        )
     return specs, transmissions, np.array(ratios)
 
 
@@ -106,9 +111,9 @@ def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
 
     k = len(ratios)
     robot = robot_mod.Robot(
-        name="u", joints=tuple(f"j{i}" for i in range(k)),
-        transmissions=tuple(
-            robot_mod.from_ratios(t["joints"], t["motors"], t["ratios"]) for t in transmissions),
+        name="u",
+        joints=tuple(f"j{i}" for i in range(k)),
+        transmissions=tuple(robot_mod.from_ratios(t["joints"], t["motors"], t["ratios"]) for t in transmissions),
         motor_specs={f"m{i}": specs[f"m{i}"] for i in range(k)},
     )
     sat = saturation_for(robot)
@@ -123,16 +128,24 @@ def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
     qd = u[1] * np.array([r.overspeed for r in regions]) / g * 2.0
     ours = sat(tau, qd)
     # a reversing gear (negative ratio) flips torque and speed together
-    theirs = np.where(ratios < 0, -dc_motor_clip(-tau, -qd, saturation_effort, velocity_limit, effort_limit),
-                      dc_motor_clip(tau, qd, saturation_effort, velocity_limit, effort_limit))
+    theirs = np.where(
+        ratios < 0,
+        -dc_motor_clip(-tau, -qd, saturation_effort, velocity_limit, effort_limit),
+        dc_motor_clip(tau, qd, saturation_effort, velocity_limit, effort_limit),
+    )
     assert np.allclose(ours, theirs, rtol=1e-9, atol=1e-9 * effort_limit.max())
 
 
 def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml):
     robot = robot_from_mapping(
-        {"name": "s", "motor_specs": {"s": str(SMALL_MOTOR)}, "joints": ["j"],
-         "transmissions": [{"type": "ratio", "joints": ["j"], "motors": ["m"], "motor_spec": "s", "ratios": [1.0]}]},
-        source="inline", base=SMALL_MOTOR.parent,
+        {
+            "name": "s",
+            "motor_specs": {"s": str(SMALL_MOTOR)},
+            "joints": ["j"],
+            "transmissions": [{"type": "ratio", "joints": ["j"], "motors": ["m"], "motor_spec": "s", "ratios": [1.0]}],
+        },
+        source="inline",
+        base=SMALL_MOTOR.parent,
     )
     sat = saturation_for(robot)
     region = operating_region(robot.motor_specs["m"])
@@ -173,3 +186,35 @@ def test_batch_shapes_and_errors():
         ROBOT_SAT(np.zeros((4, 11)), np.zeros((4, 11)))
     with pytest.raises(SaturationError, match="both be numpy arrays or both torch"):
         ROBOT_SAT(torch.zeros(N), np.zeros(N))
+
+
+def test_results_are_not_aliased_and_threads_do_not_share_scratch():
+    import threading
+
+    rng = np.random.default_rng(3)
+    inputs = [(rng.uniform(-250, 250, (256, N)), rng.uniform(-120, 120, (256, N))) for _ in range(8)]
+    expected = [ROBOT_SAT(t, q).copy() for t, q in inputs]
+    first = ROBOT_SAT(*inputs[0])
+    ROBOT_SAT(*inputs[1])
+    assert np.array_equal(first, expected[0])  # a later call does not overwrite an earlier result
+    results: dict[int, list[np.ndarray]] = {}
+
+    def work(k: int) -> None:
+        results[k] = [ROBOT_SAT(t, q) for _ in range(50) for t, q in [inputs[k]]]
+
+    threads = [threading.Thread(target=work, args=(k,)) for k in range(8)]
+    for t in threads:
+        t.start()
+    for t in threads:
+        t.join()
+    for k in range(8):
+        assert all(np.array_equal(r, expected[k]) for r in results[k])
+
+
+def test_float32_numpy_path():
+    rng = np.random.default_rng(4)
+    tau = rng.uniform(-250, 250, (128, N))
+    qd = rng.uniform(-120, 120, (128, N))
+    out32 = ROBOT_SAT(tau.astype(np.float32), qd.astype(np.float32))
+    assert out32.dtype == np.float32
+    assert np.allclose(out32, ROBOT_SAT(tau, qd), rtol=1e-4, atol=1e-3)

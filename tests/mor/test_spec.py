@@ -22,11 +22,18 @@ def test_samples_load_with_units_converted():
 
 def test_same_motor_in_si_numbers_and_in_datasheet_units_is_the_same_spec():
     si = motor_spec_from_mapping(dict(BASE, max_speed=500.0, rotor_inertia=1e-4))
-    units = motor_spec_from_mapping({
-        "name": "m", "kt": "100 mNm/A", "kv": f"{10 * 60 / (2 * math.pi)} rpm/V", "resistance": "200 mohm",
-        "bus_voltage": "48000 mV", "peak_torque": "3 N*m", "max_speed": f"{500 / (2 * math.pi)} rps",
-        "rotor_inertia": "1 kg*cm^2",
-    })
+    units = motor_spec_from_mapping(
+        {
+            "name": "m",
+            "kt": "100 mNm/A",
+            "kv": f"{10 * 60 / (2 * math.pi)} rpm/V",
+            "resistance": "200 mohm",
+            "bus_voltage": "48000 mV",
+            "peak_torque": "3 N*m",
+            "max_speed": f"{500 / (2 * math.pi)} rps",
+            "rotor_inertia": "1 kg*cm^2",
+        }
+    )
     for field in ("kt", "kv", "resistance", "bus_voltage", "peak_torque", "max_speed", "rotor_inertia"):
         assert getattr(units, field) == pytest.approx(getattr(si, field), rel=1e-12), field
 

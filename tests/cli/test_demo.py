@@ -1,0 +1,32 @@
+import json
+
+from tests.cli.test_mor_cli import PNG_MAGIC
+from tests.conftest import run_cli
+
+
+def test_demo_runs_every_part_on_the_samples(tmp_path):
+    proc = run_cli("demo", "--out", "out", "--json", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/demo/1"
+    names = [s["name"] for s in data["steps"]]
+    assert names == ["motor regions", "robot regions and saturation", "saturate a command log"]
+    for step in data["steps"]:
+        for name in step["files"]:
+            path = tmp_path / "out" / name
+            assert path.is_file(), name
+            if name.endswith(".png"):
+                assert path.read_bytes().startswith(PNG_MAGIC)
+            else:
+                assert json.loads(path.read_text())["schema"].startswith("hound-id/")
+    robot_step = data["steps"][1]["figures"]
+    assert robot_step["hound_like.inner_infeasible"] == 0.0
+    assert robot_step["hound_like.outer_infeasible"] > 0.5
+    summary = json.loads((tmp_path / "out" / "summary.json").read_text())
+    assert summary["schema"] == "hound-id/demo/1"
+
+
+def test_demo_table(tmp_path):
+    proc = run_cli("demo", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    assert "hound-id demo" in proc.stdout and (tmp_path / "hound-id-demo" / "summary.json").is_file()
