@@ -29,18 +29,13 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hound_id.arrays import frozen
 from hound_id.errors import RobotError
 from hound_id.mor.region import OperatingRegion, halfspace_polygon, operating_region
 from hound_id.mor.robot import Robot
 from hound_id.mor.transmission import Transmission
 
 SCHEMA = "hound-id/mor-robot/1"
-
-
-def _frozen(a: Any) -> NDArray[np.float64]:
-    out = np.array(a, dtype=np.float64)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -210,8 +205,8 @@ def robot_regions(robot: Robot) -> RobotRegions:
                 motors=tx.motors,
                 transmission=tx.kind,
                 coupled=tx.coupled,
-                section=_frozen(_section(tx, G, h, i)),
-                projection=_frozen(proj),
+                section=frozen(_section(tx, G, h, i)),
+                projection=frozen(proj),
                 inner_box=boxes[i],
                 outer_box=Box(effort=float(np.max(np.abs(proj[:, 0]))), velocity=float(np.max(np.abs(proj[:, 1])))),
             )

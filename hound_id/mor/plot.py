@@ -25,6 +25,26 @@ def _figure(rows: int, cols: int, size: tuple[float, float]) -> Figure:
     return fig
 
 
+def _panels(n: int) -> Figure:
+    """A grid of n small panels, three to a row, spare ones hidden."""
+    cols = min(3, n)
+    rows = -(-n // cols)
+    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    for ax in fig.axes[n:]:
+        ax.set_visible(False)
+    return fig
+
+
+def _style_panel(ax, title: str, side: str) -> None:  # type: ignore[no-untyped-def]
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.axvline(0, color="0.5", lw=0.6)
+    ax.set_title(title, fontsize=8)
+    ax.set_xlabel(f"{side} torque [N m]", fontsize=8)
+    ax.set_ylabel(f"{side} speed [rad/s]", fontsize=8)
+    ax.tick_params(labelsize=7)
+    ax.grid(alpha=0.3)
+
+
 def _closed(v: np.ndarray) -> np.ndarray:
     return np.vstack([v, v[:1]])
 
@@ -96,28 +116,16 @@ def plot_region(region: OperatingRegion) -> Figure:
 
 def plot_robot(regions: RobotRegions) -> Figure:
     """One panel per joint: reachable projection, section with the others at rest, inner and outer boxes."""
-    n = len(regions.joints)
-    cols = 3 if n >= 3 else n
-    rows = -(-n // cols)
-    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    fig = _panels(len(regions.joints))
     for ax, jr in zip(fig.axes, regions.joints, strict=False):
         p = jr.projection
         ax.fill(p[:, 0], p[:, 1], color="tab:blue", alpha=0.2, label="reachable (others free)")
         ax.plot(*_closed(jr.section).T, color="tab:blue", lw=1.4, label="others at rest")
         _box(ax, jr.outer_box.effort, jr.outer_box.velocity, color="tab:red", ls="--", lw=1.1, label="outer box")
         _box(ax, jr.inner_box.effort, jr.inner_box.velocity, color="tab:green", ls=":", lw=1.6, label="inner box")
-        ax.axhline(0, color="0.5", lw=0.6)
-        ax.axvline(0, color="0.5", lw=0.6)
         tag = " (coupled)" if jr.coupled else ""
-        ax.set_title(
-            f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s", fontsize=8
-        )
-        ax.set_xlabel("joint torque [N m]", fontsize=8)
-        ax.set_ylabel("joint speed [rad/s]", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.grid(alpha=0.3)
-    for ax in fig.axes[n:]:
-        ax.set_visible(False)
+        title = f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s"
+        _style_panel(ax, title, "joint")
     fig.axes[0].legend(fontsize=6, loc="lower left")
     fig.suptitle(f"{regions.robot}: joint-space operating regions", fontsize=11)
     return fig
@@ -125,10 +133,7 @@ def plot_robot(regions: RobotRegions) -> Figure:
 
 def plot_log_saturation(log: LogSaturation, regions: tuple[OperatingRegion, ...]) -> Figure:
     """Per motor: the region, the commanded (tau, omega) trajectory and the saturated one (paper, Fig. 8a)."""
-    n = len(log.motors)
-    cols = 3 if n >= 3 else n
-    rows = -(-n // cols)
-    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    fig = _panels(len(log.motors))
     clipped = log.motor_clipped
     for i, (ax, region) in enumerate(zip(fig.axes, regions, strict=False)):
         v = region.vertices
@@ -136,15 +141,7 @@ def plot_log_saturation(log: LogSaturation, regions: tuple[OperatingRegion, ...]
         ax.plot(*_closed(v).T, color="0.4", lw=1.0)
         ax.plot(log.motor_torque_cmd[:, i], log.motor_speed[:, i], color="tab:red", lw=0.9, label="command")
         ax.plot(log.motor_torque_sat[:, i], log.motor_speed[:, i], color="tab:blue", lw=1.1, ls="--", label="saturated")
-        ax.axhline(0, color="0.5", lw=0.6)
-        ax.axvline(0, color="0.5", lw=0.6)
-        ax.set_title(f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", fontsize=8)
-        ax.set_xlabel("motor torque [N m]", fontsize=8)
-        ax.set_ylabel("motor speed [rad/s]", fontsize=8)
-        ax.tick_params(labelsize=7)
-        ax.grid(alpha=0.3)
-    for ax in fig.axes[n:]:
-        ax.set_visible(False)
+        _style_panel(ax, f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", "motor")
     fig.axes[0].legend(fontsize=6, loc="lower left")
     fig.suptitle("torque commands against each motor's operating region", fontsize=11)
     return fig

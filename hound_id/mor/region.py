@@ -24,6 +24,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hound_id.arrays import frozen
 from hound_id.mor.spec import MotorSpec
 
 SCHEMA = "hound-id/mor/1"
@@ -31,12 +32,6 @@ SCHEMA = "hound-id/mor/1"
 #: Relative tolerance on the rated maximum speed before the braking-only rule applies,
 #: so states computed on the boundary (polygon vertices) count as inside.
 SPEED_TOLERANCE = 1e-9
-
-
-def _frozen(a: ArrayLike) -> NDArray[np.float64]:
-    out = np.array(a, dtype=np.float64)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -135,10 +130,10 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
     corner = spec.kv * (spec.bus_voltage - r_over_kt * tau_lim)
     return OperatingRegion(
         motor=spec.name,
-        A=_frozen(A),
-        b=_frozen(b),
+        A=frozen(A),
+        b=frozen(b),
         labels=tuple(r[0] for r in rows),
-        vertices=_frozen(halfspace_polygon(A, b)),
+        vertices=frozen(halfspace_polygon(A, b)),
         stall_torque=spec.stall_torque,
         no_load_speed=spec.no_load_speed,
         corner_speed=corner,

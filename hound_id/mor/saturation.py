@@ -25,16 +25,10 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
 from hound_id.mor.region import SPEED_TOLERANCE, operating_region
 from hound_id.mor.robot import Robot
-
-
-def _frozen(a: Any) -> NDArray[np.float64]:
-    out = np.array(a, dtype=np.float64)
-    out.setflags(write=False)
-    return out
-
 
 #: Cached operator sets (dtype, device, batch shape) kept per Saturation.
 _CACHE_SIZE = 16
@@ -89,12 +83,12 @@ class Saturation:
         A = robot.velocity_map()
         return cls(
             joints=robot.joints,
-            A=_frozen(A),
-            A_inv=_frozen(np.linalg.inv(A)),
-            stall_torque=_frozen([r.stall_torque for r in regions]),
-            back_emf_damping=_frozen([r.back_emf_damping for r in regions]),
-            torque_limit=_frozen([r.torque_limit for r in regions]),
-            max_speed=_frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
+            A=frozen(A),
+            A_inv=frozen(np.linalg.inv(A)),
+            stall_torque=frozen([r.stall_torque for r in regions]),
+            back_emf_damping=frozen([r.back_emf_damping for r in regions]),
+            torque_limit=frozen([r.torque_limit for r in regions]),
+            max_speed=frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
         )
 
     @property
@@ -447,10 +441,10 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
     return LogSaturation(
         joints=robot.joints,
         motors=robot.motors,
-        tau_cmd=_frozen(tau),
-        qd=_frozen(qd),
-        tau_sat=_frozen(tau_sat),
-        motor_torque_cmd=_frozen(tau_m),
-        motor_torque_sat=_frozen(tau_m_sat),
-        motor_speed=_frozen(omega),
+        tau_cmd=frozen(tau),
+        qd=frozen(qd),
+        tau_sat=frozen(tau_sat),
+        motor_torque_cmd=frozen(tau_m),
+        motor_torque_sat=frozen(tau_m_sat),
+        motor_speed=frozen(omega),
     )

@@ -22,16 +22,11 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hound_id.arrays import frozen
 from hound_id.errors import TransmissionError
 
 #: Matrices with a condition number above this are treated as singular.
 MAX_CONDITION = 1e10
-
-
-def _frozen(a: ArrayLike) -> NDArray[np.float64]:
-    out = np.array(a, dtype=np.float64)
-    out.setflags(write=False)
-    return out
 
 
 @dataclass(frozen=True)
@@ -113,7 +108,7 @@ def from_matrix(
             "every motor must drive an independent combination of joints",
             condition=cond,
         )
-    return Transmission(kind=kind, joints=j, motors=m, A=_frozen(A), A_inv=_frozen(np.linalg.inv(A)))
+    return Transmission(kind=kind, joints=j, motors=m, A=frozen(A), A_inv=frozen(np.linalg.inv(A)))
 
 
 def from_ratios(
