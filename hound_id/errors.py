@@ -52,6 +52,14 @@ class TableError(HoundIdError, ValueError):
     """A data table (CSV or Parquet) cannot be read or lacks the columns needed."""
 
 
+class DynoDataError(HoundIdError, ValueError):
+    """A dynamometer log is unusable as given (missing channels, reversed sensor, too few rows)."""
+
+
+class FitError(HoundIdError, ValueError):
+    """A model cannot be fitted to the data (unknown effect, missing channel, too little excitation)."""
+
+
 class OutputError(HoundIdError, OSError):
     """An output file could not be written."""
 
