@@ -13,6 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from hound_id import io
+from hound_id.errors import OutputError
 from hound_id.samples import samples_dir
 
 SCHEMA = "hound-id/demo/1"
@@ -39,14 +40,14 @@ def _save_png(fig: object, path: Path) -> None:
 def step_motor_regions(out: Path) -> StepResult:
     """Operating region of every sample motor: JSON and plot."""
     from hound_id.mor.plot import plot_region
-    from hound_id.mor.region import operating_region
+    from hound_id.mor.region import motor_report, operating_region
     from hound_id.mor.spec import load_motor_spec
 
     files, parts, figures = [], [], {}
     for spec_file in sorted((samples_dir() / "motors").glob("*.yaml")):
         spec = load_motor_spec(spec_file)
         region = operating_region(spec)
-        io.write_json(out / f"mor_{spec.name}.json", region.to_dict())
+        io.write_json(out / f"mor_{spec.name}.json", motor_report(spec, region))
         _save_png(plot_region(region), out / f"mor_{spec.name}.png")
         files += [f"mor_{spec.name}.json", f"mor_{spec.name}.png"]
         parts.append(f"{spec.name}: {region.torque_limit:.3g} N m up to {region.corner_speed:.4g} rad/s")
@@ -113,7 +114,13 @@ STEPS: tuple[Callable[[Path], StepResult], ...] = (step_motor_regions, step_robo
 
 def run_demo(out: Path, on_step: Callable[[str], None] | None = None) -> list[StepResult]:
     """Run every demo step into ``out`` (created if missing) and write ``summary.json``."""
-    out.mkdir(parents=True, exist_ok=True)
+    if out.exists() and not out.is_dir():
+        raise OutputError(f"{out}: exists and is not a folder; choose another --out", path=str(out))
+    if not out.parent.is_dir():
+        raise OutputError(
+            f"{out}: folder {out.parent} does not exist; create it or choose another --out", path=str(out)
+        )
+    out.mkdir(exist_ok=True)
     results = []
     for step in STEPS:
         if on_step is not None:

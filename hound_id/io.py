@@ -33,9 +33,12 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
             f"{target}: folder {folder} does not exist; create it or choose another output path",
             path=str(target),
         )
+    if target.is_dir():
+        raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
     fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
     os.close(fd)
     tmp = Path(tmp_name)
+    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
     try:
         yield tmp
         os.replace(tmp, target)
@@ -44,6 +47,37 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
     finally:
         if tmp.exists():
             tmp.unlink()
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
+
+
+def check_output(path: str | os.PathLike[str] | None, suffixes: tuple[str, ...], what: str) -> None:
+    """Fail before any work if an output cannot be written: missing folder or wrong file type.
+
+    Args:
+        path: The output path (None: nothing to check).
+        suffixes: Accepted suffixes, lower case with the dot (".png").
+        what: What the file is, for the message.
+    """
+    if path is None:
+        return
+    target = Path(path)
+    if target.suffix.lower() not in suffixes:
+        raise OutputError(
+            f"{target}: {what} files end in {' or '.join(suffixes)}; found '{target.suffix or '(no suffix)'}'",
+            path=str(target),
+        )
+    folder = target.parent if str(target.parent) else Path(".")
+    if not folder.is_dir():
+        raise OutputError(
+            f"{target}: folder {folder} does not exist; create it or choose another output path", path=str(target)
+        )
+    if target.is_dir():
+        raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:
@@ -63,6 +97,25 @@ def write_json(path: str | os.PathLike[str], data: Any) -> None:
     write_text(path, json.dumps(data, indent=2) + "\n")
 
 
+class DuplicateKeyError(yaml.YAMLError):
+    """A mapping repeats a key (PyYAML would silently keep the last value)."""
+
+    def __init__(self, key: object, line: int) -> None:
+        super().__init__(f"duplicate key {key!r}")
+        self.key, self.line = key, line
+
+
+class _UniqueKeyLoader(yaml.SafeLoader):
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[object, object]:
+        seen = set()
+        for key_node, _ in node.value:
+            key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
+            if key in seen:
+                raise DuplicateKeyError(key, key_node.start_mark.line + 1)
+            seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
 def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
     """Read a YAML file, turning I/O and syntax problems into one-line :class:`SpecError`.
 
@@ -78,7 +131,11 @@ def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
     except (OSError, UnicodeDecodeError) as err:
         raise SpecError(f"{source}: cannot read the {what} file ({err})", path=str(source)) from err
     try:
-        return yaml.safe_load(text)
+        return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
+    except DuplicateKeyError as err:
+        raise SpecError(
+            f"{source}: line {err.line}: key '{err.key}' appears twice; keep one", path=str(source)
+        ) from err
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)
         line = f" line {mark.line + 1}" if mark is not None else ""

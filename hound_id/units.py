@@ -49,7 +49,8 @@ def registry() -> pint.UnitRegistry:
     return pint.UnitRegistry()
 
 
-def _normalise(text: str) -> str:
+def normalise(text: str) -> str:
+    """Unit text as pint should read it (``Nm`` is newton metre, not nanometre)."""
     return _NM.sub(r"\1N*m", text.strip())
 
 
@@ -79,6 +80,8 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
         )
     if isinstance(value, (int, float)):
         result = float(value)
+    elif isinstance(value, str) and _is_number(value):
+        result = float(value)  # YAML 1.1 reads 1e3 (no dot) as text: a plain number, so SI
     elif isinstance(value, str):
         result = _parse_string(value, kind, loc)
     else:
@@ -94,13 +97,32 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
     return result
 
 
+def _is_number(text: str) -> bool:
+    try:
+        float(text)
+    except ValueError:
+        return False
+    return True
+
+
+def as_number(value: Any) -> float | None:
+    """A plain number from a YAML value (int, float or numeric text such as '1e3'), else None."""
+    if isinstance(value, bool):
+        return None
+    if isinstance(value, (int, float)):
+        return float(value)
+    if isinstance(value, str) and _is_number(value):
+        return float(value)
+    return None
+
+
 def _parse_string(text: str, kind: str, loc: str) -> float:
     import pint
 
     si_unit, label, example = KINDS[kind]
     ureg = registry()
     try:
-        quantity: Any = ureg.Quantity(_normalise(text))
+        quantity: Any = ureg.Quantity(normalise(text))
     except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError) as err:
         raise UnitError(
             f"{loc}: cannot read {text!r} as a quantity ({err}); expected {label} such as {example}",

@@ -28,8 +28,5 @@ def warn(message: str) -> None:
 
 def save_figure(fig: Any, path: Path) -> None:
     """Save a matplotlib figure as PNG, atomically."""
-    if path.suffix.lower() != ".png":
-        from hound_id.errors import OutputError
-
-        raise OutputError(f"{path}: plots are written as PNG; give a file name ending in .png", path=str(path))
+    io.check_output(path, (".png",), "plot")
     io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=120))

@@ -10,6 +10,7 @@ from rich.table import Table
 
 from hound_id.cli._render import console, print_json, save_figure, warn
 from hound_id.errors import HoundIdError
+from hound_id.io import check_output
 from hound_id.units import RPM_PER_RAD_S
 
 
@@ -30,9 +31,10 @@ def mor(
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
-    from hound_id.mor.region import operating_region
+    from hound_id.mor.region import motor_report, operating_region
     from hound_id.mor.spec import load_motor_spec, spec_warnings
 
+    check_output(plot, (".png",), "plot")
     spec = load_motor_spec(path)
     region = operating_region(spec)
     warnings = spec_warnings(spec)
@@ -43,8 +45,8 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
 
         save_figure(plot_region(region), plot)
     if json_out:
-        data = region.to_dict()
-        data.update(spec=spec.to_dict(), warnings=list(warnings), plot=str(plot) if plot else None)
+        data = motor_report(spec, region)
+        data["plot"] = str(plot) if plot else None
         print_json(data)
         return
     table = Table(title=f"Operating region of {spec.name} (motor side)", title_justify="left")
@@ -83,6 +85,7 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
     from hound_id.mor.robot import load_robot
     from hound_id.mor.spec import spec_warnings
 
+    check_output(plot, (".png",), "plot")
     robot = load_robot(path)
     for spec in {s.name: s for s in robot.motor_specs.values()}.values():
         for w in spec_warnings(spec):
@@ -130,8 +133,10 @@ def saturate(
     """Saturate a log of joint torque commands exactly as the method does in training."""
     from hound_id.mor.robot import load_robot
     from hound_id.mor.saturation import saturate_log
-    from hound_id.tables import read_table, write_table
+    from hound_id.tables import SUFFIXES, read_table, write_table
 
+    check_output(out, SUFFIXES, "table")
+    check_output(plot, (".png",), "plot")
     rob = load_robot(robot)
     frame = read_table(commands)
     log = saturate_log(rob, frame, source=str(commands))

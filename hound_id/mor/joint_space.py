@@ -31,8 +31,9 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import RobotError
-from hound_id.mor.region import OperatingRegion, halfspace_polygon, operating_region
+from hound_id.mor.region import OperatingRegion, halfspace_polygon, motor_report, operating_region
 from hound_id.mor.robot import Robot
+from hound_id.mor.spec import MotorSpec
 from hound_id.mor.transmission import Transmission
 
 SCHEMA = "hound-id/mor-robot/1"
@@ -94,6 +95,11 @@ class RobotRegions:
     motors: tuple[OperatingRegion, ...]
     """Motor regions in motor-vector order."""
     transmissions: tuple[Transmission, ...]
+    """Transmission groups."""
+    specs: tuple[MotorSpec, ...] = ()
+    """Motor specs in motor-vector order."""
+    motor_names: tuple[str, ...] = ()
+    """Motor instance names in motor-vector order."""
 
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready content, schema ``hound-id/mor-robot/1`` (SI, joint side unless stated)."""
@@ -106,7 +112,10 @@ class RobotRegions:
                 {"type": t.kind, "joints": list(t.joints), "motors": list(t.motors), "A": t.A.tolist()}
                 for t in self.transmissions
             ],
-            "motors": [r.to_dict() for r in self.motors],
+            "motors": [
+                dict(motor_report(spec, region), motor=name)
+                for name, spec, region in zip(self.motor_names, self.specs, self.motors, strict=True)
+            ],
         }
 
 
@@ -139,8 +148,10 @@ def _projection(tx: Transmission, regions: list[OperatingRegion], i: int) -> np.
         (float(P_inv_row @ np.array([v[0] for v in combo])), float(A_row @ np.array([v[1] for v in combo])))
         for combo in itertools.product(*(r.vertices for r in regions))
     ]
-    pts = np.unique(np.round(np.array(points), 12), axis=0)
-    verts = pts[ConvexHull(pts).vertices]
+    pts = np.array(points)
+    scale = np.max(np.abs(pts), axis=0)  # hull in units of the extent: torques and speeds differ by 1e12
+    unit = np.unique(np.round(pts / scale, 12), axis=0)
+    verts = unit[ConvexHull(unit).vertices] * scale
     start = int(np.lexsort((-verts[:, 1], -verts[:, 0]))[0])
     return np.roll(verts, -start, axis=0)
 
@@ -215,4 +226,6 @@ def robot_regions(robot: Robot) -> RobotRegions:
         joints=tuple(per_joint[j] for j in robot.joints),
         motors=tuple(motor_regions[m] for m in robot.motors),
         transmissions=robot.transmissions,
+        specs=tuple(robot.motor_specs[m] for m in robot.motors),
+        motor_names=robot.motors,
     )

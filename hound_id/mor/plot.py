@@ -62,7 +62,7 @@ def plot_region(region: OperatingRegion) -> Figure:
     every speed up to the no-load (or rated maximum) speed. Its corners in the
     motoring quadrants (1 and 3) lie outside the region.
     """
-    fig = _figure(1, 1, (7.5, 6.0))
+    fig = _figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
     v = region.vertices
     ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label="operating region (MOR)")
@@ -79,27 +79,30 @@ def plot_region(region: OperatingRegion) -> Figure:
     )
     _box(
         ax,
-        region.torque_limit,
-        min(region.corner_speed, w_box),
+        region.inner_box[0],
+        region.inner_box[1],
         color="tab:green",
         ls=":",
         lw=1.6,
-        label="inner box (full torque up to corner speed)",
+        label=f"inner box: |tau|<={region.inner_box[0]:.3g} N m, |omega|<={region.inner_box[1]:.4g} rad/s",
     )
     tl, w = region.torque_limit, max(region.overspeed, w_box)
     ax.axhline(0, color="0.4", lw=0.8)
     ax.axvline(0, color="0.4", lw=0.8)
     for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
-        ax.text(sx * 0.55 * tl, sy * 0.85 * w, text, ha="center", va="center", fontsize=10, color="0.25")
-    ax.plot([region.torque_limit], [region.corner_speed], "o", color="k", ms=4)
-    ax.annotate(
-        f"corner {region.corner_speed:.4g} rad/s",
-        (region.torque_limit, region.corner_speed),
-        textcoords="offset points",
-        xytext=(-10, 8),
-        ha="right",
-        fontsize=8,
-    )
+        ax.text(
+            sx * 1.3 * tl, sy * 1.1 * w, text, ha="right" if sx > 0 else "left", va="center", fontsize=10, color="0.25"
+        )
+    if region.corner_speed > 0:
+        ax.plot([region.torque_limit], [region.corner_speed], "o", color="k", ms=4)
+        ax.annotate(
+            f"corner {region.corner_speed:.4g} rad/s",
+            (region.torque_limit, region.corner_speed),
+            textcoords="offset points",
+            xytext=(-10, 8),
+            ha="right",
+            fontsize=8,
+        )
     ax.set_xlim(-1.35 * tl, 1.35 * tl)
     ax.set_ylim(-1.15 * w, 1.15 * w)
     ax.set_xlabel("motor torque tau [N m]")
@@ -109,7 +112,7 @@ def plot_region(region: OperatingRegion) -> Figure:
         f"overspeed {region.overspeed:.4g} rad/s",
         fontsize=9,
     )
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize=8, frameon=False)
     ax.grid(alpha=0.3)
     return fig
 

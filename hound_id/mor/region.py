@@ -10,7 +10,8 @@ the voltage lines is a parallelogram; cut by the torque limits it is a hexagon,
 wider in the braking quadrants (2 and 4), where back-EMF adds to the bus.
 
 Characteristic values (physics notes): stall torque Kt V/R, no-load speed Kv V,
-corner speed Kv (V - R tau_lim/Kt) (the highest speed with full motoring torque),
+corner speed Kv (V - R tau_lim/Kt) (the highest speed with full motoring torque;
+clipped to [0, max_speed]: 0 when the torque limit exceeds the stall torque),
 overspeed Kv (V + R tau_lim/Kt) (past it not even full braking torque keeps the
 current inside its limit; see :func:`torque_interval` for what the saturation
 returns there).
@@ -53,7 +54,8 @@ class OperatingRegion:
     no_load_speed: float
     """Kv V_bus [rad/s]: speed on the voltage line at zero torque."""
     corner_speed: float
-    """Kv (V_bus - R tau_lim / Kt) [rad/s]: highest speed at which the full torque limit can motor."""
+    """Highest speed at which the full torque limit can motor [rad/s]: Kv (V_bus - R tau_lim / Kt)
+    clipped to [0, max_speed] (0 when the torque limit exceeds the stall torque)."""
     overspeed: float
     """Kv (V_bus + R tau_lim / Kt) [rad/s]: beyond it the full braking torque exceeds the voltage line."""
     torque_limit: float
@@ -62,6 +64,8 @@ class OperatingRegion:
     """Rated maximum speed [rad/s] if the spec gives one."""
     back_emf_damping: float
     """Slope of the voltage lines, Kt / (R Kv) [N m s/rad]."""
+    inner_box: tuple[float, float]
+    """Largest-area symmetric box (torque [N m], speed [rad/s]) inside the region."""
 
     def contains(self, tau: ArrayLike, omega: ArrayLike, rtol: float = 1e-9) -> NDArray[np.bool_]:
         """Whether each (tau [N m], omega [rad/s]) pair lies in the region (with a relative tolerance)."""
@@ -83,8 +87,18 @@ class OperatingRegion:
             "torque_limit": self.torque_limit,
             "max_speed": self.max_speed,
             "back_emf_damping": self.back_emf_damping,
+            "inner_box": {"torque": self.inner_box[0], "speed": self.inner_box[1]},
             "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V"},
         }
+
+
+def motor_report(spec: MotorSpec, region: OperatingRegion | None = None) -> dict[str, Any]:
+    """The ``hound-id/mor/1`` content for a motor: its region, its spec (SI) and the spec's warnings."""
+    from hound_id.mor.spec import spec_warnings
+
+    data = (region or operating_region(spec)).to_dict()
+    data.update(spec=spec.to_dict(), warnings=list(spec_warnings(spec)))
+    return data
 
 
 def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
@@ -102,12 +116,19 @@ def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
     normals, offsets = normals[keep], offsets[keep]
     if np.any(offsets <= 0):
         raise ValueError("halfspace_polygon needs the origin strictly inside (all b > 0)")
-    # Scale each row to a unit normal so the mixed units (V, N m, rad/s) do not upset qhull.
-    norm = np.linalg.norm(normals, axis=1)
-    hs = np.column_stack([normals / norm[:, None], -offsets / norm])
+    # Work in axes scaled to the polygon's extent (torques of 1e-3..1e3 N m against speeds of
+    # 1e-3..1e4 rad/s) and with unit normals, so qhull sees a well-shaped problem.
+    with np.errstate(divide="ignore"):
+        reach = np.where(np.abs(normals) > 0, offsets[:, None] / np.abs(normals), np.inf)
+    axis_scale = reach.min(axis=0)
+    if not np.all(np.isfinite(axis_scale)):
+        raise ValueError("halfspace_polygon needs a bounded polygon")
+    scaled = normals * axis_scale[None, :]
+    norm = np.linalg.norm(scaled, axis=1)
+    hs = np.column_stack([scaled / norm[:, None], -offsets / norm])
     points = HalfspaceIntersection(hs, np.zeros(2)).intersections
     hull = ConvexHull(points)
-    verts = points[hull.vertices]  # counter-clockwise for 2-D hulls
+    verts = points[hull.vertices] * axis_scale[None, :]  # counter-clockwise for 2-D hulls (scaling keeps it)
     start = int(np.lexsort((-verts[:, 1], -verts[:, 0]))[0])  # max torque, then max speed
     return np.roll(verts, -start, axis=0)
 
@@ -127,7 +148,9 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
         rows += [("speed+", (0.0, 1.0), spec.max_speed), ("speed-", (0.0, -1.0), spec.max_speed)]
     A = np.array([r[1] for r in rows])
     b = np.array([r[2] for r in rows])
-    corner = spec.kv * (spec.bus_voltage - r_over_kt * tau_lim)
+    corner = max(spec.kv * (spec.bus_voltage - r_over_kt * tau_lim), 0.0)
+    if spec.max_speed is not None:
+        corner = min(corner, spec.max_speed)
     return OperatingRegion(
         motor=spec.name,
         A=frozen(A),
@@ -141,7 +164,24 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
         torque_limit=tau_lim,
         max_speed=spec.max_speed,
         back_emf_damping=spec.back_emf_damping,
+        inner_box=_inner_box(spec.stall_torque, spec.no_load_speed, tau_lim, spec.max_speed),
     )
+
+
+def _inner_box(stall: float, no_load: float, tau_lim: float, max_speed: float | None) -> tuple[float, float]:
+    """Max T*W with T <= tau_lim, W <= max_speed and T/stall + W/no_load <= 1 (the voltage line).
+
+    On the voltage line T W is largest at T = stall/2; the torque and speed limits
+    clip that point along the line. If the corner (tau_lim, max_speed) lies inside
+    the voltage band, the box is the full rectangle.
+    """
+    w_max = np.inf if max_speed is None else max_speed
+    if tau_lim / stall + w_max / no_load <= 1.0:
+        return tau_lim, float(w_max)
+    t_low = max(stall * (1.0 - w_max / no_load), 0.0)  # below this torque the speed limit binds
+    torque = float(np.clip(stall / 2.0, t_low, tau_lim))
+    speed = float(min(no_load * (1.0 - torque / stall), w_max))
+    return torque, speed
 
 
 def torque_interval(omega: ArrayLike, region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64]]:

@@ -42,6 +42,7 @@ from hound_id.errors import HoundIdError, RobotError, TransmissionError
 from hound_id.io import read_yaml
 from hound_id.mor.spec import MotorSpec, load_motor_spec
 from hound_id.mor.transmission import Transmission, from_matrix, from_ratios, hollow_shaft
+from hound_id.units import as_number
 
 SCHEMA = "hound-id/robot/1"
 _TOP_KEYS = ("schema", "name", "source", "notes", "motor_specs", "joints", "transmissions")
@@ -199,20 +200,31 @@ def _transmission(tx: Any, what: str, specs: Mapping[str, MotorSpec], out_specs:
         out_specs[motor] = specs[key]
     try:
         if kind == "ratio":
-            ratios = tx["ratios"]
-            if not isinstance(ratios, list) or not all(isinstance(g, (int, float)) for g in ratios):
-                raise RobotError(f"{what}: field 'ratios': found {ratios!r}, expected a list of numbers")
+            raw = tx["ratios"]
+            ratios = [as_number(g) for g in raw] if isinstance(raw, list) else [None]
+            if any(g is None for g in ratios):
+                raise RobotError(f"{what}: field 'ratios': found {raw!r}, expected a list of numbers")
             if len(ratios) != len(joints):
                 raise RobotError(f"{what}: field 'ratios': {len(ratios)} ratios for {len(joints)} joints")
-            return from_ratios(joints, motors, ratios, what=what)
+            return from_ratios(joints, motors, [float(g) for g in ratios if g is not None], what=what)
         if kind == "hollow_shaft":
             if len(joints) != 2:
                 raise RobotError(f"{what}: hollow_shaft couples exactly 2 joints (hip, knee), found {len(joints)}")
-            gh, gk = tx["hip_ratio"], tx["knee_ratio"]
-            if not all(isinstance(g, (int, float)) and not isinstance(g, bool) for g in (gh, gk)):
-                raise RobotError(f"{what}: hip_ratio and knee_ratio must be numbers, found {gh!r}, {gk!r}")
+            gh, gk = as_number(tx["hip_ratio"]), as_number(tx["knee_ratio"])
+            if gh is None or gk is None:
+                raise RobotError(
+                    f"{what}: hip_ratio and knee_ratio must be numbers, found {tx['hip_ratio']!r}, {tx['knee_ratio']!r}"
+                )
             return hollow_shaft(joints, motors, gh, gk, what=what)
-        return from_matrix(joints, motors, tx["matrix"], what=what)
+        rows = tx["matrix"]
+        matrix: Any = (
+            [[as_number(a) for a in row] for row in rows]
+            if isinstance(rows, list) and all(isinstance(row, list) for row in rows)
+            else rows
+        )
+        if isinstance(matrix, list) and any(a is None for row in matrix for a in row):
+            raise RobotError(f"{what}: field 'matrix': found {rows!r}, expected a list of rows of numbers")
+        return from_matrix(joints, motors, matrix, what=what)
     except TransmissionError as err:
         raise RobotError(str(err), **err.details) from err
 

@@ -406,6 +406,8 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
     Raises:
         TableError: A column is missing or holds a non-finite value.
     """
+    import pandas as pd
+
     from hound_id.errors import TableError
 
     arrays = {}
@@ -419,14 +421,21 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
                     f"for every joint ({', '.join(robot.joints)})",
                     column=name,
                 )
-            try:
-                values = np.asarray(columns[name], dtype=float)
-            except (TypeError, ValueError) as err:
-                raise TableError(f"{source}: column '{name}' is not numeric", column=name) from err
+            raw = pd.Series(np.asarray(columns[name]))
+            numeric = pd.to_numeric(raw, errors="coerce")
+            text = np.flatnonzero(numeric.isna().to_numpy() & raw.notna().to_numpy())
+            if text.size:
+                raise TableError(
+                    f"{source}: column '{name}' data row {int(text[0]) + 1} holds {raw.iloc[text[0]]!r}; "
+                    "expected a number",
+                    column=name,
+                    row=int(text[0]) + 1,
+                )
+            values = numeric.to_numpy(dtype=float)
             bad = np.flatnonzero(~np.isfinite(values))
             if bad.size:
                 raise TableError(
-                    f"{source}: column '{name}' row {int(bad[0]) + 1} holds {values[bad[0]]}; "
+                    f"{source}: column '{name}' data row {int(bad[0]) + 1} holds {values[bad[0]]}; "
                     "expected a finite number (drop or fill such rows first)",
                     column=name,
                     row=int(bad[0]) + 1,

@@ -26,7 +26,7 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, fields
+from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
@@ -55,7 +55,7 @@ _QUANTITY_KEYS: dict[str, tuple[str, bool]] = {
     "rotor_inertia": ("inertia", False),
     "inductance": ("inductance", False),
 }
-_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed")
+_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed", "base", "fit")
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
 
@@ -89,6 +89,8 @@ class MotorSpec:
     """Where the numbers came from."""
     assumed: tuple[str, ...] = ()
     """Fields whose values are assumed rather than sourced."""
+    fit: Mapping[str, Any] | None = field(default=None, compare=False)
+    """The dynamometer fit (schema hound-id/fit/1) whose Kt and peak torque this spec carries, if any."""
 
     @property
     def torque_limit(self) -> float:
@@ -220,20 +222,50 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     if src is not None and not isinstance(src, str):
         raise SpecError(f"{where(source, 'source')}: found {src!r}, expected text", field="source")
     assumed = data.get("assumed", [])
-    if not isinstance(assumed, list) or any(a not in _QUANTITY_KEYS and a != "pole_pairs" for a in assumed):
+    if not isinstance(assumed, list):
         raise SpecError(
-            f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names",
-            field="assumed",
+            f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names", field="assumed"
         )
+    for entry in assumed:
+        if entry not in _QUANTITY_KEYS and entry != "pole_pairs":
+            raise SpecError(
+                f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
+            )
+    fit = data.get("fit")
+    if fit is not None and not isinstance(fit, Mapping):
+        raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
     return MotorSpec(
         name=name.strip(),
         pole_pairs=pole_pairs,
         source=src,
         assumed=tuple(assumed),
+        fit=fit,
         **values,
     )
 
 
 def load_motor_spec(path: str | Path) -> MotorSpec:
     """Read and validate a motor spec YAML file (see module docstring for its conventions)."""
-    return motor_spec_from_mapping(read_yaml(path, "motor spec"), source=str(path))
+    data = read_yaml(path, "motor spec")
+    if isinstance(data, Mapping) and "base" in data:
+        data = _merge_base(data, Path(path))
+    return motor_spec_from_mapping(data, source=str(path))
+
+
+def _merge_base(data: Mapping[str, Any], path: Path) -> dict[str, Any]:
+    """A fitted spec's own fields on top of the spec sheet it names with ``base:``."""
+    base_ref = data["base"]
+    if not isinstance(base_ref, str):
+        raise SpecError(f"{where(str(path), 'base')}: found {base_ref!r}, expected the path of a motor spec file")
+    base_path = path.parent / base_ref
+    base = read_yaml(base_path, "motor spec")
+    if not isinstance(base, Mapping):
+        raise SpecError(f"{base_path}: expected a mapping of spec fields (named by 'base' in {path})")
+    if "base" in base:
+        raise SpecError(f"{base_path}: a base spec cannot itself have a 'base' (named by {path})")
+    merged = {**base, **{k: v for k, v in data.items() if k != "base"}}
+    # Fields the fit measured are no longer assumed.
+    overridden = [k for k in data if k in _QUANTITY_KEYS]
+    if "assumed" in base and "assumed" not in data:
+        merged["assumed"] = [a for a in base["assumed"] if a not in overridden]
+    return merged

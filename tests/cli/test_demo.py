@@ -22,6 +22,10 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     robot_step = data["steps"][1]["figures"]
     assert robot_step["hound_like.inner_infeasible"] == 0.0
     assert robot_step["hound_like.outer_infeasible"] > 0.5
+    motor = json.loads((tmp_path / "out" / "mor_hound_ilm85.json").read_text())
+    assert motor["schema"] == "hound-id/mor/1" and "spec" in motor and motor["warnings"] == []
+    robot = json.loads((tmp_path / "out" / "mor_robot_hound_like.json").read_text())
+    assert all("spec" in m and "warnings" in m for m in robot["motors"])
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["schema"] == "hound-id/demo/1"
 

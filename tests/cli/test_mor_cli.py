@@ -94,7 +94,7 @@ def test_bad_invocations(tmp_path):
     assert_one_line_error(
         run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "no" / "x.png")), "does not exist"
     )
-    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "x.pdf")), "PNG")
+    assert_one_line_error(run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "x.pdf")), "end in .png")
     assert list(tmp_path.iterdir()) == []
 
 
@@ -125,3 +125,36 @@ def test_help_and_version():
     proc = run_cli("--help")
     assert proc.returncode == 0 and "mor" in proc.stdout and "demo" in proc.stdout
     assert run_cli("--version").stdout.startswith("hound-id ")
+
+
+def test_outputs_are_checked_before_work_and_get_normal_permissions(tmp_path):
+    import os
+
+    from tests.conftest import SAMPLES
+
+    log = SAMPLES / "commands" / "hound_like_running.csv"
+    proc = run_cli(
+        "saturate",
+        str(log),
+        "--robot",
+        str(ROBOT),
+        "--out",
+        str(tmp_path / "y.csv"),
+        "--plot",
+        str(tmp_path / "nodir" / "y.png"),
+    )
+    assert_one_line_error(proc, "does not exist")
+    assert not (tmp_path / "y.csv").exists()
+    old = os.umask(0o022)
+    try:
+        assert run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "m.png")).returncode == 0
+    finally:
+        os.umask(old)
+    assert (tmp_path / "m.png").stat().st_mode & 0o777 == 0o644
+
+
+def test_demo_refuses_bad_output_folders(tmp_path):
+    (tmp_path / "afile").write_text("x")
+    assert_one_line_error(run_cli("demo", "--out", str(tmp_path / "afile")), "not a folder")
+    assert_one_line_error(run_cli("demo", "--out", str(tmp_path / "no" / "deeper")), "does not exist")
+    assert not (tmp_path / "no").exists()

@@ -50,12 +50,23 @@ def test_saturate_bad_logs(tmp_path):
     bad.loc[7, "tau_FL_HFE"] = np.nan
     bad.to_csv(tmp_path / "nan.csv", index=False)
     assert_one_line_error(
-        run_cli("saturate", str(tmp_path / "nan.csv"), "--robot", str(ROBOT)), "column 'tau_FL_HFE' row 8"
+        run_cli("saturate", str(tmp_path / "nan.csv"), "--robot", str(ROBOT)), "column 'tau_FL_HFE' data row 8"
     )
     (tmp_path / "log.txt").write_text("x")
     assert_one_line_error(run_cli("saturate", str(tmp_path / "log.txt"), "--robot", str(ROBOT)), "unknown table format")
     (tmp_path / "empty.csv").write_text("")
     assert_one_line_error(run_cli("saturate", str(tmp_path / "empty.csv"), "--robot", str(ROBOT)), "empty.csv")
     assert_one_line_error(
-        run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(tmp_path / "o.xlsx")), "unknown table format"
+        run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(tmp_path / "o.xlsx")), "table files end in"
+    )
+
+
+def test_text_in_a_numeric_column_names_row_and_value(tmp_path):
+    frame = pd.read_csv(LOG, comment="#")
+    frame["qd_FL_KFE"] = frame["qd_FL_KFE"].astype(object)
+    frame.loc[4, "qd_FL_KFE"] = "fast"
+    frame.to_csv(tmp_path / "text.csv", index=False)
+    assert_one_line_error(
+        run_cli("saturate", str(tmp_path / "text.csv"), "--robot", str(ROBOT)),
+        "column 'qd_FL_KFE' data row 5 holds 'fast'",
     )

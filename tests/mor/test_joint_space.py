@@ -95,3 +95,33 @@ def test_json(sample):
     assert data["schema"] == "hound-id/mor-robot/1"
     assert [j["joint"] for j in data["joints"]] == list(sample[0].joints)
     assert {"inner_box", "outer_box", "section_vertices", "projection_vertices"} <= set(data["joints"][1])
+
+
+def test_single_motor_inner_box_matches_the_motor_region(write_yaml):
+    text = f"""
+name: one
+motor_specs: {{s: {SMALL_MOTOR}}}
+joints: [a]
+transmissions:
+  - {{type: ratio, joints: [a], motors: [ma], motor_spec: s, ratios: [1]}}
+"""
+    robot = load_robot(write_yaml("one.yaml", text))
+    jr = robot_regions(robot).joints[0]
+    region = operating_region(robot.motor_specs["ma"])
+    assert (jr.inner_box.effort, jr.inner_box.velocity) == pytest.approx(region.inner_box, rel=1e-6)
+
+
+def test_extreme_gear_ratios_do_not_break_the_geometry(write_yaml):
+    text = f"""
+name: extreme
+motor_specs: {{s: {SMALL_MOTOR}}}
+joints: [a, b]
+transmissions:
+  - {{type: matrix, joints: [a], motors: [ma], motor_spec: s, matrix: [[1e-9]]}}
+  - {{type: ratio, joints: [b], motors: [mb], motor_spec: s, ratios: [1e3]}}
+"""
+    regions = robot_regions(load_robot(write_yaml("x.yaml", text)))
+    a, b = regions.joints
+    assert a.outer_box.effort == pytest.approx(2.4e9, rel=1e-9)
+    assert b.outer_box.effort == pytest.approx(2.4e3, rel=1e-9)
+    assert len(a.section) >= 4

@@ -99,3 +99,34 @@ def test_region_json_schema():
     for key in ("motor", "halfspaces", "vertices", "stall_torque", "no_load_speed", "corner_speed", "overspeed"):
         assert key in data
     assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"])
+
+
+def test_corner_speed_is_clipped_and_inner_box_stays_inside():
+    # torque limit above the stall torque: no speed has full motoring torque
+    weak = operating_region(MotorSpec(name="w", kt=0.1, kv=10.0, resistance=1.0, bus_voltage=24.0, peak_torque=5.0))
+    assert weak.corner_speed == 0.0
+    t, w = weak.inner_box
+    assert t == pytest.approx(weak.stall_torque / 2) and w == pytest.approx(weak.no_load_speed / 2)
+    # a rated speed below the voltage-limited corner
+    capped = operating_region(
+        MotorSpec(name="c", kt=0.083, kv=10.47, resistance=0.31, bus_voltage=24.0, peak_torque=2.4, max_speed=104.7)
+    )
+    assert capped.corner_speed == pytest.approx(104.7)
+    assert capped.inner_box == pytest.approx((2.4, 104.7))
+
+
+@settings(max_examples=200, deadline=None)
+@given(specs())
+def test_inner_box_is_inside_and_largest(spec):
+    r = operating_region(spec)
+    t, w = r.inner_box
+    corners = np.array([[sx * t, sy * w] for sx in (-1, 1) for sy in (-1, 1)])
+    assert np.all(r.contains(corners[:, 0], corners[:, 1], rtol=1e-9))
+    # no box of larger area fits: a brute-force search over the torque half-width
+    best = 0.0
+    for tt in np.linspace(1e-6, r.torque_limit, 400):
+        ww = r.no_load_speed * (1 - tt / r.stall_torque)
+        if r.max_speed is not None:
+            ww = min(ww, r.max_speed)
+        best = max(best, tt * max(ww, 0.0))
+    assert t * w >= best * (1 - 1e-3)

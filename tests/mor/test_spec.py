@@ -107,3 +107,34 @@ def test_kt_kv_mixup_warns():
 def test_torque_limit_above_stall_warns():
     spec = motor_spec_from_mapping(dict(BASE, resistance=5.0))  # stall 0.96 N m < 3 N m peak
     assert any("stall torque" in w for w in spec_warnings(spec))
+
+
+def test_yaml_numbers_without_a_dot_and_duplicate_keys(write_yaml):
+    # YAML 1.1 reads 1e-1 as text; it is still a plain (SI) number
+    spec = load_motor_spec(
+        write_yaml("e.yaml", "name: m\nkt: 1e-1\nkv: 1e1\nresistance: 2e-1\nbus_voltage: 48\npeak_torque: 3\n")
+    )
+    assert spec.kt == pytest.approx(0.1) and spec.kv == pytest.approx(10.0)
+    with pytest.raises(SpecError, match="line 3: key 'kt' appears twice"):
+        load_motor_spec(write_yaml("d.yaml", "name: m\nkt: 0.1\nkt: 0.2\nkv: 10\nresistance: 0.2\n"))
+
+
+def test_assumed_names_the_bad_entry():
+    with pytest.raises(SpecError, match="'kvv' is not a spec field; did you mean 'kv'"):
+        motor_spec_from_mapping(dict(BASE, assumed=["kt", "kvv"]))
+
+
+def test_fitted_spec_on_a_base_sheet(write_yaml, tmp_path):
+    write_yaml(
+        "sheet.yaml",
+        "name: m\nkt: 0.1\nkv: 10\nresistance: 0.2\nbus_voltage: 48\npeak_torque: 3\n"
+        "assumed: [kt, peak_torque, resistance]\n",
+    )
+    fitted = load_motor_spec(
+        write_yaml("fitted.yaml", "base: sheet.yaml\nkt: 0.093\npeak_torque: 2.6\nfit: {schema: hound-id/fit/1}\n")
+    )
+    assert fitted.kt == 0.093 and fitted.peak_torque == 2.6 and fitted.kv == 10
+    assert fitted.assumed == ("resistance",)
+    assert fitted.fit == {"schema": "hound-id/fit/1"}
+    with pytest.raises(SpecError, match="file not found"):
+        load_motor_spec(write_yaml("orphan.yaml", "base: nope.yaml\nkt: 0.1\n"))

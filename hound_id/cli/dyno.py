@@ -1,0 +1,190 @@
+"""``hound-id fit-current`` and ``hound-id effects``: current-torque identification from dyno logs."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+from rich.table import Table
+
+from hound_id.cli._render import console, err_console, print_json, save_figure, warn
+from hound_id.errors import FitError
+from hound_id.io import check_output
+
+
+def fit_current(
+    data: Path = typer.Argument(..., help="Dyno log, CSV or Parquet (time, current, torque [, velocity, ...])."),
+    model: str = typer.Option("linear+saturation", "--model", help="Starting model: effects joined by '+'."),
+    add: Optional[list[str]] = typer.Option(None, "--add", help="Add an effect to the model (repeatable)."),
+    auto: bool = typer.Option(False, "--auto", help="Add the top significant effect until none is left."),
+    columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
+    units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
+    flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensor mounted reversed)."),
+    robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares (outliers left in the log)."),
+    effects_file: Optional[list[Path]] = typer.Option(
+        None, "--effects-file", help="Python file registering your own effects (repeatable)."
+    ),
+    spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec the fitted Kt and peak torque override."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: fit, 20 % point, residuals before and after."),
+    out: Optional[Path] = typer.Option(None, "--out", help="Write a fitted-motor YAML that 'hound-id mor' accepts."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/1)."),
+) -> None:
+    """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
+    from hound_id.dyno.effects import Signals, load_effects_file, parse_model
+    from hound_id.dyno.log import load_log, parse_mapping
+
+    check_output(plot, (".png",), "plot")
+    check_output(out, (".yaml", ".yml"), "fitted-motor")
+    for path in effects_file or []:
+        load_effects_file(path)
+    names = list(parse_model(model))
+    for extra in add or []:
+        for effect_name in parse_model(extra):
+            if effect_name in names:
+                raise FitError(f"--add {effect_name}: the model already has it")
+            names.append(effect_name)
+    log = load_log(
+        data,
+        columns=parse_mapping(columns, "--columns"),
+        units=parse_mapping(units, "--units"),
+        flip_torque=flip_torque,
+    )
+    for note in log.notes:
+        if note.kind != "unit":
+            warn(note.message)
+    signals = Signals.from_log(log)
+    torque = log.torque
+    result = _run(signals, torque, tuple(names), auto=auto, robust=robust)
+    fit, diagnosis, ladder, start = result
+    from hound_id.dyno.curve import compensation, peak_torque
+    from hound_id.dyno.report import fit_report, fitted_motor
+
+    peak = peak_torque(fit, float(abs(signals.current).max()))
+    comp = compensation(fit, peak.current if peak.current is not None else float(abs(signals.current).max()))
+    report = fit_report(str(data), fit, diagnosis, peak, comp, ladder, log.notes, log.rows_read)
+    if out is not None:
+        import yaml
+
+        from hound_id import io
+
+        name: str | None = None
+        if spec is None:
+            name = data.stem
+        else:
+            from hound_id.mor.spec import load_motor_spec
+
+            load_motor_spec(spec)  # fail early on a bad sheet
+        motor = fitted_motor(report, out, spec, name)
+        io.write_text(out, yaml.safe_dump(motor, sort_keys=False))
+    if plot is not None:
+        from hound_id.dyno.plot import plot_fit
+
+        order = fit.hypers.get("cogging_order") or next(
+            (s.fit.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.fit), None
+        )
+        save_figure(
+            plot_fit(signals, torque, fit, peak, before=start if start is not fit else None, cogging_order=order), plot
+        )
+    if json_out:
+        report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
+        print_json(report)
+        return
+    _print(report, fit, diagnosis, ladder, plot, out)
+
+
+def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[no-untyped-def]
+    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
+
+    from hound_id.dyno.diagnose import auto as run_auto
+    from hound_id.dyno.diagnose import diagnose
+    from hound_id.dyno.fit import fit_model
+
+    with Progress(
+        SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err_console, transient=True
+    ) as progress:
+        task = progress.add_task(f"fitting {'+'.join(names)}")
+        start = fit_model(signals, torque, names, robust=robust)
+        if auto:
+
+            def on_step(step) -> None:  # type: ignore[no-untyped-def]
+                progress.update(
+                    task, description=f"diagnosed {'+'.join(step.model)}: held-out RMSE {step.fit.rmse_test:.3g} N m"
+                )
+
+            ladder = run_auto(signals, torque, start, on_step=on_step)
+            return ladder[-1].fit, ladder[-1].diagnosis, ladder, start
+        progress.update(task, description="diagnosing")
+        return start, diagnose(signals, torque, start), None, start
+
+
+def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
+    console.print(
+        f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, "
+        f"{fit.n_train} training rows, {fit.n_test} held-out rows (time blocks)",
+        highlight=False,
+    )
+    table = Table(title="parameters", title_justify="left")
+    for col in ("parameter", "value", "std. error", "unit", "effect"):
+        table.add_column(col, justify="right" if col in ("value", "std. error") else "left")
+    for name, est in fit.parameters.items():
+        err = "" if est.stderr != est.stderr else f"{est.stderr:.2g}"
+        table.add_row(name, f"{est.value:.5g}", err, est.unit, est.effect)
+    console.print(table)
+    console.print(
+        f"RMSE train {fit.rmse_train:.4g} N m, held-out {fit.rmse_test:.4g} N m; "
+        f"noise floor {diagnosis.noise_floor:.3g} N m; AIC {fit.aic:.6g}, BIC {fit.bic:.6g}",
+        highlight=False,
+    )
+    pk = report["peak_torque"]
+    console.print(pk["note"], highlight=False)
+    comp = report["compensation"]
+    if comp:
+        terms = " + ".join(f"{c:.4g} tau^{p}" for p, c in zip(comp["powers"], comp["coefficients"], strict=True))
+        console.print(
+            f"current compensation i(tau) = {terms} [A] (max error {comp['max_error']:.2g} A "
+            f"over |tau| <= {comp['torque_range']:.3g} N m)",
+            highlight=False,
+        )
+    if ladder is not None:
+        lt = Table(title="--auto ladder", title_justify="left")
+        for col in ("step", "added", "held-out RMSE [N m]", "train RMSE [N m]", "BIC"):
+            lt.add_column(col, justify="left" if col in ("step", "added") else "right")
+        for k, step in enumerate(ladder):
+            lt.add_row(
+                str(k),
+                step.added or "(start)",
+                f"{step.fit.rmse_test:.4g}",
+                f"{step.fit.rmse_train:.4g}",
+                f"{step.fit.bic:.6g}",
+            )
+        console.print(lt)
+    st = Table(title="missing effects, best first (held-out residual explained)", title_justify="left")
+    for col in ("effect", "explained", "significant", "evidence"):
+        st.add_column(col, justify="right" if col == "explained" else "left", overflow="fold")
+    for s in diagnosis.suggestions:
+        st.add_row(s.effect, f"{s.explained:.2%}", "yes" if s.significant else "no", s.reason)
+    console.print(st)
+    if diagnosis.skipped:
+        console.print(f"not tried: {'; '.join(diagnosis.skipped)}", highlight=False)
+    console.print(f"[bold]{diagnosis.summary()}[/bold]", highlight=False)
+    for path, what in ((plot, "plot"), (out, "fitted motor")):
+        if path is not None:
+            console.print(f"{what} written to {path}", highlight=False)
+
+
+def effects(json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/effects/1).")) -> None:
+    """List the effects library: names, physics, parameters and units."""
+    from hound_id.dyno.effects import describe
+
+    items = describe()
+    if json_out:
+        print_json({"schema": "hound-id/effects/1", "effects": items})
+        return
+    table = Table(title="effects (use with --model / --add)", title_justify="left")
+    for col in ("effect", "parameters", "needs", "physics"):
+        table.add_column(col, overflow="fold")
+    for e in items:
+        params = ", ".join(f"{p['name']} [{p['unit']}]" for p in (*e["parameters"], *e["hypers"]))
+        table.add_row(e["effect"], params, ", ".join(e["requires"]) or "-", e["physics"])
+    console.print(table)
