@@ -81,12 +81,16 @@ class Signals:
         fields: dict[str, Any] = {k: None if v is None else v[rows] for k, v in self.__dict__.items()}
         return Signals(**fields)
 
-    def shifted(self, delay: float) -> Signals:
-        """Every channel as it was ``delay`` seconds earlier (linear interpolation; held at the ends)."""
+    def shifted(self, delay: float, rows: NDArray[np.intp] | None = None) -> Signals:
+        """Every channel as it was ``delay`` seconds earlier (linear interpolation; held at the ends).
+
+        With ``rows``, only those samples are produced (interpolated from the full record).
+        """
         if delay == 0.0:
-            return self
-        t = self.time - delay
-        out: dict[str, Any] = {"time": self.time}
+            return self if rows is None else self.take(rows)
+        times = self.time if rows is None else self.time[rows]
+        t = times - delay
+        out: dict[str, Any] = {"time": times}
         for name in ("current", "velocity", "position", "temperature"):
             value = getattr(self, name)
             out[name] = None if value is None else np.interp(t, self.time, value)

@@ -34,7 +34,7 @@ TEST_BLOCKS = (2, 7)
 #: Rows used to evaluate hyper-parameter candidates (a strided subset of the training rows).
 SEARCH_ROWS = 200_000
 #: Gauss-Newton iterations for the delay.
-DELAY_ITERATIONS = 6
+DELAY_ITERATIONS = 12
 
 
 @dataclass(frozen=True)
@@ -213,35 +213,66 @@ def search_hyper(
 
 def _delay_step(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float
-) -> tuple[float, float, Array]:
-    """One Gauss-Newton step for the delay: returns (step [s], its stderr [s], prediction)."""
-    shifted = design.signals.shifted(delay)
+) -> tuple[float, float, float]:
+    """Gauss-Newton step for the delay on the search rows: (step [s], its stderr [s], RSS at ``delay``)."""
+    rows = design.search
+    shifted = design.signals.shifted(delay, rows)
     X = design.columns([m for m in model if m != "delay"], hypers, shifted)
-    tr = design.train
-    beta, _ = solve(X[tr], design.torque[tr])
+    y = design.torque[rows]
+    beta, _ = solve(X, y)
     pred = X @ beta
+    r0 = y - pred
     # d/dt of the model torque; a positive step means the channel lags more than assumed.
-    rate = np.gradient(pred, design.signals.time)
+    rate = np.gradient(pred, shifted.time)
     Z = np.column_stack([X, -rate])
-    beta2, cov = solve(Z[tr], design.torque[tr])
-    r = design.torque[tr] - Z[tr] @ beta2
-    dof = max(int(tr.sum()) - Z.shape[1], 1)
+    beta2, cov = solve(Z, y)
+    r = y - Z @ beta2
+    dof = max(rows.size - Z.shape[1], 1)
     sigma2 = float(r @ r) / dof
-    return float(beta2[-1]), math.sqrt(max(sigma2 * cov[-1, -1], 0.0)), pred
+    return float(beta2[-1]), math.sqrt(max(sigma2 * cov[-1, -1], 0.0)), float(r0 @ r0)
+
+
+def _delay_rss(design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float) -> float:
+    rows = design.search
+    X = design.columns([m for m in model if m != "delay"], hypers, design.signals.shifted(delay, rows))
+    return rss_with(X, np.empty((rows.size, 0)), design.torque[rows])
 
 
 def estimate_delay(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], start: float = 0.0
 ) -> tuple[float, float]:
-    """Delay of the torque channel [s] and its standard error, by Gauss-Newton on the time shift."""
+    """Delay of the torque channel [s] and its standard error.
+
+    Gauss-Newton on the time shift gives the direction; a line search on the residual
+    sum of squares (steps x1, x2, x4, ... and halving) takes it as far as it pays. Near
+    the answer the linearisation is good and the steps converge quickly; far from it
+    (fast current edges, a delay of several samples) the line search keeps it moving.
+    """
     delay, stderr = start, float("nan")
     dt = float(np.median(np.diff(design.signals.time)))
     for _ in range(DELAY_ITERATIONS):
-        step, stderr, _ = _delay_step(design, model, hypers, delay)
-        step = float(np.clip(step, -20 * dt, 20 * dt))  # keep each step within the linearisation's reach
-        delay += step
+        step, stderr, rss0 = _delay_step(design, model, hypers, delay)
         if abs(step) < 1e-3 * dt:
             break
+        best, best_rss = delay, rss0
+        factor = 1.0
+        while factor <= 64:
+            trial = _delay_rss(design, model, hypers, delay + factor * step)
+            if trial >= best_rss:
+                break
+            best, best_rss = delay + factor * step, trial
+            factor *= 2
+        if best == delay:  # the full step overshoots: halve it until it helps
+            factor = 0.5
+            while factor > 1e-3:
+                trial = _delay_rss(design, model, hypers, delay + factor * step)
+                if trial < best_rss:
+                    best, best_rss = delay + factor * step, trial
+                    break
+                factor /= 2
+        if best == delay:
+            break
+        delay = best
     return delay, stderr
 
 

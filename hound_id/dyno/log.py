@@ -29,10 +29,11 @@ ambiguous, as in :mod:`hound_id.units`.
    standard deviation for Gaussian noise; the difference of two samples has sqrt(2)
    times the noise of one. Only runs of at most 2 flagged samples count as glitches.
    A longer run is a real step.
-4. ADC saturation: current or torque sits exactly at its own extreme, a large magnitude,
+4. ADC saturation: a channel with measurable noise elsewhere sits exactly at its own extreme, a large magnitude,
    for 5 or more consecutive samples, and at that extreme in at least 0.1 % of the rows. The
-   other channel must keep changing meanwhile (its spread over those rows above 3 times its
-   noise): a flat top step of a commanded current holds the torque flat too, and is data.
+   other channel must keep changing meanwhile (its robust spread within each stuck run, median
+   over the runs, above 3 times its noise): a flat top step of a commanded current holds the
+   torque flat too (after the torque channel's own lag), and is data.
    Every row at the extreme is removed.
 5. A torque that falls as current rises (least-squares slope < 0, correlation < -0.5)
    means a reversed sensor. That is an error unless ``flip_torque`` negates the torque.
@@ -829,7 +830,9 @@ def _remove_clipping(
     for name in SENSOR_CHANNELS:
         x = data[name]
         high, low = float(x.max()), float(x.min())
-        if high == low:
+        if high == low or not noise[name] > 0:
+            # A channel without measurable noise (a logged set-point, a simulation) repeats values exactly
+            # wherever it is flat; only a noisy channel sitting exactly at one value betrays a clipped ADC.
             continue
         peak = max(abs(high), abs(low))
         for level in (high, low):
@@ -839,14 +842,23 @@ def _remove_clipping(
             count = int(np.count_nonzero(at))
             if count < CLIP_MIN_RUN or count < CLIP_MIN_FRACTION * x.size:
                 continue
-            _, lengths = _runs(np.flatnonzero(at))
+            index = np.flatnonzero(at)
+            starts, lengths = _runs(index)
             if lengths.max() < CLIP_MIN_RUN:
                 continue
             # A sensor is stuck only if the other channel keeps moving meanwhile. A flat top step of a commanded
-            # current (or a real current limit) holds the torque flat too, and is data, not saturation.
+            # current (or a real current limit) holds the torque flat too, and is data, not saturation. The
+            # spread is taken within each run, robustly (a lagging channel's transient at the start of a step
+            # and level differences between runs do not count), and the median over the runs is used.
             other_name = "torque" if name == "current" else "current"
             other = data[other_name]
-            spread = float(np.std(other[at]))
+            spreads = [
+                1.4826 * float(np.median(np.abs(seg - np.median(seg))))
+                for start, length in zip(starts, lengths, strict=True)
+                if length >= CLIP_MIN_RUN
+                for seg in [other[index[start : start + length]]]
+            ]
+            spread = float(np.median(spreads))
             if not spread > CLIP_OTHER_SIGMAS * noise[other_name] + 1e-9 * float(np.max(np.abs(other))):
                 continue
             keep &= ~at
@@ -856,7 +868,7 @@ def _remove_clipping(
                     "adc_saturation",
                     count,
                     f"{name} channel clipped at {level:.4g} {u} in {count} rows (ADC saturation: stuck for up to "
-                    f"{int(lengths.max())} samples while {other_name} kept changing, std {spread:.3g} {other_u}); "
+                    f"{int(lengths.max())} samples while {other_name} kept changing, spread {spread:.3g} {other_u} within a run); "
                     "those rows were removed",
                     name,
                 )
