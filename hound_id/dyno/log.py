@@ -868,7 +868,8 @@ def _remove_clipping(
                     "adc_saturation",
                     count,
                     f"{name} channel clipped at {level:.4g} {u} in {count} rows (ADC saturation: stuck for up to "
-                    f"{int(lengths.max())} samples while {other_name} kept changing, spread {spread:.3g} {other_u} within a run); "
+                    f"{int(lengths.max())} samples while {other_name} kept changing, spread {spread:.3g} {other_u} "
+                    "within a run); "
                     "those rows were removed",
                     name,
                 )
