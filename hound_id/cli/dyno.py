@@ -81,7 +81,7 @@ def fit_current(
         from hound_id.dyno.plot import plot_fit
 
         order = fit.hypers.get("cogging_order") or next(
-            (s.fit.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.fit), None
+            (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging"), None
         )
         save_figure(
             plot_fit(signals, torque, fit, peak, before=start if start is not fit else None, cogging_order=order), plot

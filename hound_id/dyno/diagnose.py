@@ -18,14 +18,14 @@ deviation keeps steps and spikes from inflating it.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
-from dataclasses import dataclass
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
 from hound_id.dyno.effects import REGISTRY, Signals, get, requirements_missing
-from hound_id.dyno.fit import Array, FitResult, fit_model
+from hound_id.dyno.fit import Array, Design, FitResult, Normal, fit_model, search_hyper
 from hound_id.errors import FitError
 
 #: Significance level after the multiple-comparison corrections.
@@ -52,8 +52,8 @@ class Suggestion:
     """Held-out RMSE with the effect added [N m]."""
     reason: str
     """The evidence in one sentence."""
-    fit: FitResult | None = None
-    """The fit with the effect added."""
+    hypers: Mapping[str, float] = field(default_factory=dict)
+    """Nonlinear parameter values with the effect added (e.g. the cogging order found)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -141,6 +141,53 @@ def candidates_for(model: Sequence[str], signals: Signals) -> tuple[list[str], l
     return tried, skipped
 
 
+@dataclass(frozen=True)
+class _Trial:
+    """A candidate added to the fitted model: what the diagnosis needs of it."""
+
+    values: dict[str, float]
+    hypers: dict[str, float]
+    rss_train: float
+    sse_test: float
+    tried: int
+
+
+def _trial(
+    name: str,
+    fit: FitResult,
+    design: Design,
+    shifted: Signals,
+    train: Normal,
+    test: Normal,
+    search: Normal,
+    residual_search: Array,
+) -> _Trial:
+    """Add one effect to the fitted model, reusing the model's normal equations."""
+    effect = get(name)
+    hypers = dict(fit.hypers)
+    tried = 1
+    rows = design.search
+    if effect.hypers:
+        found, tried = search_hyper(design, effect, search, shifted.take(rows), residual_search, hypers)
+        hypers.update(found)
+    C = effect.columns(shifted, hypers)
+    beta, rss = train.extend(C[design.train])
+    sse = test.sse(beta, C[design.test])
+    names = [p.name for m in fit.model for p in get(m).parameters] + [p.name for p in effect.parameters]
+    values = dict(zip(names, (float(b) for b in beta), strict=True))
+    values.update(hypers)
+    return _Trial(values, hypers, rss, sse, tried)
+
+
+def _delay_trial(signals: Signals, torque: Array, fit: FitResult) -> _Trial:
+    trial = fit_model(
+        signals, torque, (*fit.model, "delay"), robust=fit.robust, test=np.asarray(fit.test), hypers=fit.hypers
+    )
+    return _Trial(
+        trial.values(), dict(trial.hypers), trial.rmse_train**2 * trial.n_train, trial.rmse_test**2 * trial.n_test, 1
+    )
+
+
 def diagnose(
     signals: Signals, torque: Array, fit: FitResult, *, candidates: Sequence[str] | None = None, alpha: float = ALPHA
 ) -> Diagnosis:
@@ -153,38 +200,45 @@ def diagnose(
     test_ss = fit.rmse_test**2 * fit.n_test
     train_rss = fit.rmse_train**2 * fit.n_train
     p_base = sum(len(get(m).parameters) for m in fit.model)
+
+    design = Design(signals, torque, np.asarray(fit.test))
+    shifted = signals.shifted(fit.hypers.get("delay", 0.0))
+    X = design.columns([m for m in fit.model if m != "delay"], fit.hypers, shifted)
+    train = Normal(X[design.train], torque[design.train])
+    test = Normal(X[design.test], torque[design.test])
+    search = Normal(X[design.search], torque[design.search])
+    residual_search = np.asarray(fit.residual)[design.search]
+
     suggestions = []
     for name in names:
         try:
-            trial = fit_model(
-                signals, torque, (*fit.model, name), robust=fit.robust, test=np.asarray(fit.test), hypers=fit.hypers
-            )
+            if name == "delay":
+                trial = _delay_trial(signals, torque, fit)
+            else:
+                trial = _trial(name, fit, design, shifted, train, test, search, residual_search)
         except FitError as err:
             skipped.append(f"{name} ({err})")
             continue
-        new_test_ss = trial.rmse_test**2 * trial.n_test
-        explained = (test_ss - new_test_ss) / test_ss if test_ss > 0 else 0.0
+        explained = (test_ss - trial.sse_test) / test_ss if test_ss > 0 else 0.0
         q = max(len(get(name).parameters), 1)
-        new_rss = trial.rmse_train**2 * trial.n_train
-        dof = max(trial.n_train - p_base - q, 1)
-        if new_rss <= 0:
+        dof = max(fit.n_train - p_base - q, 1)
+        if trial.rss_train <= 0:
             p = 0.0
         else:
-            F = max((train_rss - new_rss) / q, 0.0) / (new_rss / dof)
+            F = max((train_rss - trial.rss_train) / q, 0.0) / (trial.rss_train / dof)
             p = float(fdtrc(q, dof, F))
         p_adj = min(1.0, p * _trials(name, fit) * max(len(names), 1))
         significant = bool(p_adj < alpha and explained > 0)
         effect = get(name)
         if significant and effect.evidence is not None:
-            reason = effect.evidence(trial.values(), signals)
+            reason = effect.evidence(trial.values, signals)
             reason += f" (explains {explained:.1%} of the held-out residual, p = {p_adj:.2g})"
+        elif significant:
+            reason = f"explains {explained:.1%} of the held-out residual (p = {p_adj:.2g})"
         else:
-            reason = (
-                f"explains {explained:.2%} of the held-out residual; not significant (p = {p_adj:.2g})"
-                if not significant
-                else f"explains {explained:.1%} of the held-out residual (p = {p_adj:.2g})"
-            )
-        suggestions.append(Suggestion(name, float(explained), significant, p_adj, trial.rmse_test, reason, trial))
+            reason = f"explains {explained:.2%} of the held-out residual; not significant (p = {p_adj:.2g})"
+        rmse = math.sqrt(trial.sse_test / max(fit.n_test, 1))
+        suggestions.append(Suggestion(name, float(explained), significant, p_adj, rmse, reason, trial.hypers))
     suggestions.sort(key=lambda s: (-s.significant, -s.explained))
     floor = noise_floor(fit.residual)
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions))
@@ -228,7 +282,7 @@ def auto(
         if on_step is not None:
             on_step(ladder[-1])
         best = diagnosis.best
-        if best is None or best.fit is None:
+        if best is None:
             break
         added = best.effect
         fit = fit_model(signals, torque, (*fit.model, best.effect), robust=fit.robust, test=np.asarray(fit.test))

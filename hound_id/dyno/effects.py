@@ -22,7 +22,8 @@ from __future__ import annotations
 import importlib.util
 import math
 from collections.abc import Callable, Mapping, Sequence
-from dataclasses import dataclass, field
+from dataclasses import dataclass, fields
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -65,6 +66,11 @@ class Signals:
             temperature=None if log.temperature is None else np.asarray(log.temperature, float),
         )
 
+    @cached_property
+    def velocity_sign(self) -> Array:
+        """sgn(velocity) = tanh(velocity / EPS_SPEED), computed once per signals object."""
+        return sgn(self.channel("velocity"))
+
     def channel(self, name: str) -> Array:
         """A channel that must exist (callers check :attr:`Effect.requires` first)."""
         value = getattr(self, name)
@@ -78,8 +84,11 @@ class Signals:
 
     def take(self, rows: NDArray[np.bool_] | NDArray[np.intp] | slice) -> Signals:
         """The same signals restricted to some rows."""
-        fields: dict[str, Any] = {k: None if v is None else v[rows] for k, v in self.__dict__.items()}
-        return Signals(**fields)
+        values: dict[str, Any] = {}
+        for f in fields(self):
+            v = getattr(self, f.name)
+            values[f.name] = None if v is None else v[rows]
+        return Signals(**values)
 
     def shifted(self, delay: float, rows: NDArray[np.intp] | None = None) -> Signals:
         """Every channel as it was ``delay`` seconds earlier (linear interpolation; held at the ends).
@@ -413,7 +422,7 @@ def _builtin() -> None:
             name="coulomb",
             physics="dry friction opposes motion with a constant torque whatever the speed",
             parameters=(Parameter("coulomb", "N m", "Coulomb friction torque"),),
-            regressors=lambda s, h: -sgn(s.channel("velocity")),
+            regressors=lambda s, h: -s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_coulomb,
         )
@@ -433,9 +442,7 @@ def _builtin() -> None:
             name="stribeck",
             physics="static friction exceeds Coulomb friction near rest and fades as speed builds a lubricant film",
             parameters=(Parameter("stribeck", "N m", "extra static friction at rest"),),
-            regressors=lambda s, h: (
-                -sgn(s.channel("velocity")) * np.exp(-((s.channel("velocity") / h["stribeck_speed"]) ** 2))
-            ),
+            regressors=lambda s, h: -s.velocity_sign * np.exp(-((s.channel("velocity") / h["stribeck_speed"]) ** 2)),
             requires=("velocity",),
             hypers=(Hyper("stribeck_speed", "rad/s", _speed_grid),),
             evidence=_evidence_stribeck,
@@ -446,7 +453,7 @@ def _builtin() -> None:
             name="gear_friction",
             physics="gear-mesh friction grows with the transmitted load (efficiency below 100 %), opposing motion",
             parameters=(Parameter("gear_friction", "N m/A", "friction per amp of load current"),),
-            regressors=lambda s, h: -np.abs(s.current) * sgn(s.channel("velocity")),
+            regressors=lambda s, h: -np.abs(s.current) * s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_gear,
         )
@@ -554,5 +561,4 @@ __all__ = [
     "register",
     "requirements_missing",
     "sgn",
-    "field",
 ]

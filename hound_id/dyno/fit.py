@@ -32,7 +32,7 @@ Array = NDArray[np.float64]
 BLOCKS = 10
 TEST_BLOCKS = (2, 7)
 #: Rows used to evaluate hyper-parameter candidates (a strided subset of the training rows).
-SEARCH_ROWS = 200_000
+SEARCH_ROWS = 100_000
 #: Gauss-Newton iterations for the delay.
 DELAY_ITERATIONS = 12
 
@@ -123,34 +123,67 @@ class Design:
         return np.hstack(blocks) if blocks else np.empty((n, 0))
 
 
-def solve(X: Array, y: Array, weights: Array | None = None) -> tuple[Array, Array]:
-    """Least squares with column scaling: returns (beta, unscaled inverse of X^T W X)."""
-    if X.shape[1] == 0:
+def solve_normal(G: Array, g: Array) -> tuple[Array, Array]:
+    """Solve the normal equations G beta = g with diagonal scaling; returns (beta, G^-1)."""
+    if G.shape[0] == 0:
         return np.empty(0), np.empty((0, 0))
-    scale = np.sqrt(np.mean(X * X, axis=0))
-    scale[scale <= 1e-12 * max(float(scale.max()), 1e-300)] = 1.0  # (near-)empty column: leave it to pinv
-    Xs = X / scale
-    if weights is not None:
-        sw = np.sqrt(weights)
-        Xs, y = Xs * sw[:, None], y * sw
-    G = Xs.T @ Xs
-    g = Xs.T @ y
+    d = np.sqrt(np.diag(G))
+    d[d <= 1e-150 + 1e-12 * max(float(d.max()), 1e-300)] = 1.0  # (near-)empty column: leave it to pinv
+    Gs = G / np.outer(d, d)
     try:
-        G_inv = np.linalg.inv(G)
-        if not np.all(np.isfinite(G_inv)) or np.linalg.cond(G) > 1e13:
+        G_inv = np.linalg.inv(Gs)
+        if not np.all(np.isfinite(G_inv)) or np.linalg.cond(Gs) > 1e13:
             raise np.linalg.LinAlgError
     except np.linalg.LinAlgError:
-        G_inv = np.linalg.pinv(G)
-    beta = G_inv @ g
-    return beta / scale, G_inv / np.outer(scale, scale)
+        G_inv = np.linalg.pinv(Gs)
+    beta = G_inv @ (g / d)
+    return beta / d, G_inv / np.outer(d, d)
+
+
+def solve(X: Array, y: Array, weights: Array | None = None) -> tuple[Array, Array]:
+    """Least squares of y on X (optionally weighted): returns (beta, inverse of X^T W X)."""
+    if X.shape[1] == 0:
+        return np.empty(0), np.empty((0, 0))
+    if weights is not None:
+        Xw = X * weights[:, None]
+        return solve_normal(Xw.T @ X, Xw.T @ y)
+    return solve_normal(X.T @ X, X.T @ y)
+
+
+class Normal:
+    """Normal equations of y on X over some rows, so extra columns cost only their cross-products."""
+
+    def __init__(self, X: Array, y: Array) -> None:
+        self.X, self.y = X, y
+        self.G = X.T @ X
+        self.g = X.T @ y
+        self.yy = float(y @ y)
+
+    def extend(self, C: Array) -> tuple[Array, float]:
+        """Coefficients on [X, C] and the residual sum of squares over these rows."""
+        G, g = self._blocks(C)
+        beta, _ = solve_normal(G, g)
+        return beta, self._rss(beta, G, g)
+
+    def sse(self, beta: Array, C: Array) -> float:
+        """Residual sum of squares over these rows for coefficients fitted elsewhere."""
+        G, g = self._blocks(C)
+        return self._rss(beta, G, g)
+
+    def _blocks(self, C: Array) -> tuple[Array, Array]:
+        if C.shape[1] == 0:
+            return self.G, self.g
+        XC = self.X.T @ C
+        G = np.block([[self.G, XC], [XC.T, C.T @ C]])
+        return G, np.concatenate([self.g, C.T @ self.y])
+
+    def _rss(self, beta: Array, G: Array, g: Array) -> float:
+        return max(self.yy - 2.0 * float(beta @ g) + float(beta @ G @ beta), 0.0)
 
 
 def rss_with(base: Array, extra: Array, y: Array) -> float:
     """Residual sum of squares of y on [base, extra]."""
-    X = np.hstack([base, extra]) if extra.size else base
-    beta, _ = solve(X, y)
-    r = y - X @ beta
-    return float(r @ r)
+    return Normal(base, y).extend(extra)[1]
 
 
 def _huber_weights(r: Array, k: float = 1.345) -> Array:
@@ -162,12 +195,19 @@ def _huber_weights(r: Array, k: float = 1.345) -> Array:
 
 
 def search_hyper(
-    design: Design, effect: Effect, base: Array, signals: Signals, residual: Array, hypers: Mapping[str, float]
+    design: Design, effect: Effect, base: Normal, signals: Signals, residual: Array, hypers: Mapping[str, float]
 ) -> tuple[dict[str, float], int]:
     """Best value of an effect's nonlinear parameter on the search rows.
 
-    Returns the chosen {name: value} and the number of candidates tried (for the
-    multiple-comparison correction of the diagnosis).
+    Args:
+        design: The log.
+        effect: The effect whose hyper is searched.
+        base: Normal equations of the rest of the model on the search rows.
+        signals: Signals (already delay-shifted) on the search rows.
+        residual: Residual of the rest of the model on the search rows.
+        hypers: Values of the other nonlinear parameters.
+
+    Returns the chosen {name: value} and the number of candidates tried.
     """
     if not effect.hypers:
         return {}, 1
@@ -176,11 +216,7 @@ def search_hyper(
             f"effect '{effect.name}' has {len(effect.hypers)} nonlinear parameters; at most one is supported"
         )
     hyper = effect.hypers[0]
-    rows = design.search
-    sub = signals.take(rows)
-    y = design.torque[rows]
-    B = base[rows]
-    candidates = np.unique(hyper.candidates(sub, residual[rows]))
+    candidates = np.unique(hyper.candidates(signals, residual))
     candidates = candidates[np.isfinite(candidates) & (candidates > 0)]
     if candidates.size == 0:
         raise FitError(
@@ -190,7 +226,7 @@ def search_hyper(
     def cost(value: float) -> float:
         trial = dict(hypers)
         trial[hyper.name] = float(value)
-        return rss_with(B, effect.columns(sub, trial), y)
+        return base.extend(effect.columns(signals, trial))[1]
 
     costs = np.array([cost(v) for v in candidates])
     best = int(np.argmin(costs))
@@ -323,11 +359,13 @@ def fit_model(
     current["delay"] = delay
     shifted = signals.shifted(delay)
     base_names = list(linear_names)
+    rows = design.search
+    sub = shifted.take(rows)
     for e in searched:
-        base = design.columns(base_names, current, shifted)
-        beta, _ = solve(base[design.train], torque[design.train])
-        residual = torque - base @ beta
-        value, _ = search_hyper(design, e, base, shifted, residual, current)
+        base = design.columns(base_names, current, sub)
+        normal = Normal(base, torque[rows])
+        beta, _ = solve_normal(normal.G, normal.g)
+        value, _ = search_hyper(design, e, normal, sub, torque[rows] - base @ beta, current)
         current.update(value)
         found.update(value)
         base_names.append(e.name)
