@@ -25,7 +25,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.dyno.effects import REGISTRY, Signals, get, requirements_missing
-from hound_id.dyno.fit import Array, Design, FitResult, Normal, fit_model, search_hyper
+from hound_id.dyno.fit import Array, Design, FitResult, Normal, fit_model, mask_slices, search_hyper
 from hound_id.errors import FitError
 
 #: Significance level after the multiple-comparison corrections.
@@ -171,8 +171,8 @@ def _trial(
         found, tried = search_hyper(design, effect, search, shifted.take(rows), residual_search, hypers)
         hypers.update(found)
     C = effect.columns(shifted, hypers)
-    beta, rss = train.extend(C[design.train])
-    sse = test.sse(beta, C[design.test])
+    beta, rss = train.extend(C)
+    sse = test.sse(beta, C)
     names = [p.name for m in fit.model for p in get(m).parameters] + [p.name for p in effect.parameters]
     values = dict(zip(names, (float(b) for b in beta), strict=True))
     values.update(hypers)
@@ -204,8 +204,8 @@ def diagnose(
     design = Design(signals, torque, np.asarray(fit.test))
     shifted = signals.shifted(fit.hypers.get("delay", 0.0))
     X = design.columns([m for m in fit.model if m != "delay"], fit.hypers, shifted)
-    train = Normal(X[design.train], torque[design.train])
-    test = Normal(X[design.test], torque[design.test])
+    train = Normal(X, torque, mask_slices(design.train))
+    test = Normal(X, torque, mask_slices(design.test))
     search = Normal(X[design.search], torque[design.search])
     residual_search = np.asarray(fit.residual)[design.search]
 

@@ -90,19 +90,27 @@ class Signals:
             values[f.name] = None if v is None else v[rows]
         return Signals(**values)
 
-    def shifted(self, delay: float, rows: NDArray[np.intp] | None = None) -> Signals:
+    def shifted(self, delay: float, rows: NDArray[np.intp] | None = None,
+                channels: Sequence[str] | None = None) -> Signals:
         """Every channel as it was ``delay`` seconds earlier (linear interpolation; held at the ends).
 
-        With ``rows``, only those samples are produced (interpolated from the full record).
+        With ``rows``, only those samples are produced (interpolated from the full record);
+        with ``channels``, only those channels (and current) are kept.
         """
-        if delay == 0.0:
+        keep = ("current", "velocity", "position", "temperature") if channels is None else ("current", *channels)
+        if delay == 0.0 and channels is None:
             return self if rows is None else self.take(rows)
         times = self.time if rows is None else self.time[rows]
         t = times - delay
         out: dict[str, Any] = {"time": times}
         for name in ("current", "velocity", "position", "temperature"):
             value = getattr(self, name)
-            out[name] = None if value is None else np.interp(t, self.time, value)
+            if value is None or name not in keep:
+                out[name] = None
+            elif delay == 0.0:
+                out[name] = value if rows is None else value[rows]
+            else:
+                out[name] = np.interp(t, self.time, value)
         return Signals(**out)
 
 
@@ -281,6 +289,16 @@ def _order_candidates(weight_by_current: bool) -> Callable[[Signals, Array], Arr
         return top.astype(float)
 
     return candidates
+
+
+def _harmonics(phase: Array) -> Array:
+    """Columns sin(x), cos(x), sin(2x), cos(2x) (the second pair by the double-angle formulas)."""
+    out = np.empty((phase.shape[0], 4))
+    np.sin(phase, out=out[:, 0])
+    np.cos(phase, out=out[:, 1])
+    np.multiply(2.0 * out[:, 0], out[:, 1], out=out[:, 2])
+    np.subtract(out[:, 1] ** 2, out[:, 0] ** 2, out=out[:, 3])
+    return out
 
 
 def _fmt(value: float, unit: str) -> str:
@@ -467,9 +485,7 @@ def _builtin() -> None:
                 for k in (1, 2)
                 for f in ("sin", "cos")
             ),
-            regressors=lambda s, h: np.column_stack(
-                [f(k * h["cogging_order"] * s.channel("position")) for k in (1, 2) for f in (np.sin, np.cos)]
-            ),
+            regressors=lambda s, h: _harmonics(h["cogging_order"] * s.channel("position")),
             requires=("position",),
             hypers=(Hyper("cogging_order", "1/rev", _order_candidates(False), integer=True, refine=False),),
             evidence=_evidence_cogging,

@@ -151,16 +151,20 @@ def solve(X: Array, y: Array, weights: Array | None = None) -> tuple[Array, Arra
 
 
 class Normal:
-    """Normal equations of y on X over some rows, so extra columns cost only their cross-products."""
+    """Normal equations of y on X over some rows, so extra columns cost only their cross-products.
 
-    def __init__(self, X: Array, y: Array) -> None:
+    The rows are given as contiguous slices (time blocks), so nothing is copied.
+    """
+
+    def __init__(self, X: Array, y: Array, rows: Sequence[slice] | None = None) -> None:
         self.X, self.y = X, y
-        self.G = X.T @ X
-        self.g = X.T @ y
-        self.yy = float(y @ y)
+        self.rows = [slice(None)] if rows is None else list(rows)
+        self.G = sum((X[r].T @ X[r] for r in self.rows), np.zeros((X.shape[1], X.shape[1])))
+        self.g = sum((X[r].T @ y[r] for r in self.rows), np.zeros(X.shape[1]))
+        self.yy = float(sum(y[r] @ y[r] for r in self.rows))
 
     def extend(self, C: Array) -> tuple[Array, float]:
-        """Coefficients on [X, C] and the residual sum of squares over these rows."""
+        """Coefficients on [X, C] and the residual sum of squares over these rows (C: all rows of X)."""
         G, g = self._blocks(C)
         beta, _ = solve_normal(G, g)
         return beta, self._rss(beta, G, g)
@@ -173,12 +177,23 @@ class Normal:
     def _blocks(self, C: Array) -> tuple[Array, Array]:
         if C.shape[1] == 0:
             return self.G, self.g
-        XC = self.X.T @ C
-        G = np.block([[self.G, XC], [XC.T, C.T @ C]])
-        return G, np.concatenate([self.g, C.T @ self.y])
+        p, q = self.X.shape[1], C.shape[1]
+        XC, CC, Cy = np.zeros((p, q)), np.zeros((q, q)), np.zeros(q)
+        for r in self.rows:
+            Cr = C[r]
+            XC += self.X[r].T @ Cr
+            CC += Cr.T @ Cr
+            Cy += Cr.T @ self.y[r]
+        return np.block([[self.G, XC], [XC.T, CC]]), np.concatenate([self.g, Cy])
 
     def _rss(self, beta: Array, G: Array, g: Array) -> float:
         return max(self.yy - 2.0 * float(beta @ g) + float(beta @ G @ beta), 0.0)
+
+
+def mask_slices(mask: NDArray[np.bool_]) -> list[slice]:
+    """The contiguous runs of True in a mask, as slices."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
 def rss_with(base: Array, extra: Array, y: Array) -> float:
@@ -247,12 +262,17 @@ def search_hyper(
     return {hyper.name: value}, tried
 
 
+def _channels(model: Sequence[str]) -> tuple[str, ...]:
+    """Channels the model's effects read (current is always kept)."""
+    return tuple(sorted({c for m in model for c in get(m).requires}))
+
+
 def _delay_step(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float
 ) -> tuple[float, float, float]:
     """Gauss-Newton step for the delay on the search rows: (step [s], its stderr [s], RSS at ``delay``)."""
     rows = design.search
-    shifted = design.signals.shifted(delay, rows)
+    shifted = design.signals.shifted(delay, rows, _channels(model))
     X = design.columns([m for m in model if m != "delay"], hypers, shifted)
     y = design.torque[rows]
     beta, _ = solve(X, y)
@@ -270,7 +290,8 @@ def _delay_step(
 
 def _delay_rss(design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float) -> float:
     rows = design.search
-    X = design.columns([m for m in model if m != "delay"], hypers, design.signals.shifted(delay, rows))
+    shifted = design.signals.shifted(delay, rows, _channels(model))
+    X = design.columns([m for m in model if m != "delay"], hypers, shifted)
     return rss_with(X, np.empty((rows.size, 0)), design.torque[rows])
 
 
