@@ -90,8 +90,9 @@ class Signals:
             values[f.name] = None if v is None else v[rows]
         return Signals(**values)
 
-    def shifted(self, delay: float, rows: NDArray[np.intp] | None = None,
-                channels: Sequence[str] | None = None) -> Signals:
+    def shifted(
+        self, delay: float, rows: NDArray[np.intp] | None = None, channels: Sequence[str] | None = None
+    ) -> Signals:
         """Every channel as it was ``delay`` seconds earlier (linear interpolation; held at the ends).
 
         With ``rows``, only those samples are produced (interpolated from the full record);

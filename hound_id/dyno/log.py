@@ -787,9 +787,45 @@ def _glitches(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.floa
     medians = np.median(windows, axis=1)
     hit = np.abs(x[candidates] - medians) > threshold
     index, medians = candidates[hit], medians[hit]
-    _, lengths = _runs(index)
-    isolated = np.repeat(lengths <= GLITCH_MAX_RUN, lengths)
-    return index[isolated], medians[isolated], threshold, sigma
+    found, found_medians = [], []
+    starts, lengths = _runs(index)
+    for start, length in zip(starts, lengths, strict=True):
+        run = index[start : start + length]
+        picked = _isolate(padded, half, run, threshold)
+        found.extend(picked)
+        found_medians.extend(float(np.median(padded[i : i + GLITCH_WINDOW])) for i in picked)
+    return np.asarray(found, dtype=np.intp), np.asarray(found_medians), threshold, sigma
+
+
+def _isolate(padded: NDArray[np.float64], half: int, run: NDArray[np.intp], threshold: float) -> list[int]:
+    """The glitch samples of a run of Hampel hits, or none if the run is a real step.
+
+    A large spike also drags its neighbours' window medians, so they are flagged too and
+    the run looks longer than the spike. Take out the worst sample (set it to its window
+    median) and test the neighbourhood again, at most GLITCH_MAX_RUN times: if the hits
+    are then gone, the samples taken out were glitches; if not, the run is a real step.
+    """
+    n = padded.size - 2 * half
+    first, last = max(int(run[0]) - half, 0), min(int(run[-1]) + half, n - 1)
+    # a local copy: sample i of x sits at work[i - first + half]; its window is work[i - first : i - first + 2h + 1]
+    work = padded[first : last + 2 * half + 1].copy()
+    region = np.arange(first, last + 1)
+
+    def deviation(i: int) -> float:
+        j = i - first
+        return float(abs(work[j + half] - np.median(work[j : j + 2 * half + 1])))
+
+    picked: list[int] = []
+    while True:
+        current = [int(i) for i in region if deviation(int(i)) > threshold]
+        if not current:
+            return sorted(picked)
+        if len(picked) == GLITCH_MAX_RUN:
+            return []
+        worst = max(current, key=deviation)
+        j = worst - first
+        work[j + half] = np.median(work[j : j + 2 * half + 1])
+        picked.append(worst)
 
 
 def _remove_glitches(

@@ -604,3 +604,18 @@ def test_parse_mapping_reads_back_what_was_written(mapping):
 def test_parse_mapping_refuses_bad_syntax(text, option, match):
     with pytest.raises(DynoDataError, match=match):
         parse_mapping(text, option)
+
+
+def test_a_spike_at_the_start_of_a_ramp_is_still_a_glitch():
+    # the spike drags its neighbours' window medians, so three samples look off; only the spike is removed
+    current = np.concatenate([np.zeros(50), np.linspace(0, 90, 6), np.full(50, 90.0)])
+    current = np.concatenate([current, current[::-1]])
+    torque = 0.1 * current + 0.001 * np.sin(np.arange(current.size))
+    current[50] = 165.0
+    n = current.size
+    frame = pd.DataFrame({"time": np.arange(n) * 1e-3, "current": current, "torque": torque})
+    log = log_from_frame(frame)
+    assert log.n == n - 1
+    assert np.max(log.current) == 90.0
+    (note,) = [x for x in log.notes if x.kind == "glitch"]
+    assert "165 A" in note.message
