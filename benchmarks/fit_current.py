@@ -37,8 +37,12 @@ def make_log(rows: int, path: Path) -> None:
     base = TestPlan()
     rate = 1000.0
     scale = 1.1 * rows / (base.duration * rate)  # plateaus and pauses stretch; transitions do not
-    plan = dataclasses.replace(base, plateau_time=base.plateau_time * scale, pause_time=base.pause_time * scale,
-                               hold_time=base.hold_time * scale)
+    plan = dataclasses.replace(
+        base,
+        plateau_time=base.plateau_time * scale,
+        pause_time=base.pause_time * scale,
+        hold_time=base.hold_time * scale,
+    )
     sim = simulate(("linear", "saturation", "coulomb", "cogging", "thermal"), plan=plan, rate_hz=rate, seed=0)
     frame = sim.frame.iloc[:rows]
     if len(frame) < rows:
@@ -61,8 +65,14 @@ def worker(path: Path) -> dict[str, float]:
         t2 = time.perf_counter()
         diagnosis = diagnose(signals, log.torque, fit)
         t3 = time.perf_counter()
-        times = {"load_s": t1 - t0, "fit_s": t2 - t1, "diagnose_s": t3 - t2, "total_s": t3 - t0,
-                 "rows": float(log.n), "suggestions": float(len(diagnosis.suggestions))}
+        times = {
+            "load_s": t1 - t0,
+            "fit_s": t2 - t1,
+            "diagnose_s": t3 - t2,
+            "total_s": t3 - t0,
+            "rows": float(log.n),
+            "suggestions": float(len(diagnosis.suggestions)),
+        }
         return times, fit, log
 
     cold, fit, log = run()
@@ -113,8 +123,9 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "log.parquet"
         make_log(args.rows, path)
-        out = subprocess.run([sys.executable, __file__, "--worker", str(path)], check=True, capture_output=True,
-                             text=True).stdout
+        out = subprocess.run(
+            [sys.executable, __file__, "--worker", str(path)], check=True, capture_output=True, text=True
+        ).stdout
     figures = json.loads(out)
     figures["target_s"] = TARGET_S
     if args.json:
@@ -122,12 +133,16 @@ def main() -> None:
         return
     print(f"fit-current on {int(figures['cold_rows'])} rows (target: whole cold run < {TARGET_S} s)")
     for kind in ("cold", "warm"):
-        print(f"  hound-id {kind}: load {figures[f'{kind}_load_s']:.2f} s + fit {figures[f'{kind}_fit_s']:.2f} s + "
-              f"diagnosis of {int(figures[f'{kind}_suggestions'])} effects {figures[f'{kind}_diagnose_s']:.2f} s = "
-              f"{figures[f'{kind}_total_s']:.2f} s")
-    print(f"  same linear+saturation fit: hound-id {figures['hound_id_same_fit_s'] * 1e3:.1f} ms, lmfit "
-          f"{figures['lmfit_fit_s'] * 1e3:.1f} ms, ratio {figures['same_fit_ratio']:.3f}; "
-          f"parameters agree to {figures['relative_parameter_difference']:.1e}")
+        print(
+            f"  hound-id {kind}: load {figures[f'{kind}_load_s']:.2f} s + fit {figures[f'{kind}_fit_s']:.2f} s + "
+            f"diagnosis of {int(figures[f'{kind}_suggestions'])} effects {figures[f'{kind}_diagnose_s']:.2f} s = "
+            f"{figures[f'{kind}_total_s']:.2f} s"
+        )
+    print(
+        f"  same linear+saturation fit: hound-id {figures['hound_id_same_fit_s'] * 1e3:.1f} ms, lmfit "
+        f"{figures['lmfit_fit_s'] * 1e3:.1f} ms, ratio {figures['same_fit_ratio']:.3f}; "
+        f"parameters agree to {figures['relative_parameter_difference']:.1e}"
+    )
 
 
 if __name__ == "__main__":

@@ -109,7 +109,71 @@ def step_saturate_log(out: Path) -> StepResult:
     )
 
 
-STEPS: tuple[Callable[[Path], StepResult], ...] = (step_motor_regions, step_robot_regions, step_saturate_log)
+#: Column mapping of the sample dyno log (a rig's own export names).
+DYNO_COLUMNS = {
+    "time": "timestamp",
+    "current": "iq",
+    "torque": "adc_torque",
+    "velocity": "speed",
+    "position": "angle",
+    "temperature": "winding_temp",
+    "bus_voltage": "vbus",
+}
+
+
+def step_fit_current(out: Path) -> StepResult:
+    """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
+    import yaml
+
+    from hound_id.dyno.curve import compensation, peak_torque
+    from hound_id.dyno.diagnose import auto
+    from hound_id.dyno.effects import Signals
+    from hound_id.dyno.fit import fit_model
+    from hound_id.dyno.log import load_log
+    from hound_id.dyno.plot import plot_fit
+    from hound_id.dyno.report import fit_report, fitted_motor
+
+    data = samples_dir() / "dyno" / "ilm85_dyno.csv"
+    log = load_log(data, columns=DYNO_COLUMNS)
+    signals = Signals.from_log(log)
+    start = fit_model(signals, log.torque, ("linear", "saturation"))
+    ladder = auto(signals, log.torque, start)
+    fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
+    current_max = float(abs(signals.current).max())
+    peak = peak_torque(fit, current_max)
+    comp = compensation(fit, peak.current if peak.current is not None else current_max)
+    report = fit_report(str(data), fit, diagnosis, peak, comp, ladder, log.notes, log.rows_read)
+    io.write_json(out / "fit_ilm85_dyno.json", report)
+    pairs = [("before: " + "+".join(start.model), start), ("after: " + "+".join(fit.model), fit)]
+    _save_png(
+        plot_fit(signals, log.torque, fit, peak, pairs, cogging_order=fit.hypers.get("cogging_order")),
+        out / "fit_ilm85_dyno.png",
+    )
+    spec = samples_dir() / "motors" / "hound_ilm85.yaml"
+    motor = fitted_motor(report, out / "hound_ilm85_fitted.yaml", spec)
+    io.write_text(out / "hound_ilm85_fitted.yaml", yaml.safe_dump(motor, sort_keys=False))
+    rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in ladder)
+    kt = fit.parameters["kt"]
+    return StepResult(
+        "fit a dyno log",
+        f"held-out RMSE [N m]: {rungs}; noise floor {diagnosis.noise_floor:.3g} N m; "
+        f"Kt {kt.value:.4g} +- {kt.stderr:.1g} N m/A; {peak.note}",
+        ("fit_ilm85_dyno.json", "fit_ilm85_dyno.png", "hound_ilm85_fitted.yaml"),
+        {
+            "rmse_test": fit.rmse_test,
+            "noise_floor": diagnosis.noise_floor,
+            "kt": kt.value,
+            "peak_torque": float(peak.torque or 0.0),
+        },
+    )
+
+
+STEPS: tuple[Callable[[Path], StepResult], ...] = (
+    step_motor_regions,
+    step_robot_regions,
+    step_saturate_log,
+    step_fit_current,
+)
 
 
 def run_demo(out: Path, on_step: Callable[[str], None] | None = None) -> list[StepResult]:

@@ -78,14 +78,23 @@ def fit_current(
         motor = fitted_motor(report, out, spec, name)
         io.write_text(out, yaml.safe_dump(motor, sort_keys=False))
     if plot is not None:
+        from hound_id.dyno.fit import fit_model
         from hound_id.dyno.plot import plot_fit
 
         order = fit.hypers.get("cogging_order") or next(
             (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging"), None
         )
-        save_figure(
-            plot_fit(signals, torque, fit, peak, before=start if start is not fit else None, cogging_order=order), plot
-        )
+        base = tuple(parse_model(model))
+        if auto or tuple(fit.model) != base:  # compare against the model the user started from
+            before = start if auto else fit_model(signals, torque, base, robust=robust)
+            pairs = [("before: " + "+".join(before.model), before), ("after: " + "+".join(fit.model), fit)]
+        elif diagnosis.best is not None:  # show what the top suggestion would do
+            best = diagnosis.best.effect
+            suggested = fit_model(signals, torque, (*fit.model, best), robust=robust)
+            pairs = [("model: " + "+".join(fit.model), fit), (f"with suggested {best}", suggested)]
+        else:
+            pairs = [("model: " + "+".join(fit.model), fit)]
+        save_figure(plot_fit(signals, torque, fit, peak, pairs, cogging_order=order), plot)
     if json_out:
         report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
         print_json(report)

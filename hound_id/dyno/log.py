@@ -787,7 +787,8 @@ def _glitches(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.floa
     medians = np.median(windows, axis=1)
     hit = np.abs(x[candidates] - medians) > threshold
     index, medians = candidates[hit], medians[hit]
-    found, found_medians = [], []
+    found: list[int] = []
+    found_medians: list[float] = []
     starts, lengths = _runs(index)
     for start, length in zip(starts, lengths, strict=True):
         run = index[start : start + length]

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -34,17 +35,18 @@ def plot_fit(
     torque: Array,
     fit: FitResult,
     peak: PeakTorque,
-    before: FitResult | None = None,
+    residuals: Sequence[tuple[str, FitResult]] = (),
     cogging_order: float | None = None,
 ) -> Figure:
-    """Torque against current with the fit, and residual panels before and after.
+    """Torque against current with the fit, and residual panels comparing fits.
 
     Args:
         signals: The log's channels.
         torque: Measured torque [N m].
-        fit: The final fit ("after").
+        fit: The fit whose curve, 20 % point and peak torque are drawn.
         peak: Its peak torque.
-        before: The fit to compare against (the starting model), if any.
+        residuals: (label, fit) pairs whose residuals are compared in the panels, e.g.
+            ("before: linear+saturation", start) and ("after: ...", final). Default: ``fit`` alone.
         cogging_order: Fold the position panel on this many periods per revolution.
     """
     import matplotlib
@@ -77,7 +79,10 @@ def plot_fit(
             ax.axhline(sign * peak.torque, color="tab:red", lw=0.8, ls=":")
     ax.set_xlabel("current [A]")
     ax.set_ylabel("torque [N m]")
-    ax.set_title(f"{'+'.join(fit.model)}: held-out RMSE {fit.rmse_test:.3g} N m", fontsize=9)
+    import textwrap
+
+    title = f"{' + '.join(fit.model)}: held-out RMSE {fit.rmse_test:.3g} N m"
+    ax.set_title("\n".join(textwrap.wrap(title, 60)), fontsize=9)
     ax.legend(fontsize=7, loc="upper left")
     ax.grid(alpha=0.3)
 
@@ -98,13 +103,19 @@ def plot_fit(
             ax.text(0.5, 0.5, f"no {label.split(' ')[0]} channel", ha="center", va="center", transform=ax.transAxes)
             ax.set_axis_off()
             continue
-        series = [("before: " + "+".join(before.model), before.residual, "tab:red")] if before is not None else []
-        series.append(("after: " + "+".join(fit.model), fit.residual, "tab:blue"))
+        pairs = list(residuals) or [("+".join(fit.model), fit)]
+        colours = ["tab:red", "tab:blue", "tab:green", "tab:purple"]
+        series = [(name, f.residual, colours[k % 4]) for k, (name, f) in enumerate(pairs)]
         for name, r, colour in series:
             ax.scatter(x[pick], r[pick], s=1, color=colour, alpha=0.15, rasterized=True)
             bx, by = _binned(x, r)
             ax.plot(bx, by, color=colour, lw=1.5, label=name)
         ax.axhline(0, color="0.3", lw=0.6)
+        # robust limits: a few delay spikes should not flatten the structure that matters
+        both = np.concatenate([r[pick] for _, r, _ in series])
+        lim = 1.5 * float(np.percentile(np.abs(both), 99.5))
+        if lim > 0:
+            ax.set_ylim(-lim, lim)
         ax.set_xlabel(label)
         ax.set_ylabel("residual [N m]")
         ax.grid(alpha=0.3)

@@ -10,14 +10,14 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     data = json.loads(proc.stdout)
     assert data["schema"] == "hound-id/demo/1"
     names = [s["name"] for s in data["steps"]]
-    assert names == ["motor regions", "robot regions and saturation", "saturate a command log"]
+    assert names == ["motor regions", "robot regions and saturation", "saturate a command log", "fit a dyno log"]
     for step in data["steps"]:
         for name in step["files"]:
             path = tmp_path / "out" / name
             assert path.is_file(), name
             if name.endswith(".png"):
                 assert path.read_bytes().startswith(PNG_MAGIC)
-            else:
+            elif name.endswith(".json"):
                 assert json.loads(path.read_text())["schema"].startswith("hound-id/")
     robot_step = data["steps"][1]["figures"]
     assert robot_step["hound_like.inner_infeasible"] == 0.0
@@ -26,6 +26,9 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert motor["schema"] == "hound-id/mor/1" and "spec" in motor and motor["warnings"] == []
     robot = json.loads((tmp_path / "out" / "mor_robot_hound_like.json").read_text())
     assert all("spec" in m and "warnings" in m for m in robot["motors"])
+    fit = json.loads((tmp_path / "out" / "fit_ilm85_dyno.json").read_text())
+    assert len(fit["ladder"]) == 6 and fit["at_noise_floor"]
+    assert run_cli("mor", "--spec", str(tmp_path / "out" / "hound_ilm85_fitted.yaml")).returncode == 0
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["schema"] == "hound-id/demo/1"
 

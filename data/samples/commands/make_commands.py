@@ -16,7 +16,7 @@ import numpy as np
 RATE_HZ, DURATION_S, STRIDE_HZ = 500, 0.5, 4.0
 LEGS = {"FL": 0.0, "FR": 0.5, "RL": 0.5, "RR": 0.0}  # trot: diagonal pairs in phase
 # joint -> (torque amplitude [N m], torque phase, speed amplitude [rad/s], speed phase)
-JOINTS = {"HAA": (30.0, 0.3, 10.0, 1.2), "HFE": (70.0, 3.4, 50.0, 0.2), "KFE": (95.0, 1.35, 68.0, 1.0)}
+JOINTS = {"HAA": (30.0, 0.3, 10.0, 1.2), "HFE": (70.0, 3.4, 45.0, 0.2), "KFE": (95.0, 1.35, 60.0, 1.0)}
 
 
 def main() -> None:

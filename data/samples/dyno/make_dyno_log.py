@@ -35,9 +35,17 @@ def main() -> None:
     f.loc[nan_rows, "torque"] = np.nan
     f.loc[int(len(f) * 0.43), "current"] = 165.0
     dup = int(len(f) * 0.61)
-    f = f.rename(columns={"time": "timestamp[ms]", "current": "iq[A]", "torque": "adc_torque[mN*m]",
-                          "velocity": "speed[rpm]", "position": "angle[deg]", "temperature": "winding_temp[degC]",
-                          "bus_voltage": "vbus[V]"})
+    f = f.rename(
+        columns={
+            "time": "timestamp[ms]",
+            "current": "iq[A]",
+            "torque": "adc_torque[mN*m]",
+            "velocity": "speed[rpm]",
+            "position": "angle[deg]",
+            "temperature": "winding_temp[degC]",
+            "bus_voltage": "vbus[V]",
+        }
+    )
     f = f.iloc[np.r_[0 : dup + 1, dup, dup + 1 : len(f)]]
     f.to_csv(HERE / "ilm85_dyno.csv", index=False, float_format="%.6g")
     truth = {k: float(v) for k, v in sim.truth.items()}

@@ -1,0 +1,155 @@
+import json
+
+import numpy as np
+import pandas as pd
+import pytest
+import yaml
+
+from hound_id.dyno.simulate import simulate
+from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
+from tests.conftest import MOTOR, SAMPLES, run_cli
+
+DYNO = SAMPLES / "dyno" / "ilm85_dyno.csv"
+MAPPING = (
+    "time=timestamp,current=iq,torque=adc_torque,velocity=speed,position=angle,temperature=winding_temp,bus_voltage=vbus"
+)
+TRUTH = json.loads((SAMPLES / "dyno" / "ilm85_dyno_truth.json").read_text())
+
+
+@pytest.fixture(scope="module")
+def canonical_log(tmp_path_factory):
+    path = tmp_path_factory.mktemp("logs") / "log.csv"
+    simulate(("linear", "saturation", "coulomb"), seed=3).frame.to_csv(path, index=False)
+    return path
+
+
+def test_sample_auto_finds_every_hidden_effect(tmp_path):
+    out, plot = tmp_path / "fitted.yaml", tmp_path / "fit.png"
+    proc = run_cli(
+        "fit-current",
+        str(DYNO),
+        "--columns",
+        MAPPING,
+        "--auto",
+        "--json",
+        "--plot",
+        str(plot),
+        "--spec",
+        str(MOTOR),
+        "--out",
+        str(out),
+    )
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/fit/1"
+    hidden = set(TRUTH["effects"]) - {"linear", "saturation"}
+    assert set(data["model"]) == {"linear", "saturation"} | hidden
+    assert [s["added"] for s in data["ladder"][1:]] and set(s["added"] for s in data["ladder"][1:]) == hidden
+    rmses = [s["rmse_test"] for s in data["ladder"]]
+    assert rmses == sorted(rmses, reverse=True)
+    truth = TRUTH["truth"]
+    for name in ("kt", "k_sat", "coulomb", "delay", "kt_temp_coeff", "offset"):
+        est = data["parameters"][name]
+        assert abs(est["value"] - truth[name]) < 5 * est["stderr"] + 1e-3 * abs(truth[name]), name
+        assert est["unit"]
+    assert data["parameters"]["cogging_order"]["value"] == truth["cogging_order"]
+    assert data["rmse"]["test"] <= 1.3 * truth["noise_std"]
+    assert data["noise_floor"] == pytest.approx(truth["noise_std"], rel=0.2)
+    assert data["at_noise_floor"] and not any(s["significant"] for s in data["suggestions"])
+    assert {"torque", "current"} <= set(data["peak_torque"])
+    assert data["compensation"]["powers"] == [1, 3, 5]
+    kinds = {n["kind"] for n in data["cleaning"]}
+    assert {"nan_rows", "glitch", "duplicate_time", "unit"} <= kinds
+    assert plot.read_bytes().startswith(PNG_MAGIC)
+    # the fitted motor is a spec that `hound-id mor` reads, with the fitted Kt and peak torque
+    fitted = yaml.safe_load(out.read_text())
+    assert fitted["kt"] == pytest.approx(data["parameters"]["kt"]["value"])
+    mor = run_cli("mor", "--spec", str(out), "--json")
+    assert mor.returncode == 0, mor.stderr
+    region = json.loads(mor.stdout)
+    assert region["spec"]["kt"] == pytest.approx(fitted["kt"])
+    assert region["spec"]["peak_torque"] == pytest.approx(data["peak_torque"]["torque"])
+    assert region["spec"]["bus_voltage"] == 81.0  # from the spec sheet
+
+
+def test_default_model_table_names_the_missing_effect(canonical_log):
+    proc = run_cli("fit-current", str(canonical_log))
+    assert proc.returncode == 0, proc.stderr
+    assert "coulomb" in proc.stdout and "velocity changes sign" in proc.stdout
+    assert "add 'coulomb'" in proc.stdout.replace("\n", " ")
+
+
+def test_add_and_model_options(canonical_log, tmp_path):
+    proc = run_cli("fit-current", str(canonical_log), "--add", "coulomb", "--json", "--plot", str(tmp_path / "p.png"))
+    data = json.loads(proc.stdout)
+    assert data["model"] == ["linear", "saturation", "coulomb"] and data["at_noise_floor"]
+    proc = run_cli("fit-current", str(canonical_log), "--model", "linear", "--json")
+    assert json.loads(proc.stdout)["model"] == ["linear"]
+
+
+def test_user_effect_file(canonical_log, tmp_path):
+    effects = tmp_path / "my_effects.py"
+    effects.write_text(
+        "import numpy as np\n"
+        "from hound_id.dyno.effects import Effect, Parameter, register\n"
+        "register(Effect(name='slope_with_time', physics='a drift of the torque gain over the test',\n"
+        "    parameters=(Parameter('k_time', 'N m/A/s'),), regressors=lambda s, h: s.current * s.time))\n"
+    )
+    proc = run_cli(
+        "fit-current", str(canonical_log), "--effects-file", str(effects), "--add", "slope_with_time", "--json"
+    )
+    assert proc.returncode == 0, proc.stderr
+    assert "k_time" in json.loads(proc.stdout)["parameters"]
+
+
+def test_reversed_torque_sensor(canonical_log, tmp_path):
+    frame = pd.read_csv(canonical_log)
+    frame["torque"] = -frame["torque"]
+    path = tmp_path / "reversed.csv"
+    frame.to_csv(path, index=False)
+    assert_one_line_error(run_cli("fit-current", str(path)), "reversed", "--flip-torque")
+    proc = run_cli("fit-current", str(path), "--flip-torque", "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert json.loads(proc.stdout)["parameters"]["kt"]["value"] > 0
+
+
+def test_units_option(canonical_log, tmp_path):
+    frame = pd.read_csv(canonical_log)
+    frame["velocity"] = frame["velocity"] * 60 / (2 * np.pi)
+    path = tmp_path / "rpm.csv"
+    frame.to_csv(path, index=False)
+    proc = run_cli("fit-current", str(path), "--units", "velocity=rpm", "--add", "coulomb", "--json")
+    data = json.loads(proc.stdout)
+    assert data["at_noise_floor"]
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--model", "linear+colomb"], ["unknown effect 'colomb'"]),
+        (["--add", "linear"], ["already has it"]),
+        (["--columns", "torque"], ["--columns"]),
+        (["--plot", "x.pdf"], ["end in .png"]),
+        (["--out", "x.json"], ["end in .yaml"]),
+    ],
+)
+def test_bad_options(canonical_log, args, fragments):
+    assert_one_line_error(run_cli("fit-current", str(canonical_log), *args), *fragments)
+
+
+def test_missing_channel_is_one_line(tmp_path):
+    frame = pd.DataFrame({"time": np.arange(100) * 1e-3, "current": np.linspace(-5, 5, 100)})
+    frame["torque"] = 0.1 * frame["current"]
+    frame.to_csv(tmp_path / "bare.csv", index=False)
+    assert_one_line_error(
+        run_cli("fit-current", str(tmp_path / "bare.csv"), "--add", "coulomb"),
+        "velocity channel",
+        "--columns velocity=",
+    )
+
+
+def test_effects_command():
+    proc = run_cli("effects", "--json")
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/effects/1"
+    assert {e["effect"] for e in data["effects"]} >= {"linear", "saturation", "coulomb", "cogging", "delay"}
