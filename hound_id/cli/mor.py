@@ -74,6 +74,14 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     for row in rows:
         table.add_row(*row)
     console.print(table)
+    if spec.fit is not None:
+        model = "+".join(spec.fit.get("model", []))
+        rmse = (spec.fit.get("rmse") or {}).get("test")
+        console.print(
+            f"Kt and peak torque from the dyno fit in {path} (model {model}"
+            + (f", held-out RMSE {rmse:.3g} N m)" if isinstance(rmse, float) else ")"),
+            highlight=False,
+        )
     verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
     console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
     if plot is not None:
