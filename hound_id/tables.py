@@ -24,6 +24,8 @@ def read_table(path: str | Path) -> pd.DataFrame:
 
     p = Path(path)
     suffix = p.suffix.lower()
+    if p.is_dir():
+        raise TableError(f"{p}: is a folder; expected a .csv or .parquet file", path=str(p))
     if suffix not in SUFFIXES:
         raise TableError(f"{p}: unknown table format {suffix or '(no suffix)'}; expected .csv or .parquet", path=str(p))
     if not p.is_file():

@@ -6,6 +6,7 @@ from pathlib import Path
 from typing import Optional
 
 import typer
+from rich.markup import escape
 from rich.table import Table
 
 from hound_id.cli._render import console, err_console, print_json, save_figure, warn
@@ -27,7 +28,9 @@ def fit_current(
     ),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec the fitted Kt and peak torque override."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: fit, 20 % point, residuals before and after."),
-    out: Optional[Path] = typer.Option(None, "--out", help="Write a fitted-motor YAML that 'hound-id mor' accepts."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", help="Write a fitted-motor YAML (with --spec, one that 'hound-id mor --spec' reads)."
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/1)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
@@ -51,7 +54,10 @@ def fit_current(
         flip_torque=flip_torque,
     )
     for note in log.notes:
-        if note.kind != "unit":
+        if note.kind == "unit":
+            if not json_out:
+                err_console.print(f"note: {note.message}", highlight=False, markup=False, soft_wrap=True)
+        else:
             warn(note.message)
     signals = Signals.from_log(log)
     torque = log.torque
@@ -77,12 +83,18 @@ def fit_current(
             load_motor_spec(spec)  # fail early on a bad sheet
         motor = fitted_motor(report, out, spec, name)
         io.write_text(out, yaml.safe_dump(motor, sort_keys=False))
+        if not diagnosis.at_noise_floor:
+            warn(
+                f"{out}: written from a fit that is not at the noise floor ({diagnosis.summary()}); "
+                "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
+            )
     if plot is not None:
         from hound_id.dyno.fit import fit_model
         from hound_id.dyno.plot import plot_fit
 
         order = fit.hypers.get("cogging_order") or next(
-            (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging"), None
+            (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.significant),
+            None,
         )
         base = tuple(parse_model(model))
         if auto or tuple(fit.model) != base:  # compare against the model the user started from
@@ -110,7 +122,12 @@ def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[n
     from hound_id.dyno.fit import fit_model
 
     with Progress(
-        SpinnerColumn(), TextColumn("{task.description}"), TimeElapsedColumn(), console=err_console, transient=True
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=err_console,
+        transient=True,
+        disable=not err_console.is_terminal,
     ) as progress:
         task = progress.add_task(f"fitting {'+'.join(names)}")
         start = fit_model(signals, torque, names, robust=robust)
@@ -172,7 +189,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
     for col in ("effect", "explained", "significant", "evidence"):
         st.add_column(col, justify="right" if col == "explained" else "left", overflow="fold")
     for s in diagnosis.suggestions:
-        st.add_row(s.effect, f"{s.explained:.2%}", "yes" if s.significant else "no", s.reason)
+        st.add_row(s.effect, f"{s.explained:.2%}", "yes" if s.significant else "no", escape(s.reason))
     console.print(st)
     if diagnosis.skipped:
         console.print(f"not tried: {'; '.join(diagnosis.skipped)}", highlight=False)
@@ -195,5 +212,5 @@ def effects(json_out: bool = typer.Option(False, "--json", help="Print JSON (sch
         table.add_column(col, overflow="fold")
     for e in items:
         params = ", ".join(f"{p['name']} [{p['unit']}]" for p in (*e["parameters"], *e["hypers"]))
-        table.add_row(e["effect"], params, ", ".join(e["requires"]) or "-", e["physics"])
+        table.add_row(*(escape(x) for x in (e["effect"], params, ", ".join(e["requires"]) or "-", e["physics"])))
     console.print(table)

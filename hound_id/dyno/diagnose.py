@@ -32,6 +32,8 @@ from hound_id.errors import FitError
 ALPHA = 0.01
 #: A held-out RMSE within this factor of the noise floor counts as at the floor.
 FLOOR_FACTOR = 1.2
+#: Residuals beyond this many noise-floor sigmas count as outliers in the summary.
+OUTLIER_SIGMAS = 8.0
 #: Effective number of values an order search scans (the residual's angular spectrum bins).
 ORDER_TRIALS = 511
 
@@ -82,6 +84,8 @@ class Diagnosis:
     """Candidates, the most held-out residual explained first."""
     skipped: tuple[str, ...] = ()
     """Effects not tried, with the reason (missing channel)."""
+    outliers: str | None = None
+    """A sentence when a few far-off rows carry most of the residual."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -98,10 +102,15 @@ class Diagnosis:
                 f"({self.noise_floor:.3g} N m); no missing effect is significant"
             )
         if self.best is None:
-            return (
+            head = (
                 f"no candidate effect is significant, but the held-out residual is {ratio:.2g}x the noise floor "
-                f"({self.noise_floor:.3g} N m): something outside the library is missing"
+                f"({self.noise_floor:.3g} N m)"
             )
+            if self.outliers:
+                return f"{head}: {self.outliers}"
+            if self.skipped:
+                return f"{head}; not tried for lack of channels: {'; '.join(self.skipped)}"
+            return f"{head}: something outside the library is missing"
         return (
             f"held-out residual {self.rmse_test:.3g} N m is {ratio:.2g}x the noise floor "
             f"({self.noise_floor:.3g} N m); add '{self.best.effect}': {self.best.reason}"
@@ -235,6 +244,11 @@ def diagnose(
             reason += f" (explains {explained:.1%} of the held-out residual, p = {p_adj:.2g})"
         elif significant:
             reason = f"explains {explained:.1%} of the held-out residual (p = {p_adj:.2g})"
+        elif p_adj < alpha:
+            reason = (
+                f"fits the training rows better (p = {p_adj:.2g}) but raises the held-out error by "
+                f"{-explained:.2%}: not kept"
+            )
         else:
             reason = f"explains {explained:.2%} of the held-out residual; not significant (p = {p_adj:.2g})"
         rmse = math.sqrt(trial.sse_test / max(fit.n_test, 1))
@@ -242,7 +256,27 @@ def diagnose(
     suggestions.sort(key=lambda s: (-s.significant, -s.explained))
     floor = noise_floor(fit.residual)
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions))
-    return Diagnosis(fit.model, fit.rmse_test, floor, at_floor, tuple(suggestions), tuple(skipped))
+    return Diagnosis(
+        fit.model, fit.rmse_test, floor, at_floor, tuple(suggestions), tuple(skipped), _outliers(fit, floor, signals)
+    )
+
+
+def _outliers(fit: FitResult, floor: float, signals: Signals) -> str | None:
+    """A sentence when a few rows far outside the noise carry most of the residual, else None."""
+    r = np.asarray(fit.residual)
+    far = np.abs(r) > OUTLIER_SIGMAS * floor
+    total = float(r @ r)
+    if not far.any() or total <= 0 or far.mean() > 0.01:
+        return None
+    share = float(r[far] @ r[far]) / total
+    if share < 0.5:
+        return None
+    k = int(np.argmax(np.abs(r)))
+    return (
+        f"{int(far.sum())} rows ({far.mean():.2%}) lie more than {OUTLIER_SIGMAS:g}x the noise floor from the "
+        f"model and carry {share:.0%} of the residual (largest {r[k]:+.3g} N m at t = {signals.time[k]:.4g} s): "
+        "inspect them (glitches longer than 2 samples are kept as data)"
+    )
 
 
 @dataclass(frozen=True)

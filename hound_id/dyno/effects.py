@@ -166,11 +166,26 @@ class Effect:
 
     def columns(self, signals: Signals, hypers: Mapping[str, float]) -> Array:
         """Regressor matrix (n, k) of this effect."""
+        n = signals.current.shape[0]
         if self.regressors is None:
-            return np.empty((signals.current.shape[0], 0))
-        cols = np.asarray(self.regressors(signals, hypers), dtype=float)
+            return np.empty((n, 0))
+        try:
+            cols = np.asarray(self.regressors(signals, hypers), dtype=float)
+        except FitError:
+            raise
+        except Exception as err:  # a user's effect: report it, do not crash
+            if self.name in BUILTIN:
+                raise
+            raise FitError(f"effect '{self.name}': its regressors failed ({type(err).__name__}: {err})") from err
         if cols.ndim == 1:
             cols = cols[:, None]
+        if cols.shape != (n, len(self.parameters)):
+            raise FitError(
+                f"effect '{self.name}': regressors returned shape {cols.shape}, expected ({n}, {len(self.parameters)})"
+                " (one column per parameter)"
+            )
+        if not np.all(np.isfinite(cols)):
+            raise FitError(f"effect '{self.name}': regressors returned non-finite values")
         return cols
 
 
@@ -536,8 +551,9 @@ def _builtin() -> None:
     )
 
 
+BUILTIN: tuple[str, ...] = ()
 _builtin()
-BUILTIN: tuple[str, ...] = tuple(REGISTRY)
+BUILTIN = tuple(REGISTRY)
 
 
 def requirements_missing(effect: Effect, signals: Signals) -> list[str]:

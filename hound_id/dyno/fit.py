@@ -410,6 +410,7 @@ def _finish(
 ) -> FitResult:
     tr, te = design.train, design.test
     y = design.torque
+    _check_identifiable(X[tr], model, effects)
     weights = None
     beta, cov_unit = solve(X[tr], y[tr])
     if robust:
@@ -449,6 +450,30 @@ def _finish(
         robust=robust,
         hypers={h.name: float(hypers.get(h.name, 0.0)) for e in effects for h in e.hypers},
     )
+
+
+def _check_identifiable(X: Array, model: Sequence[str], effects: list[Effect]) -> None:
+    """Refuse a fit whose columns the log cannot tell apart (constant current, zero current, ...)."""
+    names = [f"{e.name}:{p.name}" for e in effects for p in e.parameters]
+    norms = np.sqrt(np.sum(X * X, axis=0))
+    for k, value in enumerate(norms):
+        if value == 0.0:
+            raise FitError(
+                f"the log gives '{names[k]}' nothing to fit (its regressor is zero on every training row); "
+                "vary the current (both signs) and the speed, or leave that effect out",
+                parameter=names[k],
+            )
+    Xs = X / norms
+    s = np.linalg.svd(Xs, compute_uv=False)
+    if s[-1] < 1e-6 * s[0]:
+        _, _, vt = np.linalg.svd(Xs, full_matrices=False)
+        involved = [names[k] for k in np.argsort(np.abs(vt[-1]))[::-1][:2]]
+        raise FitError(
+            f"the log cannot tell {involved[0]} from {involved[1]} (their regressors are collinear, "
+            f"condition {s[0] / max(s[-1], 1e-300):.2g}); the test must vary the current over a range of both "
+            "signs (and the speed, for friction terms)",
+            parameters=involved,
+        )
 
 
 def _frozen_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:

@@ -31,9 +31,9 @@ ambiguous, as in :mod:`hound_id.units`.
    A longer run is a real step.
 4. ADC saturation: a channel with measurable noise elsewhere sits exactly at its own extreme, a large magnitude,
    for 5 or more consecutive samples, and at that extreme in at least 0.1 % of the rows. The
-   other channel must keep changing meanwhile (its robust spread within each stuck run, median
-   over the runs, above 3 times its noise): a flat top step of a commanded current holds the
-   torque flat too (after the torque channel's own lag), and is data.
+   channel is noisy elsewhere, so repeating one value exactly for whole runs is not a measured
+   signal. A channel without measurable noise (a logged set-point, a simulation) is not tested:
+   its flat steps are data.
    Every row at the extreme is removed.
 5. A torque that falls as current rises (least-squares slope < 0, correlation < -0.5)
    means a reversed sensor. That is an error unless ``flip_torque`` negates the torque.
@@ -110,7 +110,6 @@ CLIP_MIN_FRACTION = 0.001
 CLIP_MIN_LEVEL = 0.5
 #: The other channel (torque for current, current for torque) must vary by more than this many of its noise
 #: standard deviations over the stuck rows; otherwise the plateau is real (a commanded step, a current limit).
-CLIP_OTHER_SIGMAS = 3.0
 #: Correlation of torque with current below which a negative slope means a reversed sensor.
 FLIP_CORRELATION = -0.5
 
@@ -580,6 +579,8 @@ def _convert(
             unit=text,
         )
     if unit == target:
+        if "overriding" in origin:  # say so: the header claimed another unit
+            return values, CleaningNote("unit", int(values.size), f"{name} read as {text} (from {origin})", name)
         return values, None
     try:
         converted = np.asarray(ureg.Quantity(values, unit).to(target).magnitude, dtype=np.float64)
@@ -883,31 +884,18 @@ def _remove_clipping(
             starts, lengths = _runs(index)
             if lengths.max() < CLIP_MIN_RUN:
                 continue
-            # A sensor is stuck only if the other channel keeps moving meanwhile. A flat top step of a commanded
-            # current (or a real current limit) holds the torque flat too, and is data, not saturation. The
-            # spread is taken within each run, robustly (a lagging channel's transient at the start of a step
-            # and level differences between runs do not count), and the median over the runs is used.
-            other_name = "torque" if name == "current" else "current"
-            other = data[other_name]
-            spreads = [
-                1.4826 * float(np.median(np.abs(seg - np.median(seg))))
-                for start, length in zip(starts, lengths, strict=True)
-                if length >= CLIP_MIN_RUN
-                for seg in [other[index[start : start + length]]]
-            ]
-            spread = float(np.median(spreads))
-            if not spread > CLIP_OTHER_SIGMAS * noise[other_name] + 1e-9 * float(np.max(np.abs(other))):
-                continue
+            # The channel is noisy elsewhere (checked above), yet repeats exactly this value for whole runs: a
+            # measured signal does not do that, a saturated ADC does. (A flat commanded step of a noise-free
+            # channel, or a logged set-point, never gets here.)
             keep &= ~at
-            u, other_u = _unit_label(name), _unit_label(other_name)
+            u = _unit_label(name)
             notes.append(
                 CleaningNote(
                     "adc_saturation",
                     count,
-                    f"{name} channel clipped at {level:.4g} {u} in {count} rows (ADC saturation: stuck for up to "
-                    f"{int(lengths.max())} samples while {other_name} kept changing, spread {spread:.3g} {other_u} "
-                    "within a run); "
-                    "those rows were removed",
+                    f"{name} channel clipped at {level:.4g} {u} in {count} rows (ADC saturation: stuck exactly at "
+                    f"its extreme for up to {int(lengths.max())} samples although it is noisy elsewhere, "
+                    f"noise {noise[name]:.2g} {u}); those rows were removed",
                     name,
                 )
             )

@@ -111,9 +111,9 @@ def plot_fit(
             bx, by = _binned(x, r)
             ax.plot(bx, by, color=colour, lw=1.5, label=name)
         ax.axhline(0, color="0.3", lw=0.6)
-        # robust limits: a few delay spikes should not flatten the structure that matters
-        both = np.concatenate([r[pick] for _, r, _ in series])
-        lim = 1.5 * float(np.percentile(np.abs(both), 99.5))
+        # robust limits from the newest fit: the old model's spikes may run off the panel, but the structure
+        # left in the new residual stays readable
+        lim = 3.0 * float(np.percentile(np.abs(series[-1][1][pick]), 99.5))
         if lim > 0:
             ax.set_ylim(-lim, lim)
         ax.set_xlabel(label)

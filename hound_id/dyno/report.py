@@ -39,6 +39,7 @@ def fit_report(
         "compensation": None if comp is None else comp.to_dict(),
         "suggestions": [s.to_dict() for s in diagnosis.suggestions],
         "skipped": list(diagnosis.skipped),
+        "outliers": diagnosis.outliers,
         "noise_floor": diagnosis.noise_floor,
         "at_noise_floor": diagnosis.at_noise_floor,
         "summary": diagnosis.summary(),
@@ -65,6 +66,17 @@ def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str
     motor["source"] = f"hound-id fit-current on {report['source']} (model {'+'.join(report['model'])})"
     motor["fit"] = {
         k: report[k]
-        for k in ("schema", "source", "model", "parameters", "rmse", "peak_torque", "compensation", "noise_floor")
+        for k in (
+            "schema",
+            "source",
+            "model",
+            "parameters",
+            "rmse",
+            "peak_torque",
+            "compensation",
+            "noise_floor",
+            "at_noise_floor",
+            "summary",
+        )
     }
     return motor

@@ -171,6 +171,14 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     if schema != SCHEMA:
         raise SpecError(f"{where(source, 'schema')}: found {schema!r}, expected {SCHEMA!r}", field="schema")
 
+    if "fit" in data and "base" not in data:
+        missing = [k for k, (_, req) in _QUANTITY_KEYS.items() if req and k not in data]
+        if missing:
+            raise SpecError(
+                f"{where(source)}: a fitted motor without a spec sheet lacks {', '.join(missing)}; add "
+                "'base: <your motor spec>.yaml' to it, or rerun hound-id fit-current with --spec MOTOR.yaml",
+                field=missing[0],
+            )
     values: dict[str, float] = {}
     for key, (kind, required) in _QUANTITY_KEYS.items():
         if key not in data or data[key] is None:
@@ -258,6 +266,12 @@ def _merge_base(data: Mapping[str, Any], path: Path) -> dict[str, Any]:
     if not isinstance(base_ref, str):
         raise SpecError(f"{where(str(path), 'base')}: found {base_ref!r}, expected the path of a motor spec file")
     base_path = path.parent / base_ref
+    if not base_path.is_file():
+        raise SpecError(
+            f"{where(str(path), 'base')}: the spec sheet {base_path} it names is not there (base paths are relative "
+            "to this file); fix 'base:' or rerun hound-id fit-current with --spec",
+            field="base",
+        )
     base = read_yaml(base_path, "motor spec")
     if not isinstance(base, Mapping):
         raise SpecError(f"{base_path}: expected a mapping of spec fields (named by 'base' in {path})")

@@ -10,9 +10,7 @@ from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
 from tests.conftest import MOTOR, SAMPLES, run_cli
 
 DYNO = SAMPLES / "dyno" / "ilm85_dyno.csv"
-MAPPING = (
-    "time=timestamp,current=iq,torque=adc_torque,velocity=speed,position=angle,temperature=winding_temp,bus_voltage=vbus"
-)
+MAPPING = "time=timestamp,current=iq,torque=adc_torque,velocity=speed,position=angle,temperature=winding_temp,bus_voltage=vbus"
 TRUTH = json.loads((SAMPLES / "dyno" / "ilm85_dyno_truth.json").read_text())
 
 
@@ -153,3 +151,44 @@ def test_effects_command():
     data = json.loads(proc.stdout)
     assert data["schema"] == "hound-id/effects/1"
     assert {e["effect"] for e in data["effects"]} >= {"linear", "saturation", "coulomb", "cogging", "delay"}
+
+
+def test_logs_that_identify_nothing_are_refused(tmp_path):
+    n = 500
+    frame = pd.DataFrame({"time": np.arange(n) * 1e-3, "current": np.full(n, 10.0)})
+    frame["torque"] = 1.38 + np.random.default_rng(0).normal(0, 0.01, n)
+    frame.to_csv(tmp_path / "constant.csv", index=False)
+    assert_one_line_error(run_cli("fit-current", str(tmp_path / "constant.csv")), "cannot tell", "vary the current")
+
+
+def test_a_user_effect_with_the_wrong_shape_is_one_line(canonical_log, tmp_path):
+    effects = tmp_path / "bad_effect.py"
+    effects.write_text(
+        "from hound_id.dyno.effects import Effect, Parameter, register\n"
+        "register(Effect(name='two_params_user', physics='x',\n"
+        "    parameters=(Parameter('a_user', 'N m'), Parameter('b_user', 'N m')), regressors=lambda s, h: s.current))\n"
+    )
+    assert_one_line_error(
+        run_cli("fit-current", str(canonical_log), "--effects-file", str(effects), "--add", "two_params_user"),
+        "two_params_user",
+        "one column per parameter",
+    )
+
+
+def test_writing_an_inadequate_fit_warns(canonical_log, tmp_path):
+    proc = run_cli("fit-current", str(canonical_log), "--out", str(tmp_path / "f.yaml"))
+    assert proc.returncode == 0
+    assert "not at the noise floor" in proc.stderr and (tmp_path / "f.yaml").is_file()
+
+
+def test_a_units_override_is_said(canonical_log, tmp_path):
+    frame = pd.read_csv(canonical_log).rename(columns={"torque": "torque[mN*m]"})
+    frame.to_csv(tmp_path / "hdr.csv", index=False)
+    proc = run_cli("fit-current", str(tmp_path / "hdr.csv"), "--units", "torque=Nm")
+    assert proc.returncode == 0
+    assert "overriding the header unit 'mN*m'" in proc.stderr
+
+
+def test_effects_table_keeps_units():
+    proc = run_cli("effects")
+    assert "delay [s]" in proc.stdout.replace("\n", " ") or "[s]" in proc.stdout

@@ -60,3 +60,12 @@ def test_noise_floor_of_white_noise():
 
     r = np.random.default_rng(0).normal(0, 0.03, 50_000) + np.sin(np.linspace(0, 20, 50_000))
     assert noise_floor(r) == pytest.approx(0.03, rel=0.03)
+
+
+def test_a_long_glitch_is_named_as_outliers_not_a_missing_effect():
+    signals, torque, sim = simulated(DEFAULT, 70)
+    dirty = torque.copy()
+    dirty[15_000:15_003] += 5.0  # three samples in a held-out block: kept by the loader as data
+    d = diagnose(signals, dirty, fit_model(signals, dirty, DEFAULT))
+    assert d.outliers is not None and "3 rows" in d.outliers
+    assert "inspect them" in d.summary()

@@ -619,3 +619,15 @@ def test_a_spike_at_the_start_of_a_ramp_is_still_a_glitch():
     assert np.max(log.current) == 90.0
     (note,) = [x for x in log.notes if x.kind == "glitch"]
     assert "165 A" in note.message
+
+
+def test_a_noisy_torque_clipped_during_flat_current_steps_is_caught():
+    # flat current steps (noise-free set-points) and a noisy torque channel clipped at 6 N m
+    rng = np.random.default_rng(3)
+    levels = np.repeat([0.0, 30.0, 60.0, 90.0, 60.0, 30.0, 0.0, -30.0, -60.0, -90.0, -60.0, -30.0], 200)
+    torque = 0.1 * levels + rng.normal(0, 0.02, levels.size)
+    frame = pd.DataFrame({"time": np.arange(levels.size) * 1e-3, "current": levels, "torque": np.clip(torque, -6, 6)})
+    log = log_from_frame(frame)
+    clipped = [n for n in log.notes if n.kind == "adc_saturation"]
+    assert {n.channel for n in clipped} == {"torque"} and len(clipped) == 2
+    assert np.abs(log.torque).max() < 6.0
