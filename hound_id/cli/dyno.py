@@ -15,7 +15,9 @@ from hound_id.io import check_output
 
 
 def fit_current(
-    data: Path = typer.Argument(..., help="Dyno log, CSV or Parquet (time, current, torque [, velocity, ...])."),
+    data: Path = typer.Argument(
+        ..., metavar="DATA", help="Dyno log, CSV or Parquet (time, current, torque [, velocity, ...])."
+    ),
     model: str = typer.Option("linear+saturation", "--model", help="Starting model: effects joined by '+'."),
     add: Optional[list[str]] = typer.Option(None, "--add", help="Add an effect to the model (repeatable)."),
     auto: bool = typer.Option(False, "--auto", help="Add the top significant effect until none is left."),

@@ -132,7 +132,9 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
 
 
 def saturate(
-    commands: Path = typer.Argument(..., help="CSV or Parquet with tau_<joint> [N m] and qd_<joint> [rad/s] columns."),
+    commands: Path = typer.Argument(
+        ..., metavar="LOG", help="CSV or Parquet with tau_<joint> [N m] and qd_<joint> [rad/s] columns."
+    ),
     robot: Path = typer.Option(..., "--robot", help="Robot YAML whose motors and transmissions apply."),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the table with tau_sat_<joint> columns added."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: each motor's commands against its region."),
