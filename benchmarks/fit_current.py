@@ -14,7 +14,10 @@ order:
 It prints the seconds, the ratio of hound-id's fit of the same model to lmfit's, and
 checks that both fits agree. Target: the whole cold hound-id run under 3 s.
 
-Run: .venv/bin/python benchmarks/fit_current.py [--rows 1000000] [--json]
+Single processes on the 2-core VM vary by about +-20 %, so --processes fresh workers
+run and the median one is printed with the range of cold totals.
+
+Run: .venv/bin/python benchmarks/fit_current.py [--rows 1000000] [--processes 3] [--json]
 """
 
 from __future__ import annotations
@@ -115,6 +118,7 @@ def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
     parser.add_argument("--rows", type=int, default=1_000_000)
     parser.add_argument("--json", action="store_true")
+    parser.add_argument("--processes", type=int, default=3, help="fresh worker processes (median and max reported)")
     parser.add_argument("--worker", type=Path, help=argparse.SUPPRESS)
     args = parser.parse_args()
     if args.worker:
@@ -123,15 +127,29 @@ def main() -> None:
     with tempfile.TemporaryDirectory() as tmp:
         path = Path(tmp) / "log.parquet"
         make_log(args.rows, path)
-        out = subprocess.run(
-            [sys.executable, __file__, "--worker", str(path)], check=True, capture_output=True, text=True
-        ).stdout
-    figures = json.loads(out)
+        runs = [
+            json.loads(
+                subprocess.run(
+                    [sys.executable, __file__, "--worker", str(path)], check=True, capture_output=True, text=True
+                ).stdout
+            )
+            for _ in range(args.processes)
+        ]
+    # the run whose cold total is the median, and the range of cold totals
+    runs.sort(key=lambda r: r["cold_total_s"])
+    figures = dict(runs[len(runs) // 2])
+    figures["cold_total_s_max"] = runs[-1]["cold_total_s"]
+    figures["cold_total_s_min"] = runs[0]["cold_total_s"]
+    figures["processes"] = args.processes
     figures["target_s"] = TARGET_S
     if args.json:
         print(json.dumps({"schema": "hound-id/bench-fit-current/1", **figures}, indent=2))
         return
-    print(f"fit-current on {int(figures['cold_rows'])} rows (target: whole cold run < {TARGET_S} s)")
+    print(
+        f"fit-current on {int(figures['cold_rows'])} rows (target: whole cold run < {TARGET_S} s); median of "
+        f"{figures['processes']} processes, cold total range {figures['cold_total_s_min']:.2f}-"
+        f"{figures['cold_total_s_max']:.2f} s"
+    )
     for kind in ("cold", "warm"):
         print(
             f"  hound-id {kind}: load {figures[f'{kind}_load_s']:.2f} s + fit {figures[f'{kind}_fit_s']:.2f} s + "

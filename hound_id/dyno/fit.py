@@ -455,7 +455,8 @@ def _finish(
 def _check_identifiable(X: Array, model: Sequence[str], effects: list[Effect]) -> None:
     """Refuse a fit whose columns the log cannot tell apart (constant current, zero current, ...)."""
     names = [f"{e.name}:{p.name}" for e in effects for p in e.parameters]
-    norms = np.sqrt(np.sum(X * X, axis=0))
+    G = X.T @ X
+    norms = np.sqrt(np.diag(G))
     for k, value in enumerate(norms):
         if value == 0.0:
             raise FitError(
@@ -463,15 +464,15 @@ def _check_identifiable(X: Array, model: Sequence[str], effects: list[Effect]) -
                 "vary the current (both signs) and the speed, or leave that effect out",
                 parameter=names[k],
             )
-    Xs = X / norms
-    s = np.linalg.svd(Xs, compute_uv=False)
-    if s[-1] < 1e-6 * s[0]:
-        _, _, vt = np.linalg.svd(Xs, full_matrices=False)
-        involved = [names[k] for k in np.argsort(np.abs(vt[-1]))[::-1][:2]]
+    # Singular values of the column-normalised X are the square roots of the normalised Gram's eigenvalues.
+    eigval, eigvec = np.linalg.eigh(G / np.outer(norms, norms))
+    smallest, largest = max(float(eigval[0]), 0.0), float(eigval[-1])
+    if smallest < 1e-12 * largest:
+        involved = [names[k] for k in np.argsort(np.abs(eigvec[:, 0]))[::-1][:2]]
         raise FitError(
             f"the log cannot tell {involved[0]} from {involved[1]} (their regressors are collinear, "
-            f"condition {s[0] / max(s[-1], 1e-300):.2g}); the test must vary the current over a range of both "
-            "signs (and the speed, for friction terms)",
+            f"condition {np.sqrt(largest / max(smallest, 1e-300)):.2g}); the test must vary the current over a range "
+            "of both signs (and the speed, for friction terms)",
             parameters=involved,
         )
 
