@@ -148,13 +148,5 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
     return float(quantity.to(target).magnitude)
 
 
-def format_si(value: float, kind: str) -> str:
-    """Render an SI float with its unit, e.g. ``"9.948 rad/s/V"``."""
-    unit = KINDS[kind][0].replace("**", "^")
-    if kind == "dimensionless":
-        return f"{value:.4g}"
-    return f"{value:.4g} {unit}"
-
-
 #: Factors for derived display units (SI value * factor = display value).
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)

@@ -317,10 +317,6 @@ def _harmonics(phase: Array) -> Array:
     return out
 
 
-def _fmt(value: float, unit: str) -> str:
-    return f"{value:.3g} {unit}"
-
-
 # ---------------------------------------------------------------------------------------------
 # Built-in effects
 

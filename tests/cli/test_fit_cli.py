@@ -10,7 +10,18 @@ from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
 from tests.conftest import MOTOR, SAMPLES, run_cli
 
 DYNO = SAMPLES / "dyno" / "ilm85_dyno.csv"
-MAPPING = "time=timestamp,current=iq,torque=adc_torque,velocity=speed,position=angle,temperature=winding_temp,bus_voltage=vbus"
+MAPPING = ",".join(
+    f"{k}={v}"
+    for k, v in {
+        "time": "timestamp",
+        "current": "iq",
+        "torque": "adc_torque",
+        "velocity": "speed",
+        "position": "angle",
+        "temperature": "winding_temp",
+        "bus_voltage": "vbus",
+    }.items()
+)
 TRUTH = json.loads((SAMPLES / "dyno" / "ilm85_dyno_truth.json").read_text())
 
 

@@ -218,3 +218,16 @@ def test_float32_numpy_path():
     out32 = ROBOT_SAT(tau.astype(np.float32), qd.astype(np.float32))
     assert out32.dtype == np.float32
     assert np.allclose(out32, ROBOT_SAT(tau, qd), rtol=1e-4, atol=1e-3)
+
+
+def test_torque_bounds_are_the_motor_intervals():
+    from hound_id.mor.region import torque_interval
+
+    rng = np.random.default_rng(5)
+    qd = rng.uniform(-80, 80, (32, N))
+    lo, hi = ROBOT_SAT.torque_bounds(qd)
+    _, omega = ROBOT_SAT.motor_state(np.zeros_like(qd), qd)
+    robot = load_robot(ROBOT)
+    for m, motor in enumerate(robot.motors):
+        want_lo, want_hi = torque_interval(omega[:, m], operating_region(robot.motor_specs[motor]))
+        assert np.allclose(lo[:, m], want_lo) and np.allclose(hi[:, m], want_hi)
