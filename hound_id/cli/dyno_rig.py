@@ -1,0 +1,194 @@
+"""``hound-id dyno``: record a rig, serve a simulated rig, write a test plan."""
+
+from __future__ import annotations
+
+import time
+from pathlib import Path
+from typing import Any, Optional
+
+import typer
+from rich.table import Table
+
+from hound_id.cli._render import console, err_console, print_json, warn
+from hound_id.errors import HoundIdError
+from hound_id.io import check_output
+
+app = typer.Typer(
+    help="Dyno acquisition: record a rig, serve a simulated rig, write a test plan.", no_args_is_help=True
+)
+
+
+@app.command("record")
+def record_cmd(
+    rig: Path = typer.Option(..., "--rig", help="Rig YAML (devices and channels)."),
+    out: Path = typer.Option(..., "--out", help="CSV log to write (canonical columns, SI)."),
+    duration: Optional[float] = typer.Option(None, "--duration", help="Seconds to record (default: until Ctrl-C)."),
+    rate: float = typer.Option(500.0, "--rate", help="Sampling rate [Hz]."),
+    flush: float = typer.Option(0.25, "--flush", help="Longest time between flushes to disk [s]."),
+    json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON (schema hound-id/record/1)."),
+) -> None:
+    """Poll the rig at a fixed rate into a CSV that fit-current reads; Ctrl-C stops cleanly."""
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
+
+    from hound_id.dyno.acquire import record
+    from hound_id.dyno.rig import load_rig
+    from hound_id.dyno.transport import RigReader
+
+    check_output(out, (".csv",), "log")
+    rig_spec = load_rig(rig)
+    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
+    with (
+        RigReader(rig_spec) as reader,
+        Progress(*columns, console=err_console, disable=not err_console.is_terminal) as progress,
+    ):
+        task = progress.add_task("recording", total=duration, info="")
+
+        def on_progress(r) -> None:  # type: ignore[no-untyped-def]
+            progress.update(
+                task,
+                completed=r.duration if duration else None,
+                info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed + r.failed} missed",
+            )
+
+        result = record(
+            reader.read_sample,
+            list(rig_spec.columns),
+            out,
+            rate_hz=rate,
+            duration=duration,
+            flush_interval=flush,
+            metadata={"rig": str(rig), "rig_name": rig_spec.name},
+            on_progress=on_progress,
+        )
+        faults = reader.faults()
+    import json
+
+    meta = json.loads(result.sidecar.read_text())
+    meta["transport_errors"] = faults
+    if json_out:
+        print_json(meta)
+    else:
+        table = Table(title=f"recorded {out}", title_justify="left")
+        table.add_column("quantity")
+        table.add_column("value", justify="right")
+        for key in ("status", "samples", "rate_requested", "rate_achieved", "missed_ticks", "failed_ticks", "duration"):
+            value = meta[key]
+            table.add_row(key.replace("_", " "), f"{value:.4g}" if isinstance(value, float) else str(value))
+        console.print(table)
+        for gap in meta["gaps"][:10]:
+            warn(f"gap {gap['start']:.3f}-{gap['end']:.3f} s ({gap['ticks']} ticks): {gap['reason']}")
+        console.print(f"metadata in {result.sidecar}", highlight=False)
+    if result.status == "failed":
+        raise HoundIdError(f"{out}: recording stopped: {result.message} (the file holds what was recorded)")
+
+
+@app.command("simulate-rig")
+def simulate_rig_cmd(
+    effects: str = typer.Option("linear,saturation", "--effects", help="Hidden effects, comma-separated."),
+    seed: int = typer.Option(0, "--seed", help="Random seed of the simulated log."),
+    plan: Optional[Path] = typer.Option(None, "--plan", help="Test plan YAML (hound-id dyno plan)."),
+    port: int = typer.Option(5020, "--port", help="Modbus TCP port on 127.0.0.1 (0: any free port)."),
+    rig_out: Path = typer.Option(Path("sim-rig.yaml"), "--rig-out", help="Where to write the rig file."),
+    speedup: float = typer.Option(1.0, "--speedup", help="Play the plan this many times faster than real time."),
+    serial: bool = typer.Option(True, "--serial/--no-serial", help="Also stream lines on a pseudo-terminal."),
+    duration: Optional[float] = typer.Option(None, "--duration", help="Serve for this long [s] (default: Ctrl-C)."),
+) -> None:
+    """Serve a simulated motor and torque transducer over Modbus TCP (and a serial pty) on 127.0.0.1."""
+    import yaml
+
+    from hound_id import io
+    from hound_id.dyno.rigsim import SimulatedRig
+    from hound_id.dyno.simulate import SimMotor
+
+    check_output(rig_out, (".yaml", ".yml"), "rig")
+    names = tuple(e.strip() for e in effects.split(",") if e.strip())
+    test_plan, motor = None, SimMotor()
+    if plan is not None:
+        from hound_id.dyno.plan import load_plan
+
+        test_plan, max_current = load_plan(plan)
+        motor = SimMotor(max_current=max_current)
+    sim = SimulatedRig(names, seed=seed, motor=motor, plan=test_plan, port=port, serial=serial, speedup=speedup)
+    sim.start()
+    try:
+        io.write_text(rig_out, yaml.safe_dump(sim.rig_mapping(), sort_keys=False))
+        host, bound = sim.address
+        console.print(
+            f"simulated rig: Modbus TCP on {host}:{bound} (transducer unit 1, drive unit 2)"
+            + (f", serial lines on {sim.serial_port}" if sim.serial_port else ""),
+            highlight=False,
+        )
+        console.print(
+            f"rig file: {rig_out}; hidden effects: {', '.join(names)}; seed {seed}; "
+            f"plan {sim.log.frame['time'].iloc[-1]:.0f} s at speedup {speedup:g}. Ctrl-C stops.",
+            highlight=False,
+        )
+        end = None if duration is None else time.monotonic() + duration
+        while end is None or time.monotonic() < end:
+            time.sleep(0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        sim.stop()
+
+
+@app.command("plan")
+def plan_cmd(
+    max_current: float = typer.Option(..., "--max-current", help="The application's maximum current [A]."),
+    out: Path = typer.Option(Path("plan.yaml"), "--out", help="Plan YAML to write."),
+    speeds: Optional[str] = typer.Option(None, "--speeds", help="Plateau speeds [rad/s], comma-separated."),
+    levels: Optional[int] = typer.Option(None, "--levels", help="Current step levels per sign."),
+    overdrive: Optional[float] = typer.Option(None, "--overdrive", help="Top level / max current (> 1)."),
+    plateau: Optional[float] = typer.Option(None, "--plateau", help="Current excitation per plateau [s]."),
+    pause: Optional[float] = typer.Option(None, "--pause", help="Zero-current pause after each plateau [s]."),
+    hold: Optional[float] = typer.Option(None, "--hold", help="Hold at max current to heat the winding [s]."),
+    transition: Optional[float] = typer.Option(None, "--transition", help="Speed change between plateaus [s]."),
+    schedule_out: Optional[Path] = typer.Option(None, "--schedule", help="Also write the set-points as CSV."),
+    json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON (schema hound-id/plan/1)."),
+) -> None:
+    """Write a test plan under which every effect of the fit-current library is identifiable."""
+    import dataclasses
+
+    import yaml
+
+    from hound_id import io
+    from hound_id.dyno.plan import plan_mapping, schedule
+    from hound_id.dyno.simulate import TestPlan
+    from hound_id.tables import write_table
+
+    check_output(out, (".yaml", ".yml"), "plan")
+    check_output(schedule_out, (".csv", ".parquet"), "schedule")
+    if not max_current > 0:
+        raise HoundIdError(f"--max-current: found {max_current}, expected a positive current in A")
+    changes: dict[str, Any] = {}
+    if speeds is not None:
+        try:
+            changes["speeds"] = tuple(float(w) for w in speeds.split(","))
+        except ValueError as err:
+            raise HoundIdError(f"--speeds: found {speeds!r}, expected numbers in rad/s such as -40,-2,2,40") from err
+    if levels is not None:
+        changes["current_levels"] = levels
+    for key, value in (
+        ("overdrive", overdrive),
+        ("plateau_time", plateau),
+        ("pause_time", pause),
+        ("hold_time", hold),
+        ("transition_time", transition),
+    ):
+        if value is not None:
+            changes[key] = value
+    plan = dataclasses.replace(TestPlan(), **changes)
+    data = plan_mapping(plan, max_current)
+    io.write_text(out, yaml.safe_dump(data, sort_keys=False))
+    if schedule_out is not None:
+        write_table(schedule(plan, max_current), schedule_out)
+    if json_out:
+        print_json(data)
+        return
+    console.print(
+        f"plan written to {out}: {len(plan.speeds)} plateaus, {plan.duration:.0f} s, currents up to "
+        f"{plan.overdrive * max_current:.3g} A",
+        highlight=False,
+    )
+    for key, why in data["why"].items():
+        console.print(f"  {key}: {why}", highlight=False)

@@ -1,0 +1,164 @@
+import json
+import os
+import signal
+import subprocess
+import sys
+import time
+
+import pandas as pd
+import pytest
+import yaml
+
+from hound_id.dyno.plan import load_plan
+from tests.cli.test_mor_cli import assert_one_line_error
+from tests.conftest import run_cli
+
+
+def start_rig(tmp_path, *args):
+    rig_file = tmp_path / "sim-rig.yaml"
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hound_id", "dyno", "simulate-rig", "--port", "0", "--rig-out", str(rig_file), *args],
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 30
+    while not rig_file.exists() and time.monotonic() < deadline and proc.poll() is None:
+        time.sleep(0.05)
+    assert rig_file.exists(), proc.stderr.read() if proc.poll() is not None else "rig file not written"
+    return proc, rig_file
+
+
+def stop(proc):
+    if proc.poll() is None:
+        proc.send_signal(signal.SIGINT)
+        try:
+            proc.wait(timeout=10)
+        except subprocess.TimeoutExpired:
+            proc.kill()
+
+
+def test_plan_command(tmp_path):
+    out = tmp_path / "plan.yaml"
+    proc = run_cli(
+        "dyno",
+        "plan",
+        "--max-current",
+        "40",
+        "--out",
+        str(out),
+        "--speeds=-10,-2,2,10",
+        "--plateau",
+        "1.2",
+        "--pause",
+        "1",
+        "--hold",
+        "0.6",
+        "--transition",
+        "0.4",
+        "--levels",
+        "3",
+        "--schedule",
+        str(tmp_path / "setpoints.csv"),
+        "--json",
+    )
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/plan/1" and data["speeds"] == [-10.0, -2.0, 2.0, 10.0]
+    assert set(data["why"]) >= {"speeds", "overdrive", "hold_time", "pause_time"}
+    plan, max_current = load_plan(out)
+    assert max_current == 40.0 and plan.current_levels == 3
+    setpoints = pd.read_csv(tmp_path / "setpoints.csv")
+    assert setpoints["current"].abs().max() == pytest.approx(1.3 * 40.0)
+    assert set(setpoints["velocity"].round(6)) >= {-10.0, -2.0, 2.0, 10.0}
+    assert_one_line_error(
+        run_cli("dyno", "plan", "--max-current", "40", "--speeds", "fast", "--out", str(tmp_path / "p.yaml")),
+        "--speeds",
+    )
+
+
+def test_simulate_record_fit_names_the_hidden_effect(tmp_path):
+    plan = tmp_path / "plan.yaml"
+    assert (
+        run_cli(
+            "dyno",
+            "plan",
+            "--max-current",
+            "70",
+            "--out",
+            str(plan),
+            "--speeds=-10,-2,2,10",
+            "--plateau",
+            "1.2",
+            "--pause",
+            "1",
+            "--hold",
+            "0.6",
+            "--transition",
+            "0.4",
+            "--levels",
+            "3",
+        ).returncode
+        == 0
+    )
+    rig, rig_file = start_rig(
+        tmp_path, "--effects", "linear,saturation,coulomb", "--seed", "3", "--plan", str(plan), "--duration", "40"
+    )
+    try:
+        out = tmp_path / "run.csv"
+        proc = run_cli(
+            "dyno", "record", "--rig", str(rig_file), "--out", str(out), "--duration", "11", "--rate", "500", "--json"
+        )
+        assert proc.returncode == 0, proc.stderr
+        meta = json.loads(proc.stdout)
+        assert meta["schema"] == "hound-id/record/1" and meta["status"] == "complete"
+        assert meta["samples"] == len(pd.read_csv(out)) > 3000
+    finally:
+        stop(rig)
+    fit = run_cli("fit-current", str(out), "--json")
+    assert fit.returncode == 0, fit.stderr
+    assert json.loads(fit.stdout)["suggestions"][0]["effect"] == "coulomb"
+
+
+def test_ctrl_c_stops_recording_with_the_file_valid(tmp_path):
+    rig, rig_file = start_rig(tmp_path, "--duration", "30")
+    out = tmp_path / "run.csv"
+    try:
+        rec = subprocess.Popen(
+            [
+                sys.executable,
+                "-m",
+                "hound_id",
+                "dyno",
+                "record",
+                "--rig",
+                str(rig_file),
+                "--out",
+                str(out),
+                "--rate",
+                "200",
+            ],
+            stdout=subprocess.PIPE,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        time.sleep(2.5)
+        rec.send_signal(signal.SIGINT)
+        rec.wait(timeout=15)
+    finally:
+        stop(rig)
+    meta = json.loads((tmp_path / "run.csv.meta.json").read_text())
+    assert meta["status"] == "interrupted"
+    frame = pd.read_csv(out)
+    assert len(frame) == meta["samples"] > 50 and not frame.isna().any().any()
+    assert os.path.getsize(out) > 0
+
+
+def test_bad_rig_file_is_one_line(tmp_path):
+    rig_file = tmp_path / "rig.yaml"
+    rig_file.write_text(yaml.safe_dump({"schema": "hound-id/rig/1", "name": "x", "devices": {}, "channels": []}))
+    assert_one_line_error(
+        run_cli("dyno", "record", "--rig", str(rig_file), "--out", str(tmp_path / "r.csv"), "--duration", "1"),
+        "rig.yaml",
+    )
+    assert not (tmp_path / "r.csv").exists()
