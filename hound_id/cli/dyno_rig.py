@@ -143,6 +143,7 @@ def plan_cmd(
     pause: Optional[float] = typer.Option(None, "--pause", help="Zero-current pause after each plateau [s]."),
     hold: Optional[float] = typer.Option(None, "--hold", help="Hold at max current to heat the winding [s]."),
     transition: Optional[float] = typer.Option(None, "--transition", help="Speed change between plateaus [s]."),
+    rise: Optional[float] = typer.Option(None, "--rise", help="Duration of each current edge [s]."),
     schedule_out: Optional[Path] = typer.Option(None, "--schedule", help="Also write the set-points as CSV."),
     json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON (schema hound-id/plan/1)."),
 ) -> None:

@@ -115,9 +115,14 @@ def test_simulate_record_fit_names_the_hidden_effect(tmp_path):
         assert meta["samples"] == len(pd.read_csv(out)) > 3000
     finally:
         stop(rig)
-    fit = run_cli("fit-current", str(out), "--json")
+    fit = run_cli("fit-current", str(out), "--auto", "--json")
     assert fit.returncode == 0, fit.stderr
-    assert json.loads(fit.stdout)["suggestions"][0]["effect"] == "coulomb"
+    data = json.loads(fit.stdout)
+    added = [step["added"] for step in data["ladder"][1:]]
+    # The hidden effect is found. The two devices are read one round trip apart, a real skew between the
+    # channels that the fit may also pick up as a small 'delay'; nothing else is added.
+    assert "coulomb" in added and set(added) <= {"coulomb", "delay"}
+    assert abs(data["parameters"]["coulomb"]["value"] - 0.0773) < 0.02
 
 
 def test_ctrl_c_stops_recording_with_the_file_valid(tmp_path):

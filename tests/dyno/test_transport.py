@@ -106,3 +106,52 @@ def test_a_dead_rig_fails_with_a_message(rig_sim, tmp_path):
         )
     assert result.status == "failed" and "Modbus 127.0.0.1" in result.message
     assert pd.read_csv(tmp_path / "dead.csv").empty
+
+
+def test_fast_block_decoder_equals_the_reference():
+    import numpy as np
+
+    from hound_id.dyno.rig import decode_block
+    from hound_id.dyno.transport import block_decoder
+
+    rig = rig_from_mapping(
+        {
+            "schema": "hound-id/rig/1",
+            "name": "codec",
+            "devices": {
+                "d": {"type": "modbus_tcp", "host": "127.0.0.1", "port": 5020, "unit": 1},
+                "e": {"type": "modbus_tcp", "host": "127.0.0.1", "port": 5020, "unit": 2},
+            },
+            "channels": [
+                {"column": "torque", "device": "d", "register": 0, "dtype": "float32", "unit": "N*m"},
+                {"column": "current", "device": "d", "register": 2, "dtype": "int16", "scale": 0.01, "unit": "A"},
+                {"column": "velocity", "device": "d", "register": 3, "dtype": "int32", "scale": 1e-3, "unit": "rpm"},
+                {
+                    "column": "temperature",
+                    "device": "d",
+                    "register": 5,
+                    "dtype": "uint16",
+                    "scale": 0.1,
+                    "unit": "degF",
+                },
+                {
+                    "column": "position",
+                    "device": "e",
+                    "register": 0,
+                    "dtype": "uint32",
+                    "word_order": "little",
+                    "unit": "deg",
+                },
+            ],
+        },
+        source="codec",
+    )
+    rng = np.random.default_rng(0)
+    for block in rig.reads():
+        fast = block_decoder(block)
+        for _ in range(200):
+            regs = [int(x) for x in rng.integers(0, 0x10000, block.count)]
+            want, got = decode_block(block, regs), fast(regs)
+            assert got.keys() == want.keys()
+            for k in want:
+                assert got[k] == want[k] or (np.isnan(got[k]) and np.isnan(want[k]))
