@@ -13,6 +13,21 @@ from hound_id.cli._render import console, err_console, print_json, warn
 from hound_id.errors import HoundIdError
 from hound_id.io import check_output
 
+
+def _quiet_and_terminable() -> None:
+    """pymodbus logs through the logging module; its messages would break our one-line errors. SIGTERM (kill, a
+    shutdown) stops like Ctrl-C, so recordings end cleanly; background jobs of a script ignore SIGINT."""
+    import logging
+    import signal
+
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
+
+
 app = typer.Typer(
     help="Dyno acquisition: record a rig, serve a simulated rig, write a test plan.", no_args_is_help=True
 )
@@ -35,6 +50,7 @@ def record_cmd(
     from hound_id.dyno.transport import RigReader
 
     check_output(out, (".csv",), "log")
+    _quiet_and_terminable()
     rig_spec = load_rig(rig)
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
     with (
@@ -98,11 +114,13 @@ def simulate_rig_cmd(
 
     from hound_id import io
     from hound_id.dyno.rigsim import SimulatedRig
-    from hound_id.dyno.simulate import SimMotor
+    from hound_id.dyno.simulate import SimMotor, TestPlan
 
     check_output(rig_out, (".yaml", ".yml"), "rig")
+    _quiet_and_terminable()
     names = tuple(e.strip() for e in effects.split(",") if e.strip())
-    test_plan, motor = None, SimMotor()
+    # A polled rig samples at most about 1 kHz: the default plan's current edges take 10 ms, so they are resolved
+    test_plan, motor = TestPlan(current_rise_time=0.01), SimMotor()
     if plan is not None:
         from hound_id.dyno.plan import load_plan
 

@@ -7,7 +7,8 @@ flushed to the operating system at least every ``flush_interval`` seconds, so a 
 loses at most that much; Ctrl-C (KeyboardInterrupt) or a stop request ends the run
 cleanly with everything recorded so far on disk.
 
-Pacing: tick k is due at t0 + k / rate. A tick whose read starts more than one period
+Pacing: tick k is due at t0 + k / rate; its row is stamped with the middle of the read
+that produced it (the reads of several devices take a round trip each). A tick whose read starts more than one period
 late is not taken (the recorder never bunches samples to catch up); it is counted as
 missed. A read that fails (timeout, exception response, disconnect, malformed line)
 is retried by the :class:`RetryPolicy`; if it still fails, the tick is a gap: no row is
@@ -265,8 +266,11 @@ def record(
             t = due - t0
             sample, error = None, ""
             for _ in range(policy.retries + 1):
+                before = time.monotonic()
                 try:
                     sample = read_sample()
+                    # stamp the row at the middle of the read that produced it, not at the tick it was due
+                    t = 0.5 * (before + time.monotonic()) - t0
                     break
                 except ReadError as err:
                     error = str(err)
