@@ -5,23 +5,13 @@ import pandas as pd
 import pytest
 import yaml
 
+from hound_id.demo import DYNO_COLUMNS
 from hound_id.dyno.simulate import simulate
 from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
 from tests.conftest import MOTOR, SAMPLES, run_cli
 
 DYNO = SAMPLES / "dyno" / "ilm85_dyno.csv"
-MAPPING = ",".join(
-    f"{k}={v}"
-    for k, v in {
-        "time": "timestamp",
-        "current": "iq",
-        "torque": "adc_torque",
-        "velocity": "speed",
-        "position": "angle",
-        "temperature": "winding_temp",
-        "bus_voltage": "vbus",
-    }.items()
-)
+MAPPING = ",".join(f"{k}={v}" for k, v in DYNO_COLUMNS.items())  # the sample's own column names
 TRUTH = json.loads((SAMPLES / "dyno" / "ilm85_dyno_truth.json").read_text())
 
 
