@@ -73,21 +73,33 @@ def record_cmd(
             rate_hz=rate,
             duration=duration,
             flush_interval=flush,
-            metadata={"rig": str(rig), "rig_name": rig_spec.name},
+            metadata={"rig": str(rig.resolve()), "rig_name": rig_spec.name},
             on_progress=on_progress,
         )
         faults = reader.faults()
     import json
 
+    from hound_id import io
+
     meta = json.loads(result.sidecar.read_text())
     meta["transport_errors"] = faults
+    io.write_json(result.sidecar, meta)
     if json_out:
         print_json(meta)
     else:
         table = Table(title=f"recorded {out}", title_justify="left")
         table.add_column("quantity")
         table.add_column("value", justify="right")
-        for key in ("status", "samples", "rate_requested", "rate_achieved", "missed_ticks", "failed_ticks", "duration"):
+        for key in (
+            "status",
+            "samples",
+            "rate_requested",
+            "rate_achieved",
+            "missed_ticks",
+            "failed_ticks",
+            "longest_interval",
+            "duration",
+        ):
             value = meta[key]
             table.add_row(key.replace("_", " "), f"{value:.4g}" if isinstance(value, float) else str(value))
         console.print(table)

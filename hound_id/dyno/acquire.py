@@ -73,6 +73,8 @@ class Gap:
 @dataclass
 class _Progress:
     samples: int = 0
+    last_t: float | None = None
+    max_interval: float = 0.0
     missed: int = 0
     failed: int = 0
     gaps: list[Gap] = field(default_factory=list)
@@ -195,6 +197,8 @@ def record(
         raise DynoDataError(f"--rate: found {rate_hz}, expected a positive sampling rate in Hz")
     if duration is not None and not duration > 0:
         raise DynoDataError(f"--duration: found {duration}, expected a positive number of seconds")
+    if not flush_interval > 0:
+        raise DynoDataError(f"--flush: found {flush_interval}, expected a positive number of seconds")
     log = CsvLog(out, columns, flush_interval)
     side = sidecar_path(out)
     started = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
@@ -235,6 +239,7 @@ def record(
                 "duration": r.duration,
                 "samples": r.samples,
                 "missed_ticks": r.missed,
+                "longest_interval": progress.max_interval,
                 "failed_ticks": r.failed,
                 "gaps": [g.to_dict() for g in r.gaps],
                 "faults": progress.faults[-50:],
@@ -284,6 +289,9 @@ def record(
             else:
                 progress.close_gap()
                 first_failure = None
+                if progress.last_t is not None:
+                    progress.max_interval = max(progress.max_interval, t - progress.last_t)
+                progress.last_t = t
                 if log.write(t, sample):
                     write_sidecar(time.monotonic())
                     if on_progress is not None:
@@ -295,6 +303,9 @@ def record(
     finally:
         progress.close_gap()
         log.close()
+        if status == "complete" and progress.samples == 0:
+            status = "failed"
+            message = "no sample was read" + (f"; last error: {progress.faults[-1]}" if progress.faults else "")
         if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
             status, message = "failed", "the recorder stopped on an unexpected error"
         write_sidecar(time.monotonic())

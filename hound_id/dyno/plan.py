@@ -9,8 +9,8 @@ parameters plus the application's maximum current, with the reason for each part
 * at every plateau, current ramps and steps up to ``overdrive`` x the maximum current,
   beyond the application's range, for the saturation curve and the 20 % point;
 * fast steps whose edges the torque channel must follow, for the delay;
-* plateaus long enough for the rotor to turn many times at each level, for cogging and
-  ripple;
+* at the faster plateaus the rotor turns many times during the excitation, for cogging
+  and ripple;
 * a hold at the maximum current to warm the winding, for the thermal drift of Kt;
 * pauses at zero current that bound the heating and give friction and cogging data.
 
@@ -37,7 +37,8 @@ RATIONALE = {
     "overdrive": "ramps and the top step go beyond the application's maximum current, so the curve's 20 % point "
     "is measured, not extrapolated",
     "shape": "ramps sweep the curve continuously; steps give the fast edges that reveal the torque channel's delay",
-    "plateau_time": "long enough for the rotor to turn many times at each level, for cogging and ripple",
+    "plateau_time": "at the faster plateaus the rotor turns many times during the excitation, for cogging and "
+    "ripple; the slow ones give friction near rest",
     "pause_time": "zero current between plateaus bounds the winding's heating and records friction and cogging",
     "hold_time": "one hold at the maximum current warms the winding, so the thermal drift of Kt shows",
     "transition_time": "speed changes happen at zero current",

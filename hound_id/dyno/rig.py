@@ -386,7 +386,7 @@ def _conversion(unit: str, column: str) -> tuple[str, float, float] | str:
         target = UNITS[column]
         if column == "velocity" and ("hertz" in str(parsed) or "Hz" in text):
             return (
-                f"found {unit!r}, which uses Hz: ambiguous for an angular speed (rev/s or rad/s?); "
+                f"found {unit!r}: Hz is ambiguous for an angular speed (rev/s or rad/s?); "
                 "write rad/s, rps, rpm or deg/s"
             )
         target_unit = ureg.Unit(target)
@@ -615,7 +615,7 @@ class _Where:
 def _suggest(key: str, known: Sequence[str]) -> str:
     close = difflib.get_close_matches(key, known, n=1)
     hint = f"did you mean '{close[0]}'? " if close else ""
-    return f"{hint}(expected one of {', '.join(known)})"
+    return f"{hint}expected one of {', '.join(known)}"
 
 
 def _check_keys(data: Mapping[Any, Any], known: Sequence[str], at: _Where, extra: str = "") -> None:
@@ -820,7 +820,7 @@ def _channel(index: int, value: Any, devices: Mapping[str, Device], at: _Where) 
         name = data["field"]
         if name not in device.format.names:
             raise at.error(
-                f"found {name!r}, not a field of device '{device_name}'; "
+                f"found {name!r}, which is not a field of device '{device_name}'; "
                 f"{_suggest(str(name), device.format.names)}; fix the name or the device's format",
                 "field",
                 found=name,

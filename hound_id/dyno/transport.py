@@ -252,10 +252,16 @@ class RigReader:
             t.close()
 
     def read_sample(self) -> dict[str, float]:
-        """Every column of the rig, SI; raises ReadError if any device fails."""
+        """Every column of the rig, SI; raises ReadError naming every device that failed."""
         values: dict[str, float] = {}
+        errors = []
         for t in self.transports:
-            values.update(t.read())
+            try:
+                values.update(t.read())
+            except ReadError as err:
+                errors.append(str(err))
+        if errors:
+            raise ReadError("; ".join(errors))
         return values
 
     def faults(self) -> dict[str, int]:

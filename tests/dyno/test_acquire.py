@@ -112,3 +112,20 @@ def test_ctrl_c_keeps_everything_and_sigkill_loses_at_most_a_flush(tmp_path, sig
         lost = (killed_at - ready_at) - float(frame["time"].iloc[-1])
         assert lost < 0.1 + 0.15
     assert os.path.getsize(out) > 0
+
+
+def test_a_run_without_a_single_sample_has_failed(tmp_path):
+    def dead():
+        raise ReadError("Modbus 127.0.0.1:1 unit 1: connection refused; serial /dev/ttyUSB9: cannot open")
+
+    result = record(
+        dead,
+        ["current", "torque"],
+        tmp_path / "none.csv",
+        rate_hz=50.0,
+        duration=0.3,
+        policy=RetryPolicy(retries=0, give_up_after=10.0),
+    )
+    assert result.status == "failed" and "no sample was read" in result.message and "ttyUSB9" in result.message
+    with pytest.raises(DynoDataError, match="--flush"):
+        record(dead, ["current"], tmp_path / "x.csv", rate_hz=10, flush_interval=0)

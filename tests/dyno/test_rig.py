@@ -197,7 +197,7 @@ INVALID = [
     (
         "Hz velocity",
         _set("channels.4", {"column": "velocity", "device": "drive", "register": 9, "unit": "Hz"}),
-        r"channels\[4\] \('velocity'\): field 'unit': found 'Hz', which uses Hz.*rpm",
+        r"channels\[4\] \('velocity'\): field 'unit': found 'Hz': Hz is ambiguous.*rpm",
     ),
     (
         "plain 1/s velocity",
@@ -226,7 +226,7 @@ INVALID = [
     (
         "unknown serial field",
         _set("channels.3.field", "curent"),
-        r"field 'field': found 'curent', not a field of device 'console'; did you mean 'current'\?",
+        r"field 'field': found 'curent', which is not a field of device 'console'; did you mean 'current'\?",
     ),
     (
         "register on serial channel",
