@@ -1,0 +1,103 @@
+"""The leg as Pinocchio sees it: masses and pitch inertias about the knee and the hip.
+
+The URDF is loaded with Pinocchio. In the joint-space mass matrix M(q) (composite rigid
+body algorithm), the diagonal entry of a revolute joint is the inertia of everything
+below that joint about its axis, at configuration q. So:
+
+* knee pitch inertia = M[KFE, KFE]: calf + foot about the knee axis (independent of q for a
+  planar leg);
+* hip inertia = M[HFE, HFE] at the nominal pose: thigh + calf + foot about the hip axis;
+* calf + foot mass = the subtree mass below the knee (``computeSubtreeMasses``).
+
+The reflected inertia of the knee motor's rotor is J_rotor G^2 for a single-stage knee
+(physics notes); with a coupled transmission see
+:meth:`hound_id.mor.transmission.Transmission.reflected_inertia`.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+from hound_id.errors import SpecError
+
+
+@dataclass(frozen=True)
+class LegProperties:
+    """Mass properties of a leg at a configuration, SI."""
+
+    calf_foot_mass: float
+    """Mass of everything below the knee joint [kg]."""
+    knee_pitch_inertia: float
+    """Inertia of everything below the knee about the knee axis [kg m^2]."""
+    hip_pitch_inertia: float
+    """Inertia of everything below the hip about the hip axis, at the configuration [kg m^2]."""
+    reflected_knee_inertia: float | None
+    """Knee rotor inertia seen at the knee, J_rotor G^2 [kg m^2], if rotor inertia and ratio are given."""
+    knee_angle: float
+    """Knee angle of the configuration [rad]."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+
+
+def load_leg(path: str | Path) -> Any:
+    """The Pinocchio model of a leg URDF (raises SpecError with the parser's complaint)."""
+    import pinocchio as pin
+
+    p = Path(path)
+    if not p.is_file():
+        raise SpecError(f"{p}: file not found; expected a leg URDF", path=str(p))
+    try:
+        return pin.buildModelFromUrdf(str(p))
+    except (RuntimeError, ValueError) as err:
+        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+        raise SpecError(f"{p}: Pinocchio cannot load the URDF ({first})", path=str(p)) from err
+
+
+def leg_properties(
+    model: Any,
+    *,
+    hip_joint: str = "HFE",
+    knee_joint: str = "KFE",
+    knee_angle: float = -1.2,
+    rotor_inertia: float | None = None,
+    knee_ratio: float | None = None,
+) -> LegProperties:
+    """Mass properties of a leg model at hip angle 0 and the given knee angle [rad].
+
+    Args:
+        model: A Pinocchio model (see :func:`load_leg`).
+        hip_joint: Name of the hip pitch joint.
+        knee_joint: Name of the knee pitch joint.
+        knee_angle: Knee angle of the nominal pose [rad].
+        rotor_inertia: Knee motor rotor inertia [kg m^2], for the reflected inertia.
+        knee_ratio: Knee gear ratio G (motor turns per joint turn).
+    """
+    import numpy as np
+    import pinocchio as pin
+
+    ids = {}
+    for name in (hip_joint, knee_joint):
+        if not model.existJointName(name):
+            names = [n for n in model.names if n != "universe"]
+            raise SpecError(f"leg model: no joint named '{name}'; joints are {', '.join(names)}", joint=name)
+        ids[name] = model.getJointId(name)
+    data = model.createData()
+    q = pin.neutral(model)
+    knee = model.joints[ids[knee_joint]]
+    q[knee.idx_q] = knee_angle
+    M = pin.crba(model, data, q)
+    M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
+    pin.computeSubtreeMasses(model, data)
+    reflected = None
+    if rotor_inertia is not None and knee_ratio is not None:
+        reflected = float(rotor_inertia * knee_ratio**2)
+    return LegProperties(
+        calf_foot_mass=float(data.mass[ids[knee_joint]]),
+        knee_pitch_inertia=float(M[knee.idx_v, knee.idx_v]),
+        hip_pitch_inertia=float(M[model.joints[ids[hip_joint]].idx_v, model.joints[ids[hip_joint]].idx_v]),
+        reflected_knee_inertia=reflected,
+        knee_angle=float(knee_angle),
+    )
