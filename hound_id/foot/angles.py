@@ -1,0 +1,135 @@
+"""Contact angles of the foot: where on the foot the ground touches, from touchdown to liftoff.
+
+In the sagittal plane the calf's absolute pitch is theta = body pitch + hip angle + knee
+angle (all about the pitch axis y). The ground's normal, seen from the calf, then points at
+the angle theta from the calf's -z axis (towards its +x): that is the point of the foot in
+contact. The attack angle is theta at touchdown, the detach angle theta at liftoff; the foot
+must cover every angle the stance sweeps through, so :func:`contact_angles` also reports the
+extremes over each stance.
+
+A gait log (CSV or Parquet) has ``time`` [s], ``pitch`` [rad] and per leg ``<leg>_HFE``,
+``<leg>_KFE`` [rad] and ``<leg>_contact`` (1 in stance, 0 in flight).
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.errors import DynoDataError, SpecError
+
+#: Largest angular coverage a spherical-cap foot can have [rad] (a hemisphere).
+MAX_COVERAGE = math.pi
+
+
+@dataclass(frozen=True)
+class ContactAngles:
+    """Contact angles over the strides of a gait, with the margin applied, radians."""
+
+    attack: float
+    """Mean contact angle at touchdown [rad]."""
+    detach: float
+    """Mean contact angle at liftoff [rad]."""
+    attack_spread: float
+    """Standard deviation of the touchdown angle over strides [rad] (0 for given angles)."""
+    detach_spread: float
+    """Standard deviation of the liftoff angle over strides [rad]."""
+    low: float
+    """Lowest angle the foot must cover: min over stances minus the margin [rad]."""
+    high: float
+    """Highest angle the foot must cover: max over stances plus the margin [rad]."""
+    margin: float
+    """Margin applied on both sides [rad]."""
+    strides: int
+    """Stances found (0 for given angles)."""
+
+    @property
+    def coverage(self) -> float:
+        """Angular coverage the foot needs, high - low [rad]."""
+        return self.high - self.low
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        out["coverage"] = self.coverage
+        out["units"] = "rad"
+        return out
+
+
+def _checked(low: float, high: float, margin: float, source: str) -> None:
+    if not high - low < MAX_COVERAGE:
+        raise SpecError(
+            f"{source}: the foot would have to cover {math.degrees(high - low):.1f} deg "
+            f"(from {math.degrees(low):.1f} to {math.degrees(high):.1f} deg with a {math.degrees(margin):.1f} deg "
+            "margin); a spherical cap covers less than 180 deg: reduce the margin or check the angles"
+        )
+
+
+def given_angles(attack_deg: float, detach_deg: float, margin_deg: float = 5.0) -> ContactAngles:
+    """Angles stated by the user (``--angles ATTACK,DETACH`` in degrees, touchdown before liftoff).
+
+    The stance sweeps the contact point from the attack angle to the detach angle; the foot
+    is run forward, so the attack angle is the larger (the foot touches down ahead of the hip).
+    """
+    if not all(math.isfinite(a) for a in (attack_deg, detach_deg, margin_deg)) or margin_deg < 0:
+        raise SpecError(f"--angles: found {attack_deg}, {detach_deg} (margin {margin_deg}); expected finite degrees")
+    if not attack_deg > detach_deg:
+        raise SpecError(
+            f"--angles: attack {attack_deg:g} deg must come before detach {detach_deg:g} deg in the stance "
+            "(touchdown ahead of the hip, larger angle; liftoff behind it, smaller); swap them"
+        )
+    a, d, m = (math.radians(x) for x in (attack_deg, detach_deg, margin_deg))
+    low, high = d - m, a + m
+    _checked(low, high, m, "--angles")
+    return ContactAngles(a, d, 0.0, 0.0, low, high, m, 0)
+
+
+def contact_angles(
+    columns: Mapping[str, Any], legs: Sequence[str], margin_deg: float = 5.0, source: str = "gait log"
+) -> ContactAngles:
+    """Contact angles over every stance of every leg in a gait log (see module docstring)."""
+
+    def column(name: str) -> NDArray[np.float64]:
+        if name not in columns:
+            raise DynoDataError(
+                f"{source}: column '{name}' missing; a gait log needs time, pitch and "
+                "<leg>_HFE, <leg>_KFE, <leg>_contact for each leg",
+                column=name,
+            )
+        values = np.asarray(columns[name], dtype=float)
+        if not np.all(np.isfinite(values)):
+            row = int(np.flatnonzero(~np.isfinite(values))[0]) + 1
+            raise DynoDataError(f"{source}: column '{name}' data row {row} is not a finite number", column=name)
+        return values
+
+    pitch = column("pitch")
+    touch, lift, lows, highs = [], [], [], []
+    for leg in legs:
+        theta = pitch + column(f"{leg}_HFE") + column(f"{leg}_KFE")
+        contact = column(f"{leg}_contact") > 0.5
+        edges = np.diff(contact.astype(np.int8))
+        starts = np.flatnonzero(edges == 1) + 1
+        ends = np.flatnonzero(edges == -1) + 1
+        for s in starts:
+            later = ends[ends > s]
+            if later.size == 0:
+                break  # the log ends in stance: an incomplete stride
+            e = int(later[0])
+            touch.append(theta[s])
+            lift.append(theta[e - 1])
+            lows.append(theta[s:e].min())
+            highs.append(theta[s:e].max())
+    if not touch:
+        raise DynoDataError(
+            f"{source}: no complete stance found (a contact flag rising then falling) for legs {', '.join(legs)}"
+        )
+    m = math.radians(margin_deg)
+    low, high = float(min(lows)) - m, float(max(highs)) + m
+    _checked(low, high, m, source)
+    return ContactAngles(
+        float(np.mean(touch)), float(np.mean(lift)), float(np.std(touch)), float(np.std(lift)), low, high, m, len(touch)
+    )
