@@ -8,8 +8,11 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def frozen(a: Any) -> NDArray[np.float64]:
-    """A float64 copy of ``a`` that cannot be written to (results never alias inputs)."""
-    out = np.array(a, dtype=np.float64)
+def frozen(a: Any, dtype: Any = np.float64) -> NDArray[Any]:
+    """A copy of ``a`` (float64 unless ``dtype`` says otherwise) that cannot be written to.
+
+    Results never alias inputs, so aliasing bugs cannot creep in.
+    """
+    out = np.array(a, dtype=dtype)
     out.setflags(write=False)
     return out

@@ -125,13 +125,12 @@ def step_fit_current(out: Path) -> StepResult:
     """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
     import yaml
 
-    from hound_id.dyno.curve import compensation, peak_torque
     from hound_id.dyno.diagnose import auto
     from hound_id.dyno.effects import Signals
     from hound_id.dyno.fit import fit_model
     from hound_id.dyno.log import load_log
     from hound_id.dyno.plot import plot_fit
-    from hound_id.dyno.report import fit_report, fitted_motor
+    from hound_id.dyno.report import fitted_motor, summarize
 
     data = samples_dir() / "dyno" / "ilm85_dyno.csv"
     log = load_log(data, columns=DYNO_COLUMNS)
@@ -139,10 +138,7 @@ def step_fit_current(out: Path) -> StepResult:
     start = fit_model(signals, log.torque, ("linear", "saturation"))
     ladder = auto(signals, log.torque, start)
     fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
-    current_max = float(abs(signals.current).max())
-    peak = peak_torque(fit, current_max)
-    comp = compensation(fit, peak.current if peak.current is not None else current_max)
-    report = fit_report(str(data), fit, diagnosis, peak, comp, ladder, log.notes, log.rows_read)
+    peak, _, report = summarize(str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read)
     io.write_json(out / "fit_ilm85_dyno.json", report)
     pairs = [("before: " + "+".join(start.model), start), ("after: " + "+".join(fit.model), fit)]
     _save_png(

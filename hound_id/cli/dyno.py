@@ -65,12 +65,9 @@ def fit_current(
     torque = log.torque
     result = _run(signals, torque, tuple(names), auto=auto, robust=robust)
     fit, diagnosis, ladder, start = result
-    from hound_id.dyno.curve import compensation, peak_torque
-    from hound_id.dyno.report import fit_report, fitted_motor
+    from hound_id.dyno.report import fitted_motor, summarize
 
-    peak = peak_torque(fit, float(abs(signals.current).max()))
-    comp = compensation(fit, peak.current if peak.current is not None else float(abs(signals.current).max()))
-    report = fit_report(str(data), fit, diagnosis, peak, comp, ladder, log.notes, log.rows_read)
+    peak, _, report = summarize(str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read)
     if out is not None:
         import yaml
 

@@ -366,7 +366,6 @@ def fit_model(
             )
     design = Design(signals, torque, test)
     fixed = dict(hypers or {})
-    found: dict[str, float] = {}
     delay_stderr = float("nan")
     linear_names = [
         e.name for e in effects if e.name != "delay" and (not e.hypers or all(h.name in fixed for h in e.hypers))
@@ -388,7 +387,6 @@ def fit_model(
         beta, _ = solve_normal(normal.G, normal.g)
         value, _ = search_hyper(design, e, normal, sub, torque[rows] - base @ beta, current)
         current.update(value)
-        found.update(value)
         base_names.append(e.name)
     if has_delay and "delay" not in fixed and searched:
         delay, delay_stderr = estimate_delay(design, [m for m in model if m != "delay"], current, start=delay)
@@ -446,7 +444,7 @@ def _finish(
         bic=loglik_term + k * math.log(max(n_tr, 1)),
         prediction=frozen(pred),
         residual=frozen(resid),
-        test=_frozen_mask(te),
+        test=frozen(te, dtype=bool),
         robust=robust,
         hypers={h.name: float(hypers.get(h.name, 0.0)) for e in effects for h in e.hypers},
     )
@@ -475,9 +473,3 @@ def _check_identifiable(X: Array, model: Sequence[str], effects: list[Effect]) -
             "of both signs (and the speed, for friction terms)",
             parameters=involved,
         )
-
-
-def _frozen_mask(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-    out = np.array(mask, dtype=bool)
-    out.setflags(write=False)
-    return out

@@ -14,6 +14,28 @@ from hound_id.dyno.fit import FitResult
 SCHEMA = "hound-id/fit/1"
 
 
+def summarize(
+    source: str,
+    fit: FitResult,
+    diagnosis: Diagnosis,
+    current: Any,
+    ladder: Sequence[Step] | None = None,
+    cleaning: Sequence[Any] = (),
+    rows_read: int | None = None,
+) -> tuple[PeakTorque, Compensation, dict[str, Any]]:
+    """Peak torque, current compensation (up to the peak, or the measured range) and the report of a fit.
+
+    Args:
+        current: The log's current [A]; its largest magnitude bounds the measured range.
+    """
+    from hound_id.dyno.curve import compensation, peak_torque
+
+    current_max = float(abs(current).max())
+    peak = peak_torque(fit, current_max)
+    comp = compensation(fit, peak.current if peak.current is not None else current_max)
+    return peak, comp, fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read)
+
+
 def fit_report(
     source: str,
     fit: FitResult,
