@@ -28,9 +28,13 @@ if TYPE_CHECKING:  # pragma: no cover
 KINDS: dict[str, tuple[str, str, str]] = {
     "angular_velocity": ("rad/s", "an angular speed", "'6000 rpm' or 628.3 (rad/s)"),
     "current": ("A", "a current", "'70 A' or 70"),
+    "density": ("kg/m**3", "a density", "'2.81 g/cm^3' or 2810"),
     "dimensionless": ("dimensionless", "a plain number", "7.5"),
     "inductance": ("H", "an inductance", "'85 uH' or 8.5e-5"),
+    "force": ("N", "a force", "'1.5 kN' or 1500"),
     "inertia": ("kg*m**2", "a moment of inertia", "'120 kg*mm^2' or 1.2e-4"),
+    "length": ("m", "a length", "'30 mm' or 0.03"),
+    "pressure": ("Pa", "a stress or modulus", "'71.7 GPa' or 7.17e10"),
     "resistance": ("ohm", "a resistance", "'120 mohm' or 0.12"),
     "speed_constant": ("rad/s/V", "a speed constant", "'95 rpm/V' or 9.95 (rad/s/V)"),
     "torque": ("N*m", "a torque", "'8 N*m' or 8"),

@@ -1,10 +1,13 @@
 """Contact angles of the foot: where on the foot the ground touches, from touchdown to liftoff.
 
-In the sagittal plane the calf's absolute pitch is theta = body pitch + hip angle + knee
-angle (all about the pitch axis y). The ground's normal, seen from the calf, then points at
-the angle theta from the calf's -z axis (towards its +x): that is the point of the foot in
-contact. The attack angle is theta at touchdown, the detach angle theta at liftoff; the foot
-must cover every angle the stance sweeps through, so :func:`contact_angles` also reports the
+Convention (ROS REP-103: x forward, y left, z up; pitch about +y). In the sagittal plane
+the calf's absolute pitch is theta = body pitch + hip angle + knee angle, 0 with the calf
+pointing straight down. The ground's normal, seen from the calf, then points at the angle
+theta from the calf's -z axis towards its +x: that is the point of the foot in contact.
+A positive pitch swings the foot backwards, so in forward running theta *increases* through
+stance: negative at touchdown (foot ahead of the knee), positive at liftoff (foot behind).
+The attack angle is theta at touchdown, the detach angle theta at liftoff; the foot must
+cover every angle the stance sweeps through, so :func:`contact_angles` also reports the
 extremes over each stance.
 
 A gait log (CSV or Parquet) has ``time`` [s], ``pitch`` [rad] and per leg ``<leg>_HFE``,
@@ -16,6 +19,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any
 
 import numpy as np
@@ -72,18 +76,19 @@ def _checked(low: float, high: float, margin: float, source: str) -> None:
 def given_angles(attack_deg: float, detach_deg: float, margin_deg: float = 5.0) -> ContactAngles:
     """Angles stated by the user (``--angles ATTACK,DETACH`` in degrees, touchdown before liftoff).
 
-    The stance sweeps the contact point from the attack angle to the detach angle; the foot
-    is run forward, so the attack angle is the larger (the foot touches down ahead of the hip).
+    The stance sweeps the contact angle from the attack angle up to the detach angle (see the
+    module docstring), so the attack angle is the smaller: e.g. ``-30, 25``.
     """
     if not all(math.isfinite(a) for a in (attack_deg, detach_deg, margin_deg)) or margin_deg < 0:
         raise SpecError(f"--angles: found {attack_deg}, {detach_deg} (margin {margin_deg}); expected finite degrees")
-    if not attack_deg > detach_deg:
+    if not attack_deg < detach_deg:
         raise SpecError(
-            f"--angles: attack {attack_deg:g} deg must come before detach {detach_deg:g} deg in the stance "
-            "(touchdown ahead of the hip, larger angle; liftoff behind it, smaller); swap them"
+            f"--angles: attack {attack_deg:g} deg must come before detach {detach_deg:g} deg in the stance: "
+            "the calf pitch (REP-103, 0 = calf vertical) rises from touchdown (foot ahead, negative) to "
+            "liftoff (foot behind, positive), e.g. --angles -30,25; swap or re-sign them"
         )
     a, d, m = (math.radians(x) for x in (attack_deg, detach_deg, margin_deg))
-    low, high = d - m, a + m
+    low, high = a - m, d + m
     _checked(low, high, m, "--angles")
     return ContactAngles(a, d, 0.0, 0.0, low, high, m, 0)
 
@@ -133,3 +138,18 @@ def contact_angles(
     return ContactAngles(
         float(np.mean(touch)), float(np.mean(lift)), float(np.std(touch)), float(np.std(lift)), low, high, m, len(touch)
     )
+
+
+def gait_angles(path: str | Path, legs: Sequence[str] | None = None, margin_deg: float = 5.0) -> ContactAngles:
+    """Contact angles from a gait log file (CSV or Parquet); legs default to every ``<leg>_contact`` column."""
+    from hound_id.tables import read_table
+
+    frame = read_table(path)
+    if legs is None:
+        legs = [str(c)[: -len("_contact")] for c in frame.columns if str(c).endswith("_contact")]
+        if not legs:
+            raise DynoDataError(
+                f"{path}: no '<leg>_contact' column; a gait log needs time, pitch and <leg>_HFE, <leg>_KFE, "
+                "<leg>_contact for each leg"
+            )
+    return contact_angles({str(c): frame[c].to_numpy() for c in frame.columns}, legs, margin_deg, source=str(path))

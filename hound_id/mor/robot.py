@@ -92,6 +92,19 @@ class Robot:
                 return tx
         raise RobotError(f"robot {self.name}: no joint named {joint!r}; joints are {', '.join(self.joints)}")
 
+    def reflected_inertia(self, joint: str) -> float | None:
+        """Rotor inertia of the joint's transmission group seen at the joint [kg m^2].
+
+        The diagonal entry of A^-T diag(J_rotor) A^-1 (J_rotor G^2 for a single gear); None
+        when a motor of the group has no ``rotor_inertia`` in its spec.
+        """
+        tx = self.transmission_of(joint)
+        rotors = [self.motor_specs[m].rotor_inertia for m in tx.motors]
+        if any(r is None for r in rotors):
+            return None
+        k = tx.joints.index(joint)
+        return float(tx.reflected_inertia([float(r) for r in rotors if r is not None])[k, k])
+
 
 def _err(source: str, field: str, msg: str) -> RobotError:
     return RobotError(f"{source}: {field}: {msg}", field=field)

@@ -7,7 +7,7 @@ from hound_id.errors import DynoDataError, SpecError
 from hound_id.foot.angles import contact_angles, given_angles
 
 
-def gait(strides=6, attack=0.45, detach=-0.40, pitch=0.05, legs=("RR",), seed=0):
+def gait(strides=6, attack=-0.40, detach=0.45, pitch=0.05, legs=("RR",), seed=0):
     """A synthetic gait: during stance the calf's absolute pitch sweeps from attack to detach."""
     rng = np.random.default_rng(seed)
     rate, period, duty = 1000, 0.25, 0.4
@@ -31,23 +31,23 @@ def test_angles_from_a_gait_log():
     stance = cols["RR_contact"] > 0.5
     last_of_stance = np.flatnonzero(stance[:-1] & ~stance[1:])[1:]  # last samples of the complete stances
     assert a.strides == 5  # the log starts in stance: that first stride is incomplete and left out
-    assert a.attack == pytest.approx(0.45, abs=1e-9)
+    assert a.attack == pytest.approx(-0.40, abs=1e-9)
     assert a.detach == pytest.approx(theta[last_of_stance].mean(), abs=1e-12)
-    assert -0.40 <= a.detach < -0.38
-    # the foot must cover the lowest angle of any stance, less the margin
-    assert a.low == pytest.approx(theta[last_of_stance].min() - math.radians(5), abs=1e-9)
-    assert a.high == pytest.approx(0.45 + math.radians(5), abs=1e-9)
+    assert 0.43 < a.detach <= 0.45
+    # the foot must cover the highest angle of any stance, plus the margin
+    assert a.high == pytest.approx(theta[last_of_stance].max() + math.radians(5), abs=1e-9)
+    assert a.low == pytest.approx(-0.40 - math.radians(5), abs=1e-9)
     assert a.attack_spread == pytest.approx(0.0, abs=1e-12)
     assert a.to_dict()["coverage"] == pytest.approx(a.high - a.low)
 
 
 def test_given_angles_and_their_errors():
-    a = given_angles(30, -25, 5)
-    assert (math.degrees(a.low), math.degrees(a.high)) == pytest.approx((-30, 35))
+    a = given_angles(-30, 25, 5)
+    assert (math.degrees(a.low), math.degrees(a.high)) == pytest.approx((-35, 30))
     with pytest.raises(SpecError, match="must come before detach"):
-        given_angles(-25, 30)
+        given_angles(25, -30)
     with pytest.raises(SpecError, match="covers less than 180 deg"):
-        given_angles(100, -85, 5)
+        given_angles(-85, 100, 5)
 
 
 def test_gait_log_errors():

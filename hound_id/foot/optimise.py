@@ -1,0 +1,339 @@
+"""The lightest spherical-cap foot for a leg, by nonlinear programming with casadi (IPOPT).
+
+Design variables (SI): sphere radius R, wall thickness t, lateral width W, cap angles
+[low, high] and the height z_c of the sphere centre above the mount (see
+:mod:`hound_id.foot.geometry`). The boss radius is given (it fits the calf).
+
+Objective: the knee pitch inertia of the foot, I_foot = rho int ((x^2 + (z - L)^2) dV), plus
+``mass_weight`` m l^2 with l the knee-to-ground length, so ``mass_weight = 1`` counts the
+foot's mass once more as if it sat at the ground. The calf's own inertia is a constant.
+
+Constraints (each reported with its value, limit and margin):
+
+* ``coverage_touchdown`` low <= required low, ``coverage_liftoff`` high >= required high:
+  the cap covers the stance's contact angles with the margin;
+* ``hertz_pressure``: Hertz peak pressure under the peak ground force <= 1.6 Y / S;
+* ``hertz_depth``: t >= 3 x the depth of the largest subsurface shear (0.48 a);
+* ``wall_thickness``: t >= the material's process minimum;
+* ``leg_length``: the knee-to-ground height at the nominal contact angle theta_n is the
+  original foot's, (L - z_c) cos(theta_n) + R = L cos(theta_n) + r0 (the gait is unchanged);
+* ``lateral_coverage``: the cap covers roll angles up to ``roll``: asin(W / 2R) >= roll;
+* ``boss_seat_front`` / ``boss_seat_back``: the boss, with a rim of one wall thickness, lands
+  inside the cap's angles; ``boss_width``: W >= 2 (r_b + t); ``boss_length``: the boss is at
+  least ``min_boss_length`` long;
+* ``max_radius`` (when given): R <= the packaging limit.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+from typing import Any
+
+from hound_id.errors import SpecError
+from hound_id.foot.geometry import FootGeometry, MassProperties, mass_properties, volume_moments
+from hound_id.foot.material import (
+    DEPTH_WALLS,
+    SHEAR_DEPTH_FACTOR,
+    Material,
+    allowed_pressure,
+    contact_radius,
+    effective_modulus,
+    min_radius,
+    peak_pressure,
+)
+from hound_id.foot.urdf import FootMount
+
+#: A constraint counts as satisfied within this relative tolerance of its limit (IPOPT's tol is 1e-10).
+TOLERANCE = 1e-7
+
+
+@dataclass(frozen=True)
+class FootRequirements:
+    """What the foot must do, SI."""
+
+    low: float
+    """Lowest contact angle to cover, margin included [rad]."""
+    high: float
+    """Highest contact angle to cover, margin included [rad]."""
+    material: Material
+    ground: Material
+    peak_force: float
+    """Peak ground reaction force on one foot [N]."""
+    safety: float = 1.5
+    """Safety factor on the Hertz yield pressure [-]."""
+    roll: float = math.radians(10.0)
+    """Lateral (roll) angle the cap must also cover [rad]."""
+    boss_radius: float = 0.010
+    """Radius of the mounting boss [m] (fits the calf tube)."""
+    min_boss_length: float = 0.010
+    """Shortest boss, mount to the cap's inner surface [m] (room for the fastening)."""
+    nominal_angle: float = 0.0
+    """Calf pitch at nominal contact, where the leg length is kept [rad]."""
+    max_radius: float | None = None
+    """Largest sphere radius that fits [m]; None for no limit."""
+    radius: float | None = None
+    """Fix the sphere radius [m] instead of optimising it."""
+    mass_weight: float = 0.0
+    """Weight of the mass term in the objective (module docstring) [-]."""
+
+
+@dataclass(frozen=True)
+class Constraint:
+    """One constraint at the design: ``value`` (kind) ``limit``."""
+
+    name: str
+    value: float
+    limit: float
+    kind: str
+    """``>=``, ``<=`` or ``==``."""
+    unit: str
+    satisfied: bool
+    meaning: str
+
+    @property
+    def margin(self) -> float:
+        """How far inside the limit (positive) or outside (negative), in the constraint's unit."""
+        if self.kind == ">=":
+            return self.value - self.limit
+        if self.kind == "<=":
+            return self.limit - self.value
+        return -abs(self.value - self.limit)
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "value": self.value,
+            "limit": self.limit,
+            "kind": self.kind,
+            "unit": self.unit,
+            "margin": self.margin,
+            "satisfied": self.satisfied,
+            "meaning": self.meaning,
+        }
+
+
+@dataclass(frozen=True)
+class FootDesign:
+    """An optimised foot."""
+
+    geometry: FootGeometry
+    properties: MassProperties
+    """Closed-form mass properties in the foot frame."""
+    knee_inertia: float
+    """The foot's pitch inertia about the knee axis [kg m^2]."""
+    constraints: tuple[Constraint, ...]
+    hertz_min_radius: float
+    """Smallest radius the contact stress allows [m]."""
+    solver: dict[str, Any]
+    """IPOPT's status, iterations and objective."""
+
+    @property
+    def feasible(self) -> bool:
+        return all(c.satisfied for c in self.constraints)
+
+
+_X = ("radius", "thickness", "width", "low", "high", "centre_z")
+
+
+def _geometry(x: Any, req: FootRequirements) -> FootGeometry:
+    return FootGeometry(
+        radius=x[0], thickness=x[1], width=x[2], low=x[3], high=x[4], boss_radius=req.boss_radius, centre_z=x[5]
+    )
+
+
+def _knee_ground(mount: FootMount, req: FootRequirements) -> float:
+    """Knee-to-ground height of the original foot at the nominal angle [m]."""
+    return mount.mount_length * math.cos(req.nominal_angle) + mount.contact_radius
+
+
+def _objective(m: dict[str, Any], mount: FootMount, req: FootRequirements) -> tuple[Any, Any]:
+    rho, L = req.material.density, mount.mount_length
+    inertia = rho * (m["xx"] + m["zz"] - 2 * L * m["z"] + L**2 * m["V"])
+    return inertia, inertia + req.mass_weight * rho * m["V"] * _knee_ground(mount, req) ** 2
+
+
+def _constraints(
+    x: Any, mount: FootMount, req: FootRequirements, ops: Any
+) -> list[tuple[str, Any, Any, str, str, str]]:
+    """(name, value, limit, kind, unit, meaning) for a design x, numeric or symbolic."""
+    R, t, W, lo, hi, zc = (x[i] for i in range(6))
+    e_star = effective_modulus(req.material, req.ground)
+    F = req.peak_force
+    a = contact_radius(F, R, e_star)
+    seat = ops.asin((req.boss_radius + t) / (R - t))  # the boss plus a rim of one wall
+    cos_n, L = math.cos(req.nominal_angle), mount.mount_length
+    out = [
+        ("coverage_touchdown", lo, req.low, "<=", "rad", "the cap reaches the lowest contact angle"),
+        ("coverage_liftoff", hi, req.high, ">=", "rad", "the cap reaches the highest contact angle"),
+        ("hertz_pressure", peak_pressure(F, R, e_star), allowed_pressure(req.material, req.safety), "<=", "Pa",
+         "Hertz peak pressure under the peak force <= 1.6 yield / safety"),
+        ("hertz_depth", t, DEPTH_WALLS * SHEAR_DEPTH_FACTOR * a, ">=", "m",
+         f"wall >= {DEPTH_WALLS:g} x depth of the largest subsurface shear"),
+        ("wall_thickness", t, req.material.min_wall, ">=", "m", "wall >= the process minimum"),
+        ("leg_length", (L - zc) * cos_n + R, _knee_ground(mount, req), "==", "m",
+         "knee-to-ground height at nominal contact unchanged"),
+        ("lateral_coverage", ops.asin(W / (2 * R)), req.roll, ">=", "rad", "the cap covers the roll angle"),
+        ("boss_seat_front", -lo, seat, ">=", "rad", "the boss lands inside the cap (touchdown side)"),
+        ("boss_seat_back", hi, seat, ">=", "rad", "the boss lands inside the cap (liftoff side)"),
+        ("boss_width", W, 2 * (req.boss_radius + t), ">=", "m", "cap as wide as the boss and a rim"),
+        ("boss_length", ops.sqrt((R - t) ** 2 - req.boss_radius**2) - zc, req.min_boss_length, ">=", "m",
+         "room for the fastening between the mount and the cap"),
+    ]  # fmt: skip
+    if req.max_radius is not None:
+        out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
+    return out
+
+
+def hertz_min_radius(req: FootRequirements) -> float:
+    """Smallest sphere radius the Hertz contact stress allows for the requirements [m]."""
+    return min_radius(
+        req.peak_force, effective_modulus(req.material, req.ground), allowed_pressure(req.material, req.safety)
+    )
+
+
+def _precheck(req: FootRequirements) -> float:
+    """The Hertz minimum radius; clear errors for requests no design can meet."""
+    if not 0 < req.high - req.low < math.pi:
+        raise SpecError(
+            f"foot: the coverage {math.degrees(req.low):.1f} to {math.degrees(req.high):.1f} deg must span "
+            "between 0 and 180 deg"
+        )
+    if not (req.peak_force > 0 and req.safety > 0 and 0 <= req.roll < math.pi / 2 and req.boss_radius > 0):
+        raise SpecError(
+            f"foot: need --grf > 0, --safety > 0, 0 <= --roll < 90 deg and --boss-radius > 0; found "
+            f"{req.peak_force:g} N, {req.safety:g}, {math.degrees(req.roll):g} deg, {req.boss_radius * 1e3:g} mm"
+        )
+    e_star = effective_modulus(req.material, req.ground)
+    p_allow = allowed_pressure(req.material, req.safety)
+    r_min = hertz_min_radius(req)
+    for option, limit in (("--radius", req.radius), ("--max-radius", req.max_radius)):
+        if limit is not None and limit < r_min * (1 - TOLERANCE):
+            p0 = peak_pressure(req.peak_force, limit, e_star)
+            raise SpecError(
+                f"foot: {option} {limit * 1e3:.1f} mm is too small for the load: a {req.peak_force:g} N peak ground "
+                f"force on {req.material.name} against {req.ground.name} gives a Hertz pressure of {p0 / 1e6:.0f} MPa "
+                f"(allowed {p_allow / 1e6:.0f} MPa = 1.6 x yield / safety {req.safety:g}); the radius must be at least "
+                f"{r_min * 1e3:.1f} mm: raise it, lower --grf, or choose a stronger --material",
+                found=limit,
+                expected=r_min,
+            )
+    return r_min
+
+
+def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) -> tuple[Constraint, ...]:
+    """Every constraint of a design, numerically."""
+    x = [getattr(geometry, k) for k in _X]
+    out = []
+    for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, math):
+        value, limit = float(value), float(limit)
+        tol = TOLERANCE * max(abs(limit), abs(value), 1e-3 if unit == "m" else 1e-3)
+        ok = {">=": value >= limit - tol, "<=": value <= limit + tol, "==": abs(value - limit) <= tol}[kind]
+        out.append(Constraint(name, value, limit, kind, unit, ok, meaning))
+    return tuple(out)
+
+
+def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
+    """The foot of least knee inertia (plus the mass term) that meets every constraint."""
+    import casadi as ca
+
+    r_min = _precheck(req)
+    x = ca.SX.sym("x", 6)
+    m = volume_moments(_geometry(x, req), ops=_CasadiOps)
+    inertia, objective = _objective(m, mount, req)
+    rows = _constraints(x, mount, req, _CasadiOps)
+    g, lbg, ubg = [], [], []
+    for _, value, limit, kind, _, _ in rows:
+        g.append(value - limit)
+        lbg.append(0.0 if kind in (">=", "==") else -ca.inf)
+        ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
+    # scale: the objective by the original foot's knee inertia, pressures to MPa, angles stay radians
+    scale = [1e-6 if r[4] == "Pa" else (1e3 if r[4] == "m" else 1.0) for r in rows]
+    g_scaled = ca.vertcat(*[gi * s for gi, s in zip(g, scale, strict=True)])
+    lbg = [b * s for b, s in zip(lbg, scale, strict=True)]
+    ubg = [b * s for b, s in zip(ubg, scale, strict=True)]
+    i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))
+    # variables in mm and rad for IPOPT: x = D y
+    D = ca.diag(ca.DM([1e-3, 1e-3, 1e-3, 1.0, 1.0, 1e-3]))
+    y = ca.SX.sym("y", 6)
+    sub = ca.substitute([objective / i_ref, g_scaled], [x], [D @ y])
+    nlp = {"x": y, "f": sub[0], "g": sub[1]}
+    opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-10, "ipopt.max_iter": 500,
+            "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0}  # fmt: skip
+    solver = ca.nlpsol("foot", "ipopt", nlp, opts)
+    R_fix = req.radius
+    R0 = R_fix if R_fix is not None else max(r_min * 1.3, mount.contact_radius)
+    if req.max_radius is not None:
+        R0 = min(R0, req.max_radius)
+    t0 = max(req.material.min_wall, 1e-3) * 2
+    seat = math.asin(min(1.0, (req.boss_radius + t0) / max(R0 - t0, 1e-6)))
+    W0 = min(2 * R0 * 0.95, max(2 * (req.boss_radius + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    lo0, hi0 = min(req.low, -seat) - 0.05, max(req.high, seat) + 0.05
+    zc0 = mount.mount_length - (_knee_ground(mount, req) - R0) / math.cos(req.nominal_angle)
+    lbx = [(R_fix if R_fix is not None else 1.0), 0.05, 0.05, -math.pi / 2, 0.0, -1e3]
+    ubx = [(R_fix * 1e3 if R_fix is not None else 1e3), 100.0, 1e3, 0.0, math.pi / 2, 1e3]
+    if R_fix is not None:
+        lbx[0] = ubx[0] = R_fix * 1e3
+    guess = [R0 * 1e3, t0 * 1e3, W0 * 1e3, lo0, hi0, zc0 * 1e3]
+    sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+    stats = solver.stats()
+    y_opt = [float(v) for v in sol["x"].full().ravel()]
+    x_opt = [v * s for v, s in zip(y_opt, (1e-3, 1e-3, 1e-3, 1.0, 1.0, 1e-3), strict=True)]
+    geometry = _geometry(x_opt, req)
+    constraints = evaluate(geometry, mount, req)
+    violated = [c for c in constraints if not c.satisfied]
+    if violated or not stats.get("success", False):
+        detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated) or "none"
+        raise SpecError(
+            f"foot: no design meets every constraint (IPOPT: {stats.get('return_status')}; violated: {detail}); "
+            "relax the request (smaller margin or roll, larger --max-radius, lower --grf, thinner --boss-radius)"
+        )
+    props = mass_properties(geometry, req.material.density)
+    knee = props.about_axis_y((0.0, 0.0, mount.mount_length))
+    return FootDesign(
+        geometry=geometry,
+        properties=props,
+        knee_inertia=knee,
+        constraints=constraints,
+        hertz_min_radius=r_min,
+        solver={
+            "status": str(stats.get("return_status")),
+            "iterations": int(stats.get("iter_count", -1)),
+            "objective": float(sol["f"]) * i_ref,
+            "objective_unit": "kg m^2",
+            "inertia_check": float(ca.Function("i", [x], [inertia])(x_opt)) - knee,
+        },
+    )
+
+
+class _CasadiOps:
+    """casadi's versions of the functions :func:`volume_moments` and the constraints use."""
+
+    @staticmethod
+    def sqrt(v: Any) -> Any:
+        import casadi as ca
+
+        return ca.sqrt(v)
+
+    @staticmethod
+    def asin(v: Any) -> Any:
+        import casadi as ca
+
+        return ca.asin(v)
+
+    @staticmethod
+    def sin(v: Any) -> Any:
+        import casadi as ca
+
+        return ca.sin(v)
+
+    @staticmethod
+    def cos(v: Any) -> Any:
+        import casadi as ca
+
+        return ca.cos(v)
+
+    @staticmethod
+    def fmin(a: Any, b: Any) -> Any:
+        import casadi as ca
+
+        return ca.fmin(a, b)

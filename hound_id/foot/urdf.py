@@ -1,0 +1,217 @@
+"""Read the original foot from a leg URDF and write the URDF with a new foot.
+
+hound-id expects the usual layout of legged-robot URDFs: the foot is a link hung on the calf
+by a fixed joint whose origin lies on the calf's -z axis, ``xyz="0 0 -L"`` with no rotation
+(ANYmal, Unitree and the sample leg all do this). The calf's parent joint is the knee.
+"""
+
+from __future__ import annotations
+
+import math
+import xml.etree.ElementTree as ET
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.arrays import frozen
+from hound_id.errors import SpecError
+from hound_id.foot.geometry import MassProperties
+
+
+@dataclass(frozen=True)
+class FootMount:
+    """Where and what the original foot is, read from a leg URDF, SI."""
+
+    path: str
+    """The URDF file."""
+    foot_link: str
+    calf_link: str
+    knee_joint: str
+    hip_joint: str
+    """The joint carrying the knee's parent link (the thigh)."""
+    mount_length: float
+    """Distance L from the knee axis to the foot mount along the calf [m]."""
+    foot: MassProperties
+    """The original foot's inertial, in the foot frame."""
+    contact_radius: float
+    """Radius r0 of the original foot's contact surface (cylinder or sphere) [m]."""
+    contact_width: float
+    """Width of the original foot along y [m] (0 for a sphere: 2 r0 is used for plots)."""
+    contact_shape: str
+    """``cylinder`` or ``sphere``."""
+
+
+def _floats(text: str | None, n: int, where: str, default: str) -> NDArray[np.float64]:
+    raw = (text if text is not None else default).split()
+    try:
+        values = np.array([float(v) for v in raw])
+    except ValueError:
+        values = np.array([])
+    if values.shape != (n,) or not np.all(np.isfinite(values)):
+        raise SpecError(f"{where}: found '{text}', expected {n} finite numbers")
+    return values
+
+
+def _parse(path: Path) -> ET.Element:
+    if not path.is_file():
+        raise SpecError(f"{path}: file not found; expected a leg URDF", path=str(path))
+    try:
+        tree = ET.parse(path, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
+        root = tree.getroot()
+    except ET.ParseError as err:
+        raise SpecError(f"{path}: not valid XML ({err})", path=str(path)) from err
+    if root is None or root.tag != "robot":
+        raise SpecError(f"{path}: expected a URDF <robot> document", path=str(path))
+    return root
+
+
+def _rotation(rpy: NDArray[np.float64]) -> NDArray[np.float64]:
+    r, p, y = rpy
+    cr, sr, cp, sp, cy, sy = math.cos(r), math.sin(r), math.cos(p), math.sin(p), math.cos(y), math.sin(y)
+    rx = np.array([[1, 0, 0], [0, cr, -sr], [0, sr, cr]])
+    ry = np.array([[cp, 0, sp], [0, 1, 0], [-sp, 0, cp]])
+    rz = np.array([[cy, -sy, 0], [sy, cy, 0], [0, 0, 1]])
+    return rz @ ry @ rx
+
+
+def _inertial(link: ET.Element, where: str) -> MassProperties:
+    inertial = link.find("inertial")
+    if inertial is None:
+        raise SpecError(f"{where}: link '{link.get('name')}' has no <inertial>; the original foot's mass is needed")
+    origin = inertial.find("origin")
+    xyz = _floats(origin.get("xyz") if origin is not None else None, 3, f"{where}: foot inertial origin xyz", "0 0 0")
+    rpy = _floats(origin.get("rpy") if origin is not None else None, 3, f"{where}: foot inertial origin rpy", "0 0 0")
+    mass_el, inertia_el = inertial.find("mass"), inertial.find("inertia")
+    if mass_el is None or inertia_el is None:
+        raise SpecError(f"{where}: the foot's <inertial> needs <mass> and <inertia>")
+    mass = _floats(mass_el.get("value"), 1, f"{where}: foot mass", "")[0]
+    k = {n: _floats(inertia_el.get(n), 1, f"{where}: foot inertia {n}", "0")[0] for n in _INERTIA}
+    local = np.array(
+        [[k["ixx"], k["ixy"], k["ixz"]], [k["ixy"], k["iyy"], k["iyz"]], [k["ixz"], k["iyz"], k["izz"]]], dtype=float
+    )
+    rot = _rotation(rpy)
+    return MassProperties(mass=float(mass), com=frozen(xyz), inertia=frozen(rot @ local @ rot.T))
+
+
+_INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
+
+
+def read_foot(path: str | Path, foot_link: str = "foot") -> FootMount:
+    """The original foot of a leg URDF (see the module docstring for the expected layout)."""
+    p = Path(path)
+    root = _parse(p)
+    links = {link.get("name"): link for link in root.iter("link")}
+    if foot_link not in links:
+        raise SpecError(f"{p}: no link named '{foot_link}'; links are {', '.join(map(str, links))} (use --foot-link)")
+    joints = list(root.iter("joint"))
+    to_foot = [j for j in joints if (c := j.find("child")) is not None and c.get("link") == foot_link]
+    if not to_foot or to_foot[0].get("type") != "fixed":
+        raise SpecError(f"{p}: link '{foot_link}' must hang on the calf by a fixed joint")
+    mount_joint = to_foot[0]
+    parent = mount_joint.find("parent")
+    calf = parent.get("link") if parent is not None else None
+    origin = mount_joint.find("origin")
+    where = f"{p}: joint '{mount_joint.get('name')}'"
+    xyz = _floats(origin.get("xyz") if origin is not None else None, 3, f"{where} origin xyz", "0 0 0")
+    rpy = _floats(origin.get("rpy") if origin is not None else None, 3, f"{where} origin rpy", "0 0 0")
+    if not (abs(xyz[0]) < 1e-9 and abs(xyz[1]) < 1e-9 and xyz[2] < 0 and np.all(np.abs(rpy) < 1e-9)):
+        raise SpecError(
+            f"{where}: found origin xyz={xyz.tolist()} rpy={rpy.tolist()}, expected the foot on the calf's -z axis "
+            "(xyz='0 0 -L', rpy='0 0 0'); re-express the calf frame so that it points along -z"
+        )
+    to_calf = [j for j in joints if (c := j.find("child")) is not None and c.get("link") == calf]
+    if not to_calf or to_calf[0].get("type") not in ("revolute", "continuous"):
+        raise SpecError(f"{p}: the calf link '{calf}' must hang on a revolute knee joint")
+    thigh = to_calf[0].find("parent")
+    to_thigh = [
+        j
+        for j in joints
+        if (c := j.find("child")) is not None and thigh is not None and c.get("link") == thigh.get("link")
+    ]
+    if not to_thigh or to_thigh[0].get("type") not in ("revolute", "continuous"):
+        raise SpecError(f"{p}: the knee's parent link must hang on a revolute hip joint")
+    shape, radius, width = _contact_shape(links[foot_link], str(p))
+    return FootMount(
+        path=str(p),
+        foot_link=foot_link,
+        calf_link=str(calf),
+        knee_joint=str(to_calf[0].get("name")),
+        hip_joint=str(to_thigh[0].get("name")),
+        mount_length=float(-xyz[2]),
+        foot=_inertial(links[foot_link], str(p)),
+        contact_radius=radius,
+        contact_width=width,
+        contact_shape=shape,
+    )
+
+
+def _contact_shape(link: ET.Element, where: str) -> tuple[str, float, float]:
+    for collision in link.iter("collision"):
+        geometry = collision.find("geometry")
+        if geometry is None:
+            continue
+        sphere, cylinder = geometry.find("sphere"), geometry.find("cylinder")
+        origin = collision.find("origin")
+        xyz = _floats(origin.get("xyz") if origin is not None else None, 3, f"{where}: foot collision xyz", "0 0 0")
+        if np.any(np.abs(xyz) > 1e-9):
+            raise SpecError(f"{where}: the foot's collision shape must be centred on the foot frame, found {xyz}")
+        if sphere is not None:
+            return "sphere", float(_floats(sphere.get("radius"), 1, f"{where}: sphere radius", "")[0]), 0.0
+        if cylinder is not None:
+            r = float(_floats(cylinder.get("radius"), 1, f"{where}: cylinder radius", "")[0])
+            length = float(_floats(cylinder.get("length"), 1, f"{where}: cylinder length", "")[0])
+            return "cylinder", r, length
+    raise SpecError(
+        f"{where}: the foot link has no <collision> sphere or cylinder; hound-id needs the original contact "
+        "radius to keep the leg length"
+    )
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.9g}"
+
+
+def patched_urdf(
+    mount: FootMount,
+    props: MassProperties,
+    *,
+    mesh_filename: str,
+    sphere_radius: float,
+    sphere_centre_z: float,
+    comment: str,
+) -> str:
+    """The leg URDF with the foot link's inertial, visual and collision replaced (XML text).
+
+    The collision becomes the sphere of the contact surface (what a simulator needs for
+    rolling contact over the cap's coverage); the visual is the foot's mesh.
+    """
+    root = _parse(Path(mount.path))
+    link = next(link for link in root.iter("link") if link.get("name") == mount.foot_link)
+    for child in list(link):
+        if child.tag in ("inertial", "visual", "collision"):
+            link.remove(child)
+    link.append(ET.Comment(f" {comment} "))
+    inertial = ET.SubElement(link, "inertial")
+    ET.SubElement(inertial, "origin", xyz=" ".join(_fmt(v) for v in props.com), rpy="0 0 0")
+    ET.SubElement(inertial, "mass", value=_fmt(props.mass))
+    i = props.inertia
+    ET.SubElement(
+        inertial,
+        "inertia",
+        ixx=_fmt(i[0, 0]),
+        ixy=_fmt(i[0, 1]),
+        ixz=_fmt(i[0, 2]),
+        iyy=_fmt(i[1, 1]),
+        iyz=_fmt(i[1, 2]),
+        izz=_fmt(i[2, 2]),
+    )
+    visual = ET.SubElement(link, "visual")
+    ET.SubElement(visual, "origin", xyz="0 0 0", rpy="0 0 0")
+    ET.SubElement(ET.SubElement(visual, "geometry"), "mesh", filename=mesh_filename)
+    collision = ET.SubElement(link, "collision")
+    ET.SubElement(collision, "origin", xyz=f"0 0 {_fmt(sphere_centre_z)}", rpy="0 0 0")
+    ET.SubElement(ET.SubElement(collision, "geometry"), "sphere", radius=_fmt(sphere_radius))
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
