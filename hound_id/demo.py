@@ -6,6 +6,7 @@ summary. Later capabilities add steps to :data:`STEPS`.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
@@ -164,11 +165,51 @@ def step_fit_current(out: Path) -> StepResult:
     )
 
 
+def step_foot(out: Path) -> StepResult:
+    """Optimise the sample leg's foot for the sample running log: STL, URDF, JSON, plot."""
+    from hound_id.foot.angles import gait_angles
+    from hound_id.foot.design import PAPER, design_foot, write_foot
+    from hound_id.foot.material import DEFAULT_GROUND, DEFAULT_MATERIAL, GROUNDS, MATERIALS
+    from hound_id.foot.optimise import FootRequirements
+    from hound_id.foot.plot import plot_foot
+    from hound_id.mor.robot import load_robot
+
+    angles = gait_angles(samples_dir() / "gait" / "hound_running.csv")
+    req = FootRequirements(
+        low=angles.low,
+        high=angles.high,
+        material=MATERIALS[DEFAULT_MATERIAL],
+        ground=GROUNDS[DEFAULT_GROUND],
+        peak_force=1500.0,
+    )
+    reflected = load_robot(samples_dir() / "robots" / "hound_like.yaml").reflected_inertia("RR_KFE")
+    report = design_foot(samples_dir() / "legs" / "hound_leg.urdf", angles, req, reflected_knee_inertia=reflected)
+    write_foot(report, out / "foot")
+    _save_png(plot_foot(report), out / "foot" / "foot.png")
+    g = report.design.geometry
+    return StepResult(
+        "optimise the foot",
+        f"mass ratio {report.mass_ratio:.3f} (paper {PAPER['mass_ratio']:.3f}), knee pitch inertia ratio "
+        f"{report.inertia_ratio:.3f} (paper {PAPER['inertia_ratio']:.3f}); cap R {g.radius * 1e3:.1f} mm, wall "
+        f"{g.thickness * 1e3:.2f} mm, {math.degrees(g.low):.1f} to {math.degrees(g.high):.1f} deg; "
+        f"{sum(c.satisfied for c in report.design.constraints)}/{len(report.design.constraints)} constraints hold; "
+        f"STL watertight: {report.mesh_check.watertight}",
+        ("foot/foot.json", "foot/foot.stl", "foot/hound_leg_light_foot.urdf", "foot/foot.png"),
+        {
+            "mass_ratio": report.mass_ratio,
+            "inertia_ratio": report.inertia_ratio,
+            "radius": g.radius,
+            "foot_mass": report.design.properties.mass,
+        },
+    )
+
+
 STEPS: tuple[Callable[[Path], StepResult], ...] = (
     step_motor_regions,
     step_robot_regions,
     step_saturate_log,
     step_fit_current,
+    step_foot,
 )
 
 

@@ -120,6 +120,10 @@ class _Numpy:
     cos = staticmethod(math.cos)
     fmin = staticmethod(min)
 
+    @staticmethod
+    def if_else(condition: Any, then: Any, otherwise: Any) -> Any:
+        return then if condition else otherwise
+
 
 def _g2(a: Any, r: Any) -> Any:
     """int_0^a (r^2 - y^2) dy."""
@@ -141,8 +145,8 @@ def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
 
     Returns ``V`` [m^3], first moments ``x, z`` [m^4] (y is 0 by symmetry) and second
     moments ``xx, yy, zz, xz`` [m^5] (integrals of x^2, y^2, z^2, x z over the solid; xy and yz
-    are 0 by symmetry). ``ops`` supplies sqrt, asin, sin, cos, fmin: ``casadi`` for symbolic
-    use, plain floats by default.
+    are 0 by symmetry). ``ops`` supplies sqrt, asin, sin, cos, fmin and if_else: casadi's for
+    symbolic use (:class:`hound_id.foot.optimise._CasadiOps`), plain floats by default.
     """
     ops = ops or _Numpy
     R, t, W = geometry.radius, geometry.thickness, geometry.width
@@ -153,7 +157,10 @@ def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
     # Cap, in coordinates about O: x = s sin(phi), zeta = -s cos(phi), y; dV = s ds dphi dy, and
     # int s^(k-1) ds between the spheres integrates over y to M_k.
     m2 = (_g2(w, R) - _g2(a1, rho)) * 2 / 2
-    m3 = (_g3(w, R, ops) - _g3(a1, rho, ops)) * 2 / 3
+    # the inner term at a1 = rho is 3 pi rho^4 / 16; written as a branch because the closed form's
+    # derivative there is inf - inf for automatic differentiation
+    inner3 = ops.if_else(w < rho, _g3(a1, rho, ops), 3 * math.pi * rho**4 / 16)
+    m3 = (_g3(w, R, ops) - inner3) * 2 / 3
     m4 = (_g4(w, R) - _g4(a1, rho)) * 2 / 4
     n2 = (R**2 * w**3 / 3 - w**5 / 5) - (rho**2 * a1**3 / 3 - a1**5 / 5)  # int y^2 (s2^2 - s1^2)/2 dy
     sin_lo, sin_hi, cos_lo, cos_hi = ops.sin(lo), ops.sin(hi), ops.cos(lo), ops.cos(hi)

@@ -30,6 +30,8 @@ import math
 from dataclasses import dataclass
 from typing import Any
 
+import numpy as np
+
 from hound_id.errors import SpecError
 from hound_id.foot.geometry import FootGeometry, MassProperties, mass_properties, volume_moments
 from hound_id.foot.material import (
@@ -160,7 +162,7 @@ def _constraints(
     e_star = effective_modulus(req.material, req.ground)
     F = req.peak_force
     a = contact_radius(F, R, e_star)
-    seat = ops.asin((req.boss_radius + t) / (R - t))  # the boss plus a rim of one wall
+    seat = ops.asin(ops.fmin((req.boss_radius + t) / (R - t), 1.0))  # the boss plus a rim of one wall
     cos_n, L = math.cos(req.nominal_angle), mount.mount_length
     out = [
         ("coverage_touchdown", lo, req.low, "<=", "rad", "the cap reaches the lowest contact angle"),
@@ -176,7 +178,7 @@ def _constraints(
         ("boss_seat_front", -lo, seat, ">=", "rad", "the boss lands inside the cap (touchdown side)"),
         ("boss_seat_back", hi, seat, ">=", "rad", "the boss lands inside the cap (liftoff side)"),
         ("boss_width", W, 2 * (req.boss_radius + t), ">=", "m", "cap as wide as the boss and a rim"),
-        ("boss_length", ops.sqrt((R - t) ** 2 - req.boss_radius**2) - zc, req.min_boss_length, ">=", "m",
+        ("boss_length", ops.sqrt(ops.fmax((R - t) ** 2 - req.boss_radius**2, 0.0)) - zc, req.min_boss_length, ">=", "m",
          "room for the fastening between the mount and the cap"),
     ]  # fmt: skip
     if req.max_radius is not None:
@@ -224,7 +226,7 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     """Every constraint of a design, numerically."""
     x = [getattr(geometry, k) for k in _X]
     out = []
-    for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, math):
+    for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, _FloatOps):
         value, limit = float(value), float(limit)
         tol = TOLERANCE * max(abs(limit), abs(value), 1e-3 if unit == "m" else 1e-3)
         ok = {">=": value >= limit - tol, "<=": value <= limit + tol, "==": abs(value - limit) <= tol}[kind]
@@ -237,26 +239,23 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     import casadi as ca
 
     r_min = _precheck(req)
-    x = ca.SX.sym("x", 6)
+    # IPOPT's variables y: R [mm], t / R, the lateral half-angle beta (W = 2 R sin beta), low, high
+    # [rad], z_c [mm]. Their bounds keep every square root and arcsine of the formulas real, since
+    # IPOPT may step outside the constraints (never outside the bounds) while it searches.
+    y = ca.SX.sym("y", 6)
+    R = y[0] * 1e-3
+    x = ca.vertcat(R, y[1] * R, 2 * R * ca.sin(y[2]), y[3], y[4], y[5] * 1e-3)
     m = volume_moments(_geometry(x, req), ops=_CasadiOps)
     inertia, objective = _objective(m, mount, req)
     rows = _constraints(x, mount, req, _CasadiOps)
     g, lbg, ubg = [], [], []
-    for _, value, limit, kind, _, _ in rows:
-        g.append(value - limit)
+    for _, value, limit, kind, unit, _ in rows:
+        scale = 1e-6 if unit == "Pa" else (1e3 if unit == "m" else 1.0)  # MPa, mm, rad
+        g.append((value - limit) * scale)
         lbg.append(0.0 if kind in (">=", "==") else -ca.inf)
         ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
-    # scale: the objective by the original foot's knee inertia, pressures to MPa, angles stay radians
-    scale = [1e-6 if r[4] == "Pa" else (1e3 if r[4] == "m" else 1.0) for r in rows]
-    g_scaled = ca.vertcat(*[gi * s for gi, s in zip(g, scale, strict=True)])
-    lbg = [b * s for b, s in zip(lbg, scale, strict=True)]
-    ubg = [b * s for b, s in zip(ubg, scale, strict=True)]
-    i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))
-    # variables in mm and rad for IPOPT: x = D y
-    D = ca.diag(ca.DM([1e-3, 1e-3, 1e-3, 1.0, 1.0, 1e-3]))
-    y = ca.SX.sym("y", 6)
-    sub = ca.substitute([objective / i_ref, g_scaled], [x], [D @ y])
-    nlp = {"x": y, "f": sub[0], "g": sub[1]}
+    i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))  # objective scale
+    nlp = {"x": y, "f": objective / i_ref, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-10, "ipopt.max_iter": 500,
             "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0}  # fmt: skip
     solver = ca.nlpsol("foot", "ipopt", nlp, opts)
@@ -264,20 +263,20 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     R0 = R_fix if R_fix is not None else max(r_min * 1.3, mount.contact_radius)
     if req.max_radius is not None:
         R0 = min(R0, req.max_radius)
-    t0 = max(req.material.min_wall, 1e-3) * 2
-    seat = math.asin(min(1.0, (req.boss_radius + t0) / max(R0 - t0, 1e-6)))
+    t0 = min(max(req.material.min_wall, 1e-3) * 2, 0.3 * R0)
+    seat = math.asin(min(1.0, (req.boss_radius + t0) / (R0 - t0)))
     W0 = min(2 * R0 * 0.95, max(2 * (req.boss_radius + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
-    lo0, hi0 = min(req.low, -seat) - 0.05, max(req.high, seat) + 0.05
+    lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
     zc0 = mount.mount_length - (_knee_ground(mount, req) - R0) / math.cos(req.nominal_angle)
-    lbx = [(R_fix if R_fix is not None else 1.0), 0.05, 0.05, -math.pi / 2, 0.0, -1e3]
-    ubx = [(R_fix * 1e3 if R_fix is not None else 1e3), 100.0, 1e3, 0.0, math.pi / 2, 1e3]
+    lbx = [1.0, 1e-3, 1e-3, -math.pi / 2, 0.0, -1e3]
+    ubx = [1e3, 0.5, math.pi / 2 - 1e-3, 0.0, math.pi / 2, 1e3]
     if R_fix is not None:
         lbx[0] = ubx[0] = R_fix * 1e3
-    guess = [R0 * 1e3, t0 * 1e3, W0 * 1e3, lo0, hi0, zc0 * 1e3]
+    guess = [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3]
     sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
     stats = solver.stats()
     y_opt = [float(v) for v in sol["x"].full().ravel()]
-    x_opt = [v * s for v, s in zip(y_opt, (1e-3, 1e-3, 1e-3, 1.0, 1.0, 1e-3), strict=True)]
+    x_opt = [float(v) for v in np.asarray(ca.Function("x", [y], [x])(y_opt)).ravel()]
     geometry = _geometry(x_opt, req)
     constraints = evaluate(geometry, mount, req)
     violated = [c for c in constraints if not c.satisfied]
@@ -300,9 +299,18 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             "iterations": int(stats.get("iter_count", -1)),
             "objective": float(sol["f"]) * i_ref,
             "objective_unit": "kg m^2",
-            "inertia_check": float(ca.Function("i", [x], [inertia])(x_opt)) - knee,
+            "inertia_check": float(ca.Function("i", [y], [inertia])(y_opt)) - knee,
         },
     )
+
+
+class _FloatOps:
+    """The same functions for floats."""
+
+    sqrt = staticmethod(math.sqrt)
+    asin = staticmethod(math.asin)
+    fmin = staticmethod(min)
+    fmax = staticmethod(max)
 
 
 class _CasadiOps:
@@ -337,3 +345,15 @@ class _CasadiOps:
         import casadi as ca
 
         return ca.fmin(a, b)
+
+    @staticmethod
+    def fmax(a: Any, b: Any) -> Any:
+        import casadi as ca
+
+        return ca.fmax(a, b)
+
+    @staticmethod
+    def if_else(condition: Any, then: Any, otherwise: Any) -> Any:
+        import casadi as ca
+
+        return ca.if_else(condition, then, otherwise)

@@ -10,7 +10,13 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     data = json.loads(proc.stdout)
     assert data["schema"] == "hound-id/demo/1"
     names = [s["name"] for s in data["steps"]]
-    assert names == ["motor regions", "robot regions and saturation", "saturate a command log", "fit a dyno log"]
+    assert names == [
+        "motor regions",
+        "robot regions and saturation",
+        "saturate a command log",
+        "fit a dyno log",
+        "optimise the foot",
+    ]
     for step in data["steps"]:
         for name in step["files"]:
             path = tmp_path / "out" / name
@@ -29,6 +35,9 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     fit = json.loads((tmp_path / "out" / "fit_ilm85_dyno.json").read_text())
     assert len(fit["ladder"]) == 6 and fit["at_noise_floor"]
     assert run_cli("mor", "--spec", str(tmp_path / "out" / "hound_ilm85_fitted.yaml")).returncode == 0
+    foot = json.loads((tmp_path / "out" / "foot" / "foot.json").read_text())
+    assert foot["schema"] == "hound-id/foot/1" and all(c["satisfied"] for c in foot["constraints"].values())
+    assert data["steps"][4]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["schema"] == "hound-id/demo/1"
 

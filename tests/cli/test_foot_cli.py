@@ -1,0 +1,70 @@
+import json
+
+import pytest
+
+from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
+from tests.conftest import ROBOT, SAMPLES, run_cli
+
+LEG = SAMPLES / "legs" / "hound_leg.urdf"
+GAIT = SAMPLES / "gait" / "hound_running.csv"
+
+
+def test_foot_optimise_end_to_end(tmp_path):
+    out, plot = tmp_path / "foot", tmp_path / "foot" / "foot.png"
+    proc = run_cli("foot", "--optimise", "--leg", str(LEG), "--gait", str(GAIT), "--robot", str(ROBOT),
+                   "--out", str(out), "--plot", str(plot), "--json")  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/foot/1"
+    assert all(c["satisfied"] for c in data["constraints"].values())
+    assert data["reflected_knee_inertia"] == pytest.approx(1.7e-4 * 7.5**2)
+    assert plot.read_bytes().startswith(PNG_MAGIC)
+    assert sorted(p.name for p in out.iterdir()) == ["foot.json", "foot.png", "foot.stl", "hound_leg_light_foot.urdf"]
+    assert json.loads((out / "foot.json").read_text())["mass_ratio"] == data["mass_ratio"]
+
+
+def test_foot_table_prints_the_paper_next_to_ours():
+    proc = run_cli("foot", "--optimise", "--angles", "-45,15", "--material", "titanium_ti6al4v")
+    assert proc.returncode == 0, proc.stderr
+    assert "paper (KAIST Hound)" in proc.stdout and "0.380" in proc.stdout and "0.374" in proc.stdout
+    assert "hertz_pressure" in proc.stdout and "NO" not in proc.stdout
+    assert "titanium_ti6al4v" in proc.stdout
+
+
+def test_foot_without_optimise_describes_the_leg():
+    proc = run_cli("foot", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/foot-leg/1"
+    assert data["angles"]["strides"] == 32
+    assert data["leg_properties"]["calf_foot_mass"] == pytest.approx(0.708)
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--angles", "30,-25"], ["attack 30 deg must come before detach -25 deg", "--angles -30,25"]),
+        (["--angles", "-85,100"], ["covers less than 180 deg"]),
+        (["--angles", "-30"], ["--angles", "expected two numbers"]),
+        (["--radius", "10 mm", "--grf", "3 kN"], ["--radius 10.0 mm is too small for the load", "at least"]),
+        (["--boss-radius", "10"], ["--boss-radius", "write the unit"]),
+        (["--grf", "1500 m"], ["--grf", "a force"]),
+        (["--material", "cheese"], ["unknown material 'cheese'"]),
+        (["--leg", "missing.urdf"], ["missing.urdf", "not found"]),
+        (["--angles", "-30,25", "--gait", str(GAIT)], ["not both"]),
+        (["--gait", str(LEG)], ["hound_leg.urdf"]),
+        (["--plot", "foot.jpg"], ["end in .png"]),
+        (["--robot", str(ROBOT), "--robot-knee", "KNEE"], ["no joint named 'KNEE'"]),
+    ],
+)
+def test_foot_bad_input_is_one_line(tmp_path, args, fragments):
+    proc = run_cli("foot", "--optimise", *args, cwd=tmp_path)
+    assert_one_line_error(proc, *fragments)
+    assert list(tmp_path.iterdir()) == []  # nothing half-written
+
+
+def test_foot_out_must_be_a_folder(tmp_path):
+    target = tmp_path / "file"
+    target.write_text("x")
+    assert_one_line_error(run_cli("foot", "--optimise", "--out", str(target)), "is a file")
+    assert_one_line_error(run_cli("foot", "--out", str(tmp_path)), "need --optimise")

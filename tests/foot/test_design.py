@@ -1,0 +1,141 @@
+"""The whole foot job on the sample leg: Pinocchio before and after, the STL, the patched URDF."""
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from hound_id.errors import SpecError
+from hound_id.foot.angles import gait_angles
+from hound_id.foot.design import PAPER, SCHEMA, design_foot, foot_json, leg_summary, write_foot
+from hound_id.foot.material import GROUNDS, MATERIALS
+from hound_id.foot.optimise import FootRequirements
+from hound_id.foot.urdf import read_foot
+from tests.conftest import SAMPLES
+
+LEG = SAMPLES / "legs" / "hound_leg.urdf"
+GAIT = SAMPLES / "gait" / "hound_running.csv"
+
+
+def requirements(angles, **kw):
+    base = dict(low=angles.low, high=angles.high, material=MATERIALS["aluminium_7075_t6"], ground=GROUNDS["concrete"],
+                peak_force=1500.0)  # fmt: skip
+    return FootRequirements(**(base | kw))
+
+
+@pytest.fixture(scope="module")
+def report():
+    angles = gait_angles(GAIT)
+    return design_foot(LEG, angles, requirements(angles), reflected_knee_inertia=0.0095625)
+
+
+def test_sample_leg_redesign(report):
+    # calf+foot before: 0.25 kg calf + 0.458 kg cylinder (URDF)
+    assert report.original.calf_foot_mass == pytest.approx(0.708)
+    assert 0.2 < report.mass_ratio < 0.6 and 0.1 < report.inertia_ratio < 0.6
+    assert report.mass_ratio == pytest.approx((0.25 + report.design.properties.mass) / 0.708)
+    assert report.design.feasible
+    # Pinocchio on the patched URDF agrees with the closed form's prediction (URDF prints 9 digits)
+    assert abs(report.pinocchio_error) < 1e-7
+    assert report.mesh_check.watertight
+    assert abs(report.mesh_check.mass_error) < 0.01 and report.mesh_check.inertia_error < 0.01
+
+
+def test_outputs_load_in_their_consumers(report, tmp_path):
+    import pinocchio as pin
+    import trimesh
+
+    files = write_foot(report, tmp_path / "new")
+    stl = trimesh.load(files["stl"], force="mesh")
+    assert stl.is_watertight
+    assert stl.volume * MATERIALS["aluminium_7075_t6"].density == pytest.approx(report.design.properties.mass, rel=0.01)
+    model = pin.buildModelFromUrdf(files["urdf"])
+    data = model.createData()
+    pin.computeSubtreeMasses(model, data)
+    assert data.mass[model.getJointId("KFE")] == pytest.approx(report.new.calf_foot_mass)
+    visual = pin.buildGeomFromUrdf(model, files["urdf"], pin.GeometryType.VISUAL, package_dirs=[str(tmp_path / "new")])
+    assert visual.ngeoms == 1 and visual.geometryObjects[0].meshPath.endswith("foot.stl")
+    collision = pin.buildGeomFromUrdf(model, files["urdf"], pin.GeometryType.COLLISION)
+    sphere = collision.geometryObjects[0]
+    assert sphere.geometry.radius == pytest.approx(report.design.geometry.radius, rel=1e-8)
+    # the contact sphere's lowest point keeps the knee-to-ground length of the original foot
+    assert -sphere.placement.translation[2] + sphere.geometry.radius == pytest.approx(0.28 + 0.03, abs=1e-8)
+    data = json.loads((tmp_path / "new" / "foot.json").read_text())
+    assert data["schema"] == SCHEMA and data["files"]["stl"] == files["stl"]
+    assert sorted(p.name for p in (tmp_path / "new").iterdir()) == [
+        "foot.json",
+        "foot.stl",
+        "hound_leg_light_foot.urdf",
+    ]
+
+
+def test_json_has_the_issue_fields(report):
+    data = foot_json(report)
+    assert data["schema"] == "hound-id/foot/1"
+    assert data["mass_ratio"] == pytest.approx(report.mass_ratio)
+    assert data["inertia_ratio"] == pytest.approx(report.inertia_ratio)
+    assert data["radius"] == report.design.geometry.radius
+    lo, hi = data["coverage_deg"]
+    assert lo <= math.degrees(report.angles.low) + 1e-6 and hi >= math.degrees(report.angles.high) - 1e-6
+    assert all(set(c) >= {"value", "limit", "satisfied"} for c in data["constraints"].values())
+    assert all(c["satisfied"] for c in data["constraints"].values())
+    assert data["paper"] == PAPER
+    # the rotor adds the same inertia before and after, so the ratio with it is closer to 1
+    assert report.inertia_ratio < data["inertia_ratio_with_rotor"] < 1
+    json.dumps(data)  # plain JSON all the way down
+
+
+def test_leg_summary(report):
+    angles = gait_angles(GAIT)
+    s = leg_summary(LEG, angles, requirements(angles), knee_angle=-1.2)
+    assert s["schema"] == "hound-id/foot-leg/1"
+    assert s["leg_properties"]["calf_foot_mass"] == pytest.approx(0.708)
+    assert s["hertz_min_radius"] == pytest.approx(report.design.hertz_min_radius)
+
+
+BAD_MOUNT = """<?xml version="1.0"?>
+<robot name="r"><link name="base"/>
+  <joint name="HFE" type="revolute"><parent link="base"/><child link="thigh"/><axis xyz="0 1 0"/>
+    <limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="thigh"/>
+  <joint name="KFE" type="revolute"><parent link="thigh"/><child link="calf"/><origin xyz="0 0 -0.2"/>
+    <axis xyz="0 1 0"/><limit effort="1" velocity="1" lower="-3" upper="3"/></joint>
+  <link name="calf"/>
+  <joint name="foot_fixed" type="fixed"><parent link="calf"/><child link="foot"/><origin xyz="{xyz}"/></joint>
+  <link name="foot">{body}</link>
+</robot>
+"""
+BODY = """<inertial><mass value="0.1"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="1e-5" iyz="0" izz="1e-5"/></inertial>
+  <collision><geometry><sphere radius="0.02"/></geometry></collision>"""
+
+
+@pytest.mark.parametrize(
+    ("xyz", "body", "foot_link", "message"),
+    [
+        ("0 0 -0.2", BODY, "toe", "no link named 'toe'"),
+        ("0.05 0 -0.2", BODY, "foot", "expected the foot on the calf's -z axis"),
+        ("0 0 -0.2", "<inertial><mass value='0.1'/><inertia ixx='1'/></inertial>", "foot", "no <collision> sphere"),
+        (
+            "0 0 -0.2",
+            '<collision><geometry><sphere radius="0.02"/></geometry></collision>',
+            "foot",
+            "has no <inertial>",
+        ),
+        ("0 0 -0.2 1", BODY, "foot", "expected 3 finite numbers"),
+    ],
+)
+def test_urdf_layouts_hound_id_cannot_use_are_named(tmp_path, xyz, body, foot_link, message):
+    path = tmp_path / "leg.urdf"
+    path.write_text(BAD_MOUNT.format(xyz=xyz, body=body))
+    with pytest.raises(SpecError, match=message):
+        read_foot(path, foot_link)
+
+
+def test_a_sphere_foot_is_read(tmp_path):
+    path = tmp_path / "leg.urdf"
+    path.write_text(BAD_MOUNT.format(xyz="0 0 -0.2", body=BODY))
+    mount = read_foot(path)
+    assert (mount.contact_shape, mount.contact_radius, mount.mount_length) == ("sphere", 0.02, 0.2)
+    assert (mount.knee_joint, mount.hip_joint, mount.calf_link) == ("KFE", "HFE", "calf")
+    assert np.allclose(mount.foot.inertia, 1e-5 * np.eye(3))
