@@ -23,6 +23,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
@@ -111,18 +112,15 @@ class MassProperties:
         return {"mass": self.mass, "com": self.com.tolist(), "inertia": self.inertia.tolist(), "units": "kg, m, kg m^2"}
 
 
-class _Numpy:
-    """The few functions :func:`volume_moments` needs, for floats (casadi has its own)."""
+def _if_else(condition: Any, then: Any, otherwise: Any) -> Any:
+    return then if condition else otherwise
 
-    sqrt = staticmethod(math.sqrt)
-    asin = staticmethod(math.asin)
-    sin = staticmethod(math.sin)
-    cos = staticmethod(math.cos)
-    fmin = staticmethod(min)
 
-    @staticmethod
-    def if_else(condition: Any, then: Any, otherwise: Any) -> Any:
-        return then if condition else otherwise
+#: The few functions :func:`volume_moments` and the foot constraints need, for floats
+#: (:func:`hound_id.foot.optimise.casadi_ops` gives casadi's).
+FLOAT_OPS = SimpleNamespace(
+    sqrt=math.sqrt, asin=math.asin, sin=math.sin, cos=math.cos, fmin=min, fmax=max, if_else=_if_else
+)
 
 
 def _g2(a: Any, r: Any) -> Any:
@@ -146,9 +144,9 @@ def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
     Returns ``V`` [m^3], first moments ``x, z`` [m^4] (y is 0 by symmetry) and second
     moments ``xx, yy, zz, xz`` [m^5] (integrals of x^2, y^2, z^2, x z over the solid; xy and yz
     are 0 by symmetry). ``ops`` supplies sqrt, asin, sin, cos, fmin and if_else: casadi's for
-    symbolic use (:class:`hound_id.foot.optimise._CasadiOps`), plain floats by default.
+    symbolic use (:func:`hound_id.foot.optimise.casadi_ops`), plain floats by default.
     """
-    ops = ops or _Numpy
+    ops = ops or FLOAT_OPS
     R, t, W = geometry.radius, geometry.thickness, geometry.width
     lo, hi, rb, zc = geometry.low, geometry.high, geometry.boss_radius, geometry.centre_z
     rho, w = R - t, W / 2

@@ -28,12 +28,13 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass
+from types import SimpleNamespace
 from typing import Any
 
 import numpy as np
 
 from hound_id.errors import SpecError
-from hound_id.foot.geometry import FootGeometry, MassProperties, mass_properties, volume_moments
+from hound_id.foot.geometry import FLOAT_OPS, FootGeometry, MassProperties, mass_properties, volume_moments
 from hound_id.foot.material import (
     DEPTH_WALLS,
     SHEAR_DEPTH_FACTOR,
@@ -226,7 +227,7 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     """Every constraint of a design, numerically."""
     x = [getattr(geometry, k) for k in _X]
     out = []
-    for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, _FloatOps):
+    for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, FLOAT_OPS):
         value, limit = float(value), float(limit)
         tol = TOLERANCE * max(abs(limit), abs(value), 1e-3 if unit == "m" else 1e-3)
         ok = {">=": value >= limit - tol, "<=": value <= limit + tol, "==": abs(value - limit) <= tol}[kind]
@@ -245,9 +246,10 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     y = ca.SX.sym("y", 6)
     R = y[0] * 1e-3
     x = ca.vertcat(R, y[1] * R, 2 * R * ca.sin(y[2]), y[3], y[4], y[5] * 1e-3)
-    m = volume_moments(_geometry(x, req), ops=_CasadiOps)
+    ops = casadi_ops()
+    m = volume_moments(_geometry(x, req), ops=ops)
     inertia, objective = _objective(m, mount, req)
-    rows = _constraints(x, mount, req, _CasadiOps)
+    rows = _constraints(x, mount, req, ops)
     g, lbg, ubg = [], [], []
     for _, value, limit, kind, unit, _ in rows:
         scale = 1e-6 if unit == "Pa" else (1e3 if unit == "m" else 1.0)  # MPa, mm, rad
@@ -304,56 +306,10 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     )
 
 
-class _FloatOps:
-    """The same functions for floats."""
-
-    sqrt = staticmethod(math.sqrt)
-    asin = staticmethod(math.asin)
-    fmin = staticmethod(min)
-    fmax = staticmethod(max)
-
-
-class _CasadiOps:
+def casadi_ops() -> Any:
     """casadi's versions of the functions :func:`volume_moments` and the constraints use."""
+    import casadi as ca
 
-    @staticmethod
-    def sqrt(v: Any) -> Any:
-        import casadi as ca
-
-        return ca.sqrt(v)
-
-    @staticmethod
-    def asin(v: Any) -> Any:
-        import casadi as ca
-
-        return ca.asin(v)
-
-    @staticmethod
-    def sin(v: Any) -> Any:
-        import casadi as ca
-
-        return ca.sin(v)
-
-    @staticmethod
-    def cos(v: Any) -> Any:
-        import casadi as ca
-
-        return ca.cos(v)
-
-    @staticmethod
-    def fmin(a: Any, b: Any) -> Any:
-        import casadi as ca
-
-        return ca.fmin(a, b)
-
-    @staticmethod
-    def fmax(a: Any, b: Any) -> Any:
-        import casadi as ca
-
-        return ca.fmax(a, b)
-
-    @staticmethod
-    def if_else(condition: Any, then: Any, otherwise: Any) -> Any:
-        import casadi as ca
-
-        return ca.if_else(condition, then, otherwise)
+    return SimpleNamespace(
+        sqrt=ca.sqrt, asin=ca.asin, sin=ca.sin, cos=ca.cos, fmin=ca.fmin, fmax=ca.fmax, if_else=ca.if_else
+    )
