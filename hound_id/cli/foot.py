@@ -23,16 +23,26 @@ def _length(text: str | None, option: str) -> float | None:
         return None
     value = to_si(text, "length", field=option)
     if not 0 < value < 1.0:
-        raise SpecError(f"{option}: found {text!r} = {value:g} m, expected 0 to 1 m; write the unit, e.g. '10 mm'")
+        raise SpecError(
+            f"{option}: found {text!r} = {value:g} m, expected more than 0 and less than 1 m; write the unit, "
+            "e.g. '10 mm'"
+        )
     return value
 
 
-def _angles(angles: str | None, gait: Path | None, legs: str | None, margin: float) -> Any:
+def _angles(angles: str | None, gait: Path | None, legs: str | None, margin: float, leg: Path | None) -> Any:
     from hound_id.foot.angles import gait_angles, given_angles
     from hound_id.samples import samples_dir
 
     if angles is not None and gait is not None:
         raise SpecError("foot: give --angles ATTACK,DETACH or --gait LOG, not both")
+    if leg is not None and angles is None and gait is None:
+        raise SpecError(
+            f"foot: --leg {leg} needs --angles ATTACK,DETACH or --gait LOG (the sample running log belongs to the "
+            "sample leg)"
+        )
+    if legs is not None and angles is not None:
+        raise SpecError("foot: --legs picks legs of a gait log; it has no meaning with --angles")
     if angles is not None:
         parts = [p.strip() for p in angles.split(",")]
         try:
@@ -43,7 +53,7 @@ def _angles(angles: str | None, gait: Path | None, legs: str | None, margin: flo
             ) from None
         return given_angles(attack, detach, margin)
     path = gait if gait is not None else samples_dir() / "gait" / "hound_running.csv"
-    leg_list = [s.strip() for s in legs.split(",") if s.strip()] if legs else None
+    leg_list = [s.strip() for s in legs.split(",") if s.strip()] if legs is not None else None
     return gait_angles(path, leg_list, margin)
 
 
@@ -55,7 +65,7 @@ def foot(
     legs: Optional[str] = typer.Option(None, "--legs", help="Legs of the gait log to use, e.g. RR,RL (default all)."),
     margin: float = typer.Option(5.0, "--margin", help="Margin added to both ends of the contact arc [deg]."),
     material: str = typer.Option("aluminium_7075_t6", "--material", help="Foot material name or YAML file."),
-    ground: str = typer.Option("concrete", "--ground", help="Ground: concrete or steel."),
+    ground: str = typer.Option("concrete", "--ground", help="Ground: concrete, steel or a material YAML file."),
     grf: str = typer.Option("1500 N", "--grf", help="Peak ground reaction force on one foot, e.g. '1.5 kN'."),
     safety: float = typer.Option(1.5, "--safety", help="Safety factor on the Hertz yield pressure."),
     roll: float = typer.Option(10.0, "--roll", help="Roll angle the cap must also cover [deg]."),
@@ -65,11 +75,16 @@ def foot(
     radius: Optional[str] = typer.Option(None, "--radius", help=f"Fix the sphere radius, {_LENGTH_HELP}."),
     mass_weight: float = typer.Option(0.0, "--mass-weight", help="Weight of foot mass x leg length^2 in the cost."),
     nominal_angle: float = typer.Option(0.0, "--nominal-angle", help="Calf pitch where leg length is kept [deg]."),
+    length_tolerance: str = typer.Option(
+        "5 mm", "--length-tolerance", help=f"Largest leg-length change over the contact arc, {_LENGTH_HELP}."
+    ),
     knee_angle: float = typer.Option(-70.0, "--knee-angle", help="Knee angle of the nominal pose [deg]."),
     foot_link: str = typer.Option("foot", "--foot-link", help="Name of the foot link in the URDF."),
     robot: Optional[Path] = typer.Option(None, "--robot", help="Robot YAML, for the knee rotor's reflected inertia."),
     robot_knee: str = typer.Option("RR_KFE", "--robot-knee", help="The knee joint's name in --robot."),
-    mesh_resolution: float = typer.Option(2.0, "--mesh-resolution", help="Angular step of the STL mesh [deg]."),
+    mesh_resolution: float = typer.Option(
+        2.0, "--mesh-resolution", help="Angular step of the STL mesh, 0.5 to 10 [deg]."
+    ),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for foot.stl, the patched URDF and foot.json."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: sagittal section, contact arc, ratios."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/foot/1 or foot-leg/1)."),
@@ -86,14 +101,16 @@ def foot(
     if not optimise and (out is not None or plot is not None):
         raise SpecError("foot: --out and --plot need --optimise (they write the new foot)")
     leg_path = leg if leg is not None else samples_dir() / "legs" / "hound_leg.urdf"
-    contact: ContactAngles = _angles(angles, gait, legs, margin)
+    if not (math.isfinite(knee_angle) and abs(knee_angle) <= 180):
+        raise SpecError(f"--knee-angle: found {knee_angle} deg, expected a finite angle within +-180 deg")
+    contact: ContactAngles = _angles(angles, gait, legs, margin, leg)
     reflected = None
     if robot is not None:
         from hound_id.mor.robot import load_robot
 
         reflected = load_robot(robot).reflected_inertia(robot_knee)
     req = _requirements(contact, material, ground, grf, safety, roll, boss_radius, min_boss_length, max_radius,
-                        radius, mass_weight, nominal_angle)  # fmt: skip
+                        radius, mass_weight, nominal_angle, length_tolerance)  # fmt: skip
     if not optimise:
         from hound_id.foot.design import leg_summary
 
@@ -135,6 +152,7 @@ def _requirements(
     radius: str | None,
     mass_weight: float,
     nominal_angle: float,
+    length_tolerance: str,
 ) -> Any:
     from hound_id.foot.material import GROUNDS, load_material
     from hound_id.foot.optimise import FootRequirements
@@ -158,6 +176,7 @@ def _requirements(
         max_radius=_length(max_radius, "--max-radius"),
         radius=_length(radius, "--radius"),
         mass_weight=mass_weight,
+        length_tolerance=_length(length_tolerance, "--length-tolerance") or 0.0,
     )
 
 
@@ -176,8 +195,8 @@ def _render_summary(s: dict[str, Any]) -> None:
         ("contact angle at touchdown",
          f"{math.degrees(a['attack']):.1f} +- {math.degrees(a['attack_spread']):.1f} deg"),
         ("contact angle at liftoff", f"{math.degrees(a['detach']):.1f} +- {math.degrees(a['detach_spread']):.1f} deg"),
-        ("arc to cover (with margin)", f"{math.degrees(a['low']):.1f} to {math.degrees(a['high']):.1f} deg "
-         f"({a['strides']} stances)"),
+        ("arc to cover (with margin)", f"{math.degrees(a['low']):.1f} to {math.degrees(a['high']):.1f} deg"),
+        ("angles from", f"{a['source']} ({a['strides']} stances)" if a["strides"] else "--angles"),
         ("Hertz minimum radius", f"{s['hertz_min_radius'] * 1e3:.1f} mm"),
     ]  # fmt: skip
     if s["reflected_knee_inertia"] is not None:

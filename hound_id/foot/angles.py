@@ -10,8 +10,9 @@ The attack angle is theta at touchdown, the detach angle theta at liftoff; the f
 cover every angle the stance sweeps through, so :func:`contact_angles` also reports the
 extremes over each stance.
 
-A gait log (CSV or Parquet) has ``time`` [s], ``pitch`` [rad] and per leg ``<leg>_HFE``,
-``<leg>_KFE`` [rad] and ``<leg>_contact`` (1 in stance, 0 in flight).
+A gait log (CSV or Parquet) has ``pitch`` [rad] and per leg ``<leg>_HFE``, ``<leg>_KFE`` [rad]
+and ``<leg>_contact`` (1 in stance, 0 in flight), one row per sample in time order (a ``time``
+column may be there; it is not needed).
 """
 
 from __future__ import annotations
@@ -51,6 +52,8 @@ class ContactAngles:
     """Margin applied on both sides [rad]."""
     strides: int
     """Stances found (0 for given angles)."""
+    source: str = "--angles"
+    """Where the angles come from: ``--angles`` or the gait log's path."""
 
     @property
     def coverage(self) -> float:
@@ -60,11 +63,21 @@ class ContactAngles:
     def to_dict(self) -> dict[str, Any]:
         out = {k: getattr(self, k) for k in self.__dataclass_fields__}
         out["coverage"] = self.coverage
-        out["units"] = "rad"
+        out["units"] = "rad (strides and source excepted)"
         return out
 
 
+def _check_margin(margin_deg: float) -> None:
+    if not (math.isfinite(margin_deg) and 0 <= margin_deg < 90):
+        raise SpecError(f"--margin: found {margin_deg} deg, expected 0 to 90 deg (it widens the arc at both ends)")
+
+
 def _checked(low: float, high: float, margin: float, source: str) -> None:
+    if max(abs(low), abs(high)) > 2 * math.pi:
+        raise SpecError(
+            f"{source}: contact angles reach {math.degrees(max(abs(low), abs(high))):.0f} deg; the log looks like "
+            "degrees, expected radians (pitch, <leg>_HFE and <leg>_KFE in rad)"
+        )
     if not high - low < MAX_COVERAGE:
         raise SpecError(
             f"{source}: the foot would have to cover {math.degrees(high - low):.1f} deg "
@@ -79,8 +92,9 @@ def given_angles(attack_deg: float, detach_deg: float, margin_deg: float = 5.0) 
     The stance sweeps the contact angle from the attack angle up to the detach angle (see the
     module docstring), so the attack angle is the smaller: e.g. ``-30, 25``.
     """
-    if not all(math.isfinite(a) for a in (attack_deg, detach_deg, margin_deg)) or margin_deg < 0:
-        raise SpecError(f"--angles: found {attack_deg}, {detach_deg} (margin {margin_deg}); expected finite degrees")
+    _check_margin(margin_deg)
+    if not all(math.isfinite(a) for a in (attack_deg, detach_deg)):
+        raise SpecError(f"--angles: found {attack_deg}, {detach_deg}; expected two finite angles in degrees")
     if not attack_deg < detach_deg:
         raise SpecError(
             f"--angles: attack {attack_deg:g} deg must come before detach {detach_deg:g} deg in the stance: "
@@ -101,16 +115,24 @@ def contact_angles(
     def column(name: str) -> NDArray[np.float64]:
         if name not in columns:
             raise DynoDataError(
-                f"{source}: column '{name}' missing; a gait log needs time, pitch and "
+                f"{source}: column '{name}' missing; a gait log needs pitch and "
                 "<leg>_HFE, <leg>_KFE, <leg>_contact for each leg",
                 column=name,
             )
-        values = np.asarray(columns[name], dtype=float)
+        raw = columns[name]
+        try:
+            values = np.asarray(raw, dtype=float)
+        except (TypeError, ValueError):
+            bad = next(i for i, v in enumerate(raw) if not _is_number(v))
+            raise DynoDataError(
+                f"{source}: column '{name}' data row {bad + 1} is {raw[bad]!r}, expected a number", column=name
+            ) from None
         if not np.all(np.isfinite(values)):
             row = int(np.flatnonzero(~np.isfinite(values))[0]) + 1
             raise DynoDataError(f"{source}: column '{name}' data row {row} is not a finite number", column=name)
         return values
 
+    _check_margin(margin_deg)
     pitch = column("pitch")
     touch, lift, lows, highs = [], [], [], []
     for leg in legs:
@@ -132,12 +154,34 @@ def contact_angles(
         raise DynoDataError(
             f"{source}: no complete stance found (a contact flag rising then falling) for legs {', '.join(legs)}"
         )
+    if np.mean(touch) > np.mean(lift):
+        raise DynoDataError(
+            f"{source}: the contact angle falls through stance (touchdown {math.degrees(np.mean(touch)):.1f} deg, "
+            f"liftoff {math.degrees(np.mean(lift)):.1f} deg); in forward running it rises (REP-103: pitch about +y, "
+            "a positive pitch swings the foot back): negate pitch, HFE and KFE if the log uses the opposite sign"
+        )
     m = math.radians(margin_deg)
     low, high = float(min(lows)) - m, float(max(highs)) + m
     _checked(low, high, m, source)
     return ContactAngles(
-        float(np.mean(touch)), float(np.mean(lift)), float(np.std(touch)), float(np.std(lift)), low, high, m, len(touch)
+        float(np.mean(touch)),
+        float(np.mean(lift)),
+        float(np.std(touch)),
+        float(np.std(lift)),
+        low,
+        high,
+        m,
+        len(touch),
+        source,
     )
+
+
+def _is_number(value: Any) -> bool:
+    try:
+        float(value)
+    except (TypeError, ValueError):
+        return False
+    return True
 
 
 def gait_angles(path: str | Path, legs: Sequence[str] | None = None, margin_deg: float = 5.0) -> ContactAngles:
@@ -145,6 +189,8 @@ def gait_angles(path: str | Path, legs: Sequence[str] | None = None, margin_deg:
     from hound_id.tables import read_table
 
     frame = read_table(path)
+    if legs is not None and not legs:
+        raise SpecError("--legs: no leg named; give e.g. RR,RL or leave --legs out for every leg")
     if legs is None:
         legs = [str(c)[: -len("_contact")] for c in frame.columns if str(c).endswith("_contact")]
         if not legs:

@@ -64,7 +64,7 @@ class FootReport:
     """The foot as a trimesh.Trimesh (foot frame, metres)."""
     mesh_check: MeshCheck
     urdf_text: str
-    """The patched URDF (mesh referenced as ``foot.stl`` beside it)."""
+    """The patched URDF (mesh referenced as ``foot.stl`` beside it; other meshes by absolute path)."""
 
     @property
     def mass_ratio(self) -> float:
@@ -126,26 +126,15 @@ def design_foot(
     """
     from hound_id.foot.leg import load_leg
 
-    if not 0.1 <= mesh_resolution_deg <= 10:
-        raise SpecError(f"--mesh-resolution: found {mesh_resolution_deg:g} deg, expected 0.1 to 10 deg")
+    if not 0.5 <= mesh_resolution_deg <= 10:  # 0.5 deg is already ~300k faces and 0.002 % in mass
+        raise SpecError(f"--mesh-resolution: found {mesh_resolution_deg:g} deg, expected 0.5 to 10 deg")
     mount = read_foot(leg, foot_link)
     design = optimise_foot(mount, requirements)
     original = leg_properties(
         load_leg(leg), hip_joint=mount.hip_joint, knee_joint=mount.knee_joint, knee_angle=knee_angle
     )
     g = design.geometry
-    text = patched_urdf(
-        mount,
-        design.properties,
-        mesh_filename=STL_NAME,
-        sphere_radius=g.radius,
-        sphere_centre_z=g.centre_z,
-        comment=(
-            f"foot by hound-id ({SCHEMA}): spherical cap R={g.radius * 1e3:.2f} mm, t={g.thickness * 1e3:.2f} mm, "
-            f"W={g.width * 1e3:.2f} mm, {math.degrees(g.low):.1f} to {math.degrees(g.high):.1f} deg, "
-            f"{requirements.material.name}"
-        ),
-    )
+    text = _patched(mount, design, requirements, None)
     new = leg_properties(
         _pinocchio_model(text, str(leg)), hip_joint=mount.hip_joint, knee_joint=mount.knee_joint, knee_angle=knee_angle
     )
@@ -184,8 +173,8 @@ def foot_json(report: FootReport, files: dict[str, str] | None = None) -> dict[s
         "geometry": {k: getattr(g, k) for k in g.__dataclass_fields__},
         "foot": {"closed_form": d.properties.to_dict(), "knee_inertia": d.knee_inertia},
         "original_foot": report.mount.foot.to_dict() | {"contact_radius": report.mount.contact_radius},
-        "leg_original": report.original.to_dict(),
-        "leg_new": report.new.to_dict(),
+        "leg_original": _leg_dict(report.original),
+        "leg_new": _leg_dict(report.new),
         "hip_inertia_ratio": report.new.hip_pitch_inertia / report.original.hip_pitch_inertia,
         "reflected_knee_inertia": refl,
         "inertia_ratio_with_rotor": with_rotor,
@@ -202,6 +191,7 @@ def foot_json(report: FootReport, files: dict[str, str] | None = None) -> dict[s
             "max_radius": req.max_radius,
             "radius": req.radius,
             "mass_weight": req.mass_weight,
+            "length_tolerance": req.length_tolerance,
             "material": req.material.to_dict(),
             "ground": req.ground.to_dict(),
         },
@@ -211,6 +201,29 @@ def foot_json(report: FootReport, files: dict[str, str] | None = None) -> dict[s
         "solver": d.solver,
         "files": files or {},
     }
+
+
+def _patched(mount: FootMount, design: FootDesign, req: FootRequirements, out_dir: Path | None) -> str:
+    g = design.geometry
+    return patched_urdf(
+        mount,
+        design.properties,
+        mesh_filename=STL_NAME,
+        sphere_radius=g.radius,
+        sphere_centre_z=g.centre_z,
+        comment=(
+            f"foot by hound-id ({SCHEMA}): spherical cap R={g.radius * 1e3:.2f} mm, t={g.thickness * 1e3:.2f} mm, "
+            f"W={g.width * 1e3:.2f} mm, {math.degrees(g.low):.1f} to {math.degrees(g.high):.1f} deg, "
+            f"{req.material.name}"
+        ),
+        out_dir=out_dir,
+    )
+
+
+def _leg_dict(props: LegProperties) -> dict[str, Any]:
+    out = props.to_dict()
+    del out["reflected_knee_inertia"]  # given once, at the top level
+    return out
 
 
 def write_foot(report: FootReport, out: Path) -> dict[str, str]:
@@ -226,7 +239,7 @@ def write_foot(report: FootReport, out: Path) -> dict[str, str]:
         raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
     stl, urdf, js = out / STL_NAME, out / f"{Path(report.mount.path).stem}_light_foot.urdf", out / "foot.json"
     io.write_with(stl, lambda handle: report.mesh.export(handle, file_type="stl"))
-    io.write_text(urdf, report.urdf_text)
+    io.write_text(urdf, _patched(report.mount, report.design, report.requirements, out))  # mesh paths from out
     files = {"stl": os.fspath(stl), "urdf": os.fspath(urdf), "json": os.fspath(js)}
     io.write_json(js, foot_json(report, files))
     return files
@@ -252,7 +265,7 @@ def leg_summary(
         "schema": "hound-id/foot-leg/1",
         "units": "SI: m, kg, kg m^2, rad",
         "leg": mount.path,
-        "leg_properties": props.to_dict(),
+        "leg_properties": _leg_dict(props),
         "original_foot": mount.foot.to_dict()
         | {"contact_radius": mount.contact_radius, "shape": mount.contact_shape, "width": mount.contact_width},
         "knee_joint": mount.knee_joint,

@@ -174,7 +174,7 @@ def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
     }
     # Boss, about the calf axis: column r <= r_b from zeta = -sqrt(rho^2 - r^2) up to zeta = h.
     h = -zc
-    q = ops.sqrt(rho**2 - rb**2)
+    q = ops.sqrt(ops.fmax(rho**2 - rb**2, 1e-12))  # real while an optimiser searches; check() refuses rb >= rho
     boss = {
         "V": 2 * math.pi * (h * rb**2 / 2 + (rho**3 - q**3) / 3),
         "z": math.pi * (h**2 * rb**2 / 2 - (rho**2 * rb**2 / 2 - rb**4 / 4)),

@@ -104,7 +104,7 @@ def load_material(name_or_path: str, table: dict[str, Material] | None = None, w
             f"{what}: unknown material '{name_or_path}'; expected one of {', '.join(table)} or a YAML file",
             found=name_or_path,
         )
-    data = read_yaml(path, "material file")
+    data = read_yaml(path, "material")
     if not isinstance(data, dict):
         raise SpecError(f"{path}: expected a mapping of material properties, found {type(data).__name__}")
     unknown = sorted(set(data) - set(_FIELDS) - {"name", "source", "schema"})
@@ -115,10 +115,27 @@ def load_material(name_or_path: str, table: dict[str, Material] | None = None, w
         if field not in data:
             raise SpecError(f"{path}: field '{field}' missing; a material needs {', '.join(_FIELDS)}", field=field)
         values[field] = to_si(data[field], kind, source=str(path), field=field)
-    if not (values["density"] > 0 and values["youngs_modulus"] > 0 and values["yield_strength"] > 0):
-        raise SpecError(f"{path}: density, youngs_modulus and yield_strength must be positive, found {values}")
-    if not 0 <= values["poisson"] < 0.5 or values["min_wall"] < 0:
-        raise SpecError(f"{path}: need 0 <= poisson < 0.5 and min_wall >= 0, found {values}")
+    # plausible ranges for solids, so that a value in the wrong unit is caught
+    ranges = {
+        "density": (100.0, 25000.0, "kg/m^3"),
+        "youngs_modulus": (1e6, 1.5e12, "Pa"),
+        "poisson": (0.0, 0.5, ""),
+        "yield_strength": (1e5, 1e10, "Pa"),
+        "min_wall": (0.0, 0.02, "m"),
+    }
+    for field, (lo, hi, unit) in ranges.items():
+        if not lo <= values[field] < hi:
+            raise SpecError(
+                f"{path}: field '{field}' is {values[field]:g} {unit}, expected {lo:g} to {hi:g} {unit}; "
+                "write the unit (e.g. '0.8 mm', '110 GPa') if the number is not SI",
+                field=field,
+            )
+    if values["youngs_modulus"] <= values["yield_strength"]:
+        raise SpecError(
+            f"{path}: youngs_modulus {values['youngs_modulus']:g} Pa is not above yield_strength "
+            f"{values['yield_strength']:g} Pa; check their units",
+            field="youngs_modulus",
+        )
     return Material(name=str(data.get("name", path.stem)), source=str(data.get("source", str(path))), **values)
 
 

@@ -16,7 +16,9 @@ Constraints (each reported with its value, limit and margin):
 * ``hertz_depth``: t >= 3 x the depth of the largest subsurface shear (0.48 a);
 * ``wall_thickness``: t >= the material's process minimum;
 * ``leg_length``: the knee-to-ground height at the nominal contact angle theta_n is the
-  original foot's, (L - z_c) cos(theta_n) + R = L cos(theta_n) + r0 (the gait is unchanged);
+  original foot's, (L - z_c) cos(theta_n) + R = L cos(theta_n) + r0, and
+  ``leg_length_stance``: over the whole contact arc it differs from the original's by at most
+  ``length_tolerance``, |R - r0 - z_c cos(theta)| <= tol (the gait sees the same leg);
 * ``lateral_coverage``: the cap covers roll angles up to ``roll``: asin(W / 2R) >= roll;
 * ``boss_seat_front`` / ``boss_seat_back``: the boss, with a rim of one wall thickness, lands
   inside the cap's angles; ``boss_width``: W >= 2 (r_b + t); ``boss_length``: the boss is at
@@ -79,6 +81,8 @@ class FootRequirements:
     """Fix the sphere radius [m] instead of optimising it."""
     mass_weight: float = 0.0
     """Weight of the mass term in the objective (module docstring) [-]."""
+    length_tolerance: float = 0.005
+    """Largest change of the knee-to-ground height over the contact arc [m]."""
 
 
 @dataclass(frozen=True)
@@ -155,16 +159,65 @@ def _objective(m: dict[str, Any], mount: FootMount, req: FootRequirements) -> tu
     return inertia, inertia + req.mass_weight * rho * m["V"] * _knee_ground(mount, req) ** 2
 
 
+def _stance_angles(req: FootRequirements) -> list[float]:
+    """Contact angles where the knee-to-ground height deviates most: the arc's ends, and 0 inside it."""
+    return [req.low, req.high] + ([0.0] if req.low < 0.0 < req.high else [])
+
+
 def _constraints(
-    x: Any, mount: FootMount, req: FootRequirements, ops: Any
+    x: Any, mount: FootMount, req: FootRequirements, ops: Any, symbolic: bool = False
 ) -> list[tuple[str, Any, Any, str, str, str]]:
-    """(name, value, limit, kind, unit, meaning) for a design x, numeric or symbolic."""
+    """(name, value, limit, kind, unit, meaning) for a design x, numeric or symbolic.
+
+    ``symbolic`` rows are the smooth forms IPOPT gets: the boss seats as sines instead of
+    arcsines (whose derivative is infinite at 1) and the stance leg length as one two-sided
+    (``within``) row per angle instead of a maximum; the numeric rows are what the report shows.
+    """
     R, t, W, lo, hi, zc = (x[i] for i in range(6))
     e_star = effective_modulus(req.material, req.ground)
     F = req.peak_force
     a = contact_radius(F, R, e_star)
-    seat = ops.asin(ops.fmin((req.boss_radius + t) / (R - t), 1.0))  # the boss plus a rim of one wall
+    rim = (req.boss_radius + t) / (R - t)  # sine of the half-angle of the boss plus a rim of one wall
     cos_n, L = math.cos(req.nominal_angle), mount.mount_length
+    # knee-to-ground height, new minus original, with the calf at contact angle theta
+    dh = [R - mount.contact_radius - zc * math.cos(theta) for theta in _stance_angles(req)]
+    if symbolic:
+        seats = [
+            ("boss_seat_front", ops.sin(-lo), rim, ">=", "-", ""),
+            ("boss_seat_back", ops.sin(hi), rim, ">=", "-", ""),
+        ]
+        stance = [(f"leg_length_stance_{i}", d, req.length_tolerance, "within", "m", "") for i, d in enumerate(dh)]
+    else:
+        seat = ops.asin(ops.fmin(rim, 1.0))
+        seats = [
+            (
+                "boss_seat_front",
+                -lo,
+                seat,
+                ">=",
+                "rad",
+                "the boss and a rim of one wall land inside the cap (touchdown side)",
+            ),
+            (
+                "boss_seat_back",
+                hi,
+                seat,
+                ">=",
+                "rad",
+                "the boss and a rim of one wall land inside the cap (liftoff side)",
+            ),
+        ]
+        worst = max(abs(d) for d in dh)
+        stance = [
+            (
+                "leg_length_stance",
+                worst,
+                req.length_tolerance,
+                "<=",
+                "m",
+                "knee-to-ground height within the tolerance of the original's over the whole contact arc",
+            )
+        ]
     out = [
         ("coverage_touchdown", lo, req.low, "<=", "rad", "the cap reaches the lowest contact angle"),
         ("coverage_liftoff", hi, req.high, ">=", "rad", "the cap reaches the highest contact angle"),
@@ -175,12 +228,13 @@ def _constraints(
         ("wall_thickness", t, req.material.min_wall, ">=", "m", "wall >= the process minimum"),
         ("leg_length", (L - zc) * cos_n + R, _knee_ground(mount, req), "==", "m",
          "knee-to-ground height at nominal contact unchanged"),
+        *stance,
         ("lateral_coverage", ops.asin(W / (2 * R)), req.roll, ">=", "rad", "the cap covers the roll angle"),
-        ("boss_seat_front", -lo, seat, ">=", "rad", "the boss lands inside the cap (touchdown side)"),
-        ("boss_seat_back", hi, seat, ">=", "rad", "the boss lands inside the cap (liftoff side)"),
+        *seats,
         ("boss_width", W, 2 * (req.boss_radius + t), ">=", "m", "cap as wide as the boss and a rim"),
-        ("boss_length", ops.sqrt(ops.fmax((R - t) ** 2 - req.boss_radius**2, 0.0)) - zc, req.min_boss_length, ">=", "m",
-         "room for the fastening between the mount and the cap"),
+        # the floor under the square root keeps its derivative finite while IPOPT searches
+        ("boss_length", ops.sqrt(ops.fmax((R - t) ** 2 - req.boss_radius**2, 1e-12)) - zc, req.min_boss_length, ">=",
+         "m", "room for the fastening between the mount and the cap"),
     ]  # fmt: skip
     if req.max_radius is not None:
         out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
@@ -194,7 +248,7 @@ def hertz_min_radius(req: FootRequirements) -> float:
     )
 
 
-def _precheck(req: FootRequirements) -> float:
+def _precheck(mount: FootMount, req: FootRequirements) -> float:
     """The Hertz minimum radius; clear errors for requests no design can meet."""
     if not 0 < req.high - req.low < math.pi:
         raise SpecError(
@@ -220,6 +274,20 @@ def _precheck(req: FootRequirements) -> float:
                 found=limit,
                 expected=r_min,
             )
+    # a sphere larger than the original changes the knee height over the arc by (R - r0)(1 - cos/cos_n)
+    radius = req.radius if req.radius is not None else max(r_min, mount.contact_radius)
+    spread = max(abs(1 - math.cos(theta) / math.cos(req.nominal_angle)) for theta in _stance_angles(req))
+    change = abs(radius - mount.contact_radius) * spread
+    if change > req.length_tolerance * (1 + TOLERANCE):
+        which = "--radius" if req.radius is not None else "the Hertz minimum radius"
+        raise SpecError(
+            f"foot: {which} {radius * 1e3:.1f} mm differs from the original contact radius "
+            f"{mount.contact_radius * 1e3:.1f} mm, so over the contact arc the knee-to-ground height would change by "
+            f"{change * 1e3:.1f} mm, more than --length-tolerance {req.length_tolerance * 1e3:.1f} mm: raise the "
+            "tolerance, narrow the arc (--margin), or lower --grf / choose a stronger --material",
+            found=change,
+            expected=req.length_tolerance,
+        )
     return r_min
 
 
@@ -235,11 +303,25 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     return tuple(out)
 
 
+def _guess(R0: float, mount: FootMount, req: FootRequirements) -> list[float]:
+    """A starting point in IPOPT's variables (see :func:`optimise_foot`) for a radius R0 [m]."""
+    if req.radius is not None:
+        R0 = req.radius
+    if req.max_radius is not None:
+        R0 = min(R0, req.max_radius)
+    t0 = min(max(req.material.min_wall, 1e-3) * 2, 0.3 * R0)
+    seat = math.asin(min(1.0, (req.boss_radius + t0) / (R0 - t0)))
+    W0 = min(2 * R0 * 0.95, max(2 * (req.boss_radius + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
+    zc0 = (R0 - mount.contact_radius) / math.cos(req.nominal_angle)
+    return [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3]
+
+
 def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     """The foot of least knee inertia (plus the mass term) that meets every constraint."""
     import casadi as ca
 
-    r_min = _precheck(req)
+    r_min = _precheck(mount, req)
     # IPOPT's variables y: R [mm], t / R, the lateral half-angle beta (W = 2 R sin beta), low, high
     # [rad], z_c [mm]. Their bounds keep every square root and arcsine of the formulas real, since
     # IPOPT may step outside the constraints (never outside the bounds) while it searches.
@@ -249,36 +331,55 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     ops = casadi_ops()
     m = volume_moments(_geometry(x, req), ops=ops)
     inertia, objective = _objective(m, mount, req)
-    rows = _constraints(x, mount, req, ops)
+    rows = _constraints(x, mount, req, ops, symbolic=True)
     g, lbg, ubg = [], [], []
     for _, value, limit, kind, unit, _ in rows:
         scale = 1e-6 if unit == "Pa" else (1e3 if unit == "m" else 1.0)  # MPa, mm, rad
+        if kind == "within":  # -limit <= value <= limit
+            g.append(value * scale)
+            lbg.append(-limit * scale)
+            ubg.append(limit * scale)
+            continue
         g.append((value - limit) * scale)
         lbg.append(0.0 if kind in (">=", "==") else -ca.inf)
         ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
     i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))  # objective scale
     nlp = {"x": y, "f": objective / i_ref, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-10, "ipopt.max_iter": 500,
-            "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0}  # fmt: skip
+            "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0, "show_eval_warnings": False}  # fmt: skip
     solver = ca.nlpsol("foot", "ipopt", nlp, opts)
-    R_fix = req.radius
-    R0 = R_fix if R_fix is not None else max(r_min * 1.3, mount.contact_radius)
-    if req.max_radius is not None:
-        R0 = min(R0, req.max_radius)
-    t0 = min(max(req.material.min_wall, 1e-3) * 2, 0.3 * R0)
-    seat = math.asin(min(1.0, (req.boss_radius + t0) / (R0 - t0)))
-    W0 = min(2 * R0 * 0.95, max(2 * (req.boss_radius + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
-    lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
-    zc0 = mount.mount_length - (_knee_ground(mount, req) - R0) / math.cos(req.nominal_angle)
+    to_x = ca.Function("x", [y], [x])
     lbx = [1.0, 1e-3, 1e-3, -math.pi / 2, 0.0, -1e3]
     ubx = [1e3, 0.5, math.pi / 2 - 1e-3, 0.0, math.pi / 2, 1e3]
-    if R_fix is not None:
-        lbx[0] = ubx[0] = R_fix * 1e3
-    guess = [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3]
-    sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-    stats = solver.stats()
-    y_opt = [float(v) for v in sol["x"].full().ravel()]
-    x_opt = [float(v) for v in np.asarray(ca.Function("x", [y], [x])(y_opt)).ravel()]
+    if req.radius is not None:
+        lbx[0] = ubx[0] = req.radius * 1e3
+    best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
+    last: tuple[list[float], dict[str, Any]] | None = None
+    for start in (1.3, 2.0, 1.02, 4.0):  # a few starts: the first that converges usually is the optimum
+        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req)
+        sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        stats = solver.stats()
+        y_opt = [float(v) for v in sol["x"].full().ravel()]
+        x_try = [float(v) for v in np.asarray(to_x(y_opt)).ravel()]
+        last = (x_try, stats)
+        if stats.get("success", False) and all(c.satisfied for c in evaluate(_geometry(x_try, req), mount, req)):
+            f = float(sol["f"])
+            if best is None or f < best[0] - 1e-9:
+                best = (f, x_try, stats, y_opt)
+            if start == 1.3:
+                break
+    if best is None:
+        assert last is not None
+        x_bad, stats = last
+        violated = [c for c in evaluate(_geometry(x_bad, req), mount, req) if not c.satisfied]
+        detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated)
+        raise SpecError(
+            f"foot: no design found that meets every constraint (IPOPT: {stats.get('return_status')}"
+            + (f"; violated at its last point: {detail}" if detail else "")
+            + "); relax the request: a smaller --margin or --roll, a larger --max-radius or --length-tolerance, "
+            "a thinner --boss-radius or a shorter --min-boss-length"
+        )
+    f_best, x_opt, stats, y_best = best
     geometry = _geometry(x_opt, req)
     constraints = evaluate(geometry, mount, req)
     violated = [c for c in constraints if not c.satisfied]
@@ -299,9 +400,9 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         solver={
             "status": str(stats.get("return_status")),
             "iterations": int(stats.get("iter_count", -1)),
-            "objective": float(sol["f"]) * i_ref,
+            "objective": f_best * i_ref,
             "objective_unit": "kg m^2",
-            "inertia_check": float(ca.Function("i", [y], [inertia])(y_opt)) - knee,
+            "inertia_check": float(ca.Function("i", [y], [inertia])(y_best)) - knee,
         },
     )
 

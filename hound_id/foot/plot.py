@@ -26,9 +26,8 @@ def plot_foot(report: FootReport) -> Any:
 
     g, mount, angles = report.design.geometry, report.mount, report.angles
     mm = 1e3
-    fig, (ax, bars) = plt.subplots(
-        1, 2, figsize=(11, 5.8), gridspec_kw={"width_ratios": [1.25, 1]}, layout="constrained"
-    )
+    fig, (ax, bars) = plt.subplots(1, 2, figsize=(11, 6.2), gridspec_kw={"width_ratios": [1.25, 1]})
+    fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.27, wspace=0.25)
     # original foot: the contact circle about the mount
     ox, oz = _arc(0.0, 0.0, mount.contact_radius, -math.pi, math.pi)
     ax.fill(ox * mm, oz * mm, color="0.85", zorder=0, label=f"original {mount.contact_shape}, r = "
@@ -67,15 +66,15 @@ def plot_foot(report: FootReport) -> Any:
     ax.plot([0], [zc * mm], marker="+", color="k", zorder=5)
     ax.set_aspect("equal")
     ax.set_xlabel("x, forward in the calf frame [mm]")
-    ax.set_ylabel("z, along the calf from the mount [mm]")
+    ax.set_ylabel("z along the calf [mm]")
     ax.set_title("Sagittal section (calf frame, y = 0)")
-    fig.legend(*ax.get_legend_handles_labels(), fontsize=7, loc="outside lower left", ncol=3)
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncol=2)
     ax.grid(alpha=0.3)
     lim = 1.6 * max(g.radius, mount.contact_radius) * mm
     ax.set_xlim(-lim, lim)
     ax.set_ylim(min(-1.35 * mount.contact_radius, zc - 1.35 * g.radius) * mm, 0.9 * lim)
     # ratios
-    names = ["calf+foot mass", "knee pitch inertia", "hip pitch inertia"]
+    names = ["calf + foot\nmass", "knee pitch\ninertia", "hip pitch\ninertia"]
     ours = [report.mass_ratio, report.inertia_ratio, report.new.hip_pitch_inertia / report.original.hip_pitch_inertia]
     paper = [PAPER["mass_ratio"], PAPER["inertia_ratio"], math.nan]
     pos = np.arange(len(names))

@@ -1,13 +1,16 @@
 """Read the original foot from a leg URDF and write the URDF with a new foot.
 
-hound-id expects the usual layout of legged-robot URDFs: the foot is a link hung on the calf
+hound-id expects a common layout of legged-robot URDFs: the foot is a link hung on the calf
 by a fixed joint whose origin lies on the calf's -z axis, ``xyz="0 0 -L"`` with no rotation
-(ANYmal, Unitree and the sample leg all do this). The calf's parent joint is the knee.
+(Unitree's URDFs and the sample leg do this; ANYmal's shank-to-foot joint has an offset and
+must be re-expressed). The calf's parent joint is the knee, the knee's parent joint the hip,
+both about the pitch axis y.
 """
 
 from __future__ import annotations
 
 import math
+import os
 import xml.etree.ElementTree as ET
 from dataclasses import dataclass
 from pathlib import Path
@@ -87,6 +90,8 @@ def _inertial(link: ET.Element, where: str) -> MassProperties:
     if mass_el is None or inertia_el is None:
         raise SpecError(f"{where}: the foot's <inertial> needs <mass> and <inertia>")
     mass = _floats(mass_el.get("value"), 1, f"{where}: foot mass", "")[0]
+    if not mass > 0:
+        raise SpecError(f"{where}: the foot's mass is {mass:g} kg, expected a positive mass")
     k = {n: _floats(inertia_el.get(n), 1, f"{where}: foot inertia {n}", "0")[0] for n in _INERTIA}
     local = np.array(
         [[k["ixx"], k["ixy"], k["ixz"]], [k["ixy"], k["iyy"], k["iyz"]], [k["ixz"], k["iyz"], k["izz"]]], dtype=float
@@ -132,6 +137,14 @@ def read_foot(path: str | Path, foot_link: str = "foot") -> FootMount:
     ]
     if not to_thigh or to_thigh[0].get("type") not in ("revolute", "continuous"):
         raise SpecError(f"{p}: the knee's parent link must hang on a revolute hip joint")
+    for joint in (to_calf[0], to_thigh[0]):
+        axis_el = joint.find("axis")
+        axis = _floats(axis_el.get("xyz") if axis_el is not None else None, 3, f"{p}: joint axis", "1 0 0")
+        if not np.allclose(np.abs(axis / np.linalg.norm(axis)), [0.0, 1.0, 0.0], atol=1e-9):
+            raise SpecError(
+                f"{p}: joint '{joint.get('name')}' turns about {axis.tolist()}, expected the pitch axis y "
+                "('0 1 0' or '0 -1 0'); hound-id's foot works in the sagittal plane of a pitch hip and knee"
+            )
     shape, radius, width = _contact_shape(links[foot_link], str(p))
     return FootMount(
         path=str(p),
@@ -160,6 +173,13 @@ def _contact_shape(link: ET.Element, where: str) -> tuple[str, float, float]:
         if sphere is not None:
             return "sphere", float(_floats(sphere.get("radius"), 1, f"{where}: sphere radius", "")[0]), 0.0
         if cylinder is not None:
+            rpy = _floats(origin.get("rpy") if origin is not None else None, 3, f"{where}: collision rpy", "0 0 0")
+            axis = _rotation(rpy) @ np.array([0.0, 0.0, 1.0])  # a URDF cylinder's axis is its local z
+            if not np.allclose(np.abs(axis), [0.0, 1.0, 0.0], atol=1e-6):
+                raise SpecError(
+                    f"{where}: the foot cylinder's axis is {np.round(axis, 6).tolist()}, expected the lateral axis y "
+                    "(rpy='1.5708 0 0'): the ground must touch its round side"
+                )
             r = float(_floats(cylinder.get("radius"), 1, f"{where}: cylinder radius", "")[0])
             length = float(_floats(cylinder.get("length"), 1, f"{where}: cylinder length", "")[0])
             return "cylinder", r, length
@@ -181,13 +201,22 @@ def patched_urdf(
     sphere_radius: float,
     sphere_centre_z: float,
     comment: str,
+    out_dir: Path | None = None,
 ) -> str:
     """The leg URDF with the foot link's inertial, visual and collision replaced (XML text).
 
     The collision becomes the sphere of the contact surface (what a simulator needs for
-    rolling contact over the cap's coverage); the visual is the foot's mesh.
+    rolling contact over the cap's coverage); the visual is the foot's mesh. Relative mesh
+    paths of the other links are rewritten relative to ``out_dir``, where the new URDF will be
+    written (absolute when None); ``package://`` and absolute paths are kept.
     """
     root = _parse(Path(mount.path))
+    source_dir = Path(mount.path).resolve().parent
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name and "://" not in name and not Path(name).is_absolute():
+            target = source_dir / name
+            mesh.set("filename", os.path.relpath(target, out_dir.resolve()) if out_dir is not None else str(target))
     link = next(link for link in root.iter("link") if link.get("name") == mount.foot_link)
     for child in list(link):
         if child.tag in ("inertial", "visual", "collision"):

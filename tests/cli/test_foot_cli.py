@@ -50,17 +50,31 @@ def test_foot_without_optimise_describes_the_leg():
         (["--boss-radius", "10"], ["--boss-radius", "write the unit"]),
         (["--grf", "1500 m"], ["--grf", "a force"]),
         (["--material", "cheese"], ["unknown material 'cheese'"]),
-        (["--leg", "missing.urdf"], ["missing.urdf", "not found"]),
+        (["--leg", "missing.urdf", "--angles", "-30,25"], ["missing.urdf", "not found"]),
         (["--angles", "-30,25", "--gait", str(GAIT)], ["not both"]),
         (["--gait", str(LEG)], ["hound_leg.urdf"]),
         (["--plot", "foot.jpg"], ["end in .png"]),
         (["--robot", str(ROBOT), "--robot-knee", "KNEE"], ["no joint named 'KNEE'"]),
+        (["--leg", str(LEG)], ["needs --angles ATTACK,DETACH or --gait LOG"]),
+        (["--angles", "-30,25", "--legs", "RR"], ["--legs picks legs of a gait log"]),
+        (["--knee-angle", "nan"], ["--knee-angle", "finite"]),
+        (["--margin", "-5"], ["--margin: found -5"]),
+        (["--mesh-resolution", "0.1"], ["expected 0.5 to 10 deg"]),
+        (["--grf", "3 kN"], ["change by 6.1 mm, more than --length-tolerance 5.0 mm"]),
     ],
 )
 def test_foot_bad_input_is_one_line(tmp_path, args, fragments):
     proc = run_cli("foot", "--optimise", *args, cwd=tmp_path)
     assert_one_line_error(proc, *fragments)
     assert list(tmp_path.iterdir()) == []  # nothing half-written
+
+
+def test_light_load_succeeds_quietly():
+    proc = run_cli("foot", "--optimise", "--material", "steel_17_4ph_h900", "--grf", "100 N", "--json")
+    assert proc.returncode == 0 and proc.stderr == ""  # no solver chatter on stderr
+    data = json.loads(proc.stdout)
+    assert data["constraints"]["leg_length_stance"]["satisfied"]
+    assert data["angles"]["source"].endswith("hound_running.csv")
 
 
 def test_foot_out_must_be_a_folder(tmp_path):

@@ -59,3 +59,19 @@ def test_gait_log_errors():
     cols["RR_contact"] = np.zeros_like(cols["time"])
     with pytest.raises(DynoDataError, match="no complete stance"):
         contact_angles(cols, ["RR"])
+
+
+def test_gait_logs_that_would_give_a_wrong_foot_are_refused():
+    cols = gait()
+    cols["pitch"] = cols["pitch"].astype(object)
+    cols["pitch"][7] = "abc"
+    with pytest.raises(DynoDataError, match="column 'pitch' data row 8 is 'abc', expected a number"):
+        contact_angles(cols, ["RR"])
+    with pytest.raises(SpecError, match="--margin: found -5"):
+        contact_angles(gait(), ["RR"], margin_deg=-5)
+    flipped = {k: (-v if k != "RR_contact" and k != "time" else v) for k, v in gait().items()}
+    with pytest.raises(DynoDataError, match="falls through stance.*negate pitch, HFE and KFE"):
+        contact_angles(flipped, ["RR"])
+    degrees = {k: (np.degrees(v) if k not in ("RR_contact", "time") else v) for k, v in gait().items()}
+    with pytest.raises(SpecError, match="looks like degrees"):
+        contact_angles(degrees, ["RR"])

@@ -2,6 +2,7 @@
 
 import json
 import math
+from pathlib import Path
 
 import numpy as np
 import pytest
@@ -123,6 +124,13 @@ BODY = """<inertial><mass value="0.1"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="
             "has no <inertial>",
         ),
         ("0 0 -0.2 1", BODY, "foot", "expected 3 finite numbers"),
+        ("0 0 -0.2", BODY.replace('value="0.1"', 'value="-0.1"'), "foot", "expected a positive mass"),
+        (
+            "0 0 -0.2",
+            BODY.replace('<geometry><sphere radius="0.02"/>', '<geometry><cylinder radius="0.03" length="0.1"/>'),
+            "foot",
+            "the foot cylinder's axis is \\[0.0, 0.0, 1.0\\], expected the lateral axis y",
+        ),
     ],
 )
 def test_urdf_layouts_hound_id_cannot_use_are_named(tmp_path, xyz, body, foot_link, message):
@@ -130,6 +138,39 @@ def test_urdf_layouts_hound_id_cannot_use_are_named(tmp_path, xyz, body, foot_li
     path.write_text(BAD_MOUNT.format(xyz=xyz, body=body))
     with pytest.raises(SpecError, match=message):
         read_foot(path, foot_link)
+
+
+def test_knee_about_another_axis_is_refused(tmp_path):
+    path = tmp_path / "leg.urdf"
+    path.write_text(
+        BAD_MOUNT.format(xyz="0 0 -0.2", body=BODY).replace(
+            '<origin xyz="0 0 -0.2"/>\n    <axis xyz="0 1 0"/>', '<origin xyz="0 0 -0.2"/>\n    <axis xyz="1 0 0"/>'
+        )
+    )
+    with pytest.raises(SpecError, match="joint 'KFE' turns about \\[1.0, 0.0, 0.0\\], expected the pitch axis y"):
+        read_foot(path)
+
+
+def test_other_links_relative_meshes_still_load_from_the_output_folder(tmp_path):
+    """The patched URDF lives elsewhere; a thigh mesh given relative to the leg must still be found."""
+    import pinocchio as pin
+    import trimesh
+
+    leg_dir = tmp_path / "leg"
+    (leg_dir / "meshes").mkdir(parents=True)
+    trimesh.creation.box((0.04, 0.04, 0.27)).export(leg_dir / "meshes" / "thigh.stl")
+    text = LEG.read_text().replace(
+        '<link name="thigh">',
+        '<link name="thigh">\n    <visual><geometry><mesh filename="meshes/thigh.stl"/></geometry></visual>',
+    )
+    (leg_dir / "leg.urdf").write_text(text)
+    angles = gait_angles(GAIT)
+    report = design_foot(leg_dir / "leg.urdf", angles, requirements(angles))
+    files = write_foot(report, tmp_path / "out")
+    model = pin.buildModelFromUrdf(files["urdf"])
+    visual = pin.buildGeomFromUrdf(model, files["urdf"], pin.GeometryType.VISUAL, package_dirs=[str(tmp_path / "out")])
+    assert sorted(Path(g.meshPath).name for g in visual.geometryObjects) == ["foot.stl", "thigh.stl"]
+    assert 'filename="../leg/meshes/thigh.stl"' in Path(files["urdf"]).read_text()
 
 
 def test_a_sphere_foot_is_read(tmp_path):

@@ -56,3 +56,15 @@ def test_material_errors(write_yaml):
         load_material(str(write_yaml("c.yaml", "densty: 2700\n")))
     with pytest.raises(SpecError, match="--ground: unknown material 'sand'"):
         load_material("sand", GROUNDS, "--ground")
+
+
+def test_values_in_the_wrong_unit_are_caught(write_yaml):
+    base = "density: 2700\npoisson: 0.3\nyield_strength: 276 MPa\n"
+    with pytest.raises(SpecError, match="field 'min_wall' is 0.8 m, expected 0 to 0.02 m; write the unit"):
+        load_material(str(write_yaml("a.yaml", base + "youngs_modulus: 69 GPa\nmin_wall: 0.8\n")))
+    with pytest.raises(SpecError, match="youngs_modulus .* is not above yield_strength"):
+        load_material(str(write_yaml("b.yaml", base + "youngs_modulus: 110 MPa\nmin_wall: 1 mm\n")))
+    with pytest.raises(SpecError, match="field 'poisson' is 0.7"):
+        load_material(
+            str(write_yaml("c.yaml", base.replace("0.3", "0.7") + "youngs_modulus: 69 GPa\nmin_wall: 1 mm\n"))
+        )
