@@ -57,7 +57,19 @@ def _floats(text: str | None, n: int, where: str, default: str) -> NDArray[np.fl
     return values
 
 
-def _parse(path: Path) -> ET.Element:
+def rebase_meshes(root: ET.Element, source: Path, out_dir: Path | None) -> None:
+    """Rewrite relative mesh paths of a URDF read from ``source`` so that they resolve from
+    ``out_dir`` (absolute paths when None); ``package://`` and absolute paths are kept."""
+    source_dir = source.resolve().parent
+    for mesh in root.iter("mesh"):
+        name = mesh.get("filename", "")
+        if name and "://" not in name and not Path(name).is_absolute():
+            target = source_dir / name
+            mesh.set("filename", os.path.relpath(target, out_dir.resolve()) if out_dir is not None else str(target))
+
+
+def parse_urdf(path: Path) -> ET.Element:
+    """The <robot> element of a URDF file, comments kept (SpecError if missing or not a URDF)."""
     if not path.is_file():
         raise SpecError(f"{path}: file not found; expected a leg URDF", path=str(path))
     try:
@@ -106,7 +118,7 @@ _INERTIA = ("ixx", "ixy", "ixz", "iyy", "iyz", "izz")
 def read_foot(path: str | Path, foot_link: str = "foot") -> FootMount:
     """The original foot of a leg URDF (see the module docstring for the expected layout)."""
     p = Path(path)
-    root = _parse(p)
+    root = parse_urdf(p)
     links = {link.get("name"): link for link in root.iter("link")}
     if foot_link not in links:
         raise SpecError(f"{p}: no link named '{foot_link}'; links are {', '.join(map(str, links))} (use --foot-link)")
@@ -210,14 +222,24 @@ def patched_urdf(
     paths of the other links are rewritten relative to ``out_dir``, where the new URDF will be
     written (absolute when None); ``package://`` and absolute paths are kept.
     """
-    root = _parse(Path(mount.path))
-    source_dir = Path(mount.path).resolve().parent
-    for mesh in root.iter("mesh"):
-        name = mesh.get("filename", "")
-        if name and "://" not in name and not Path(name).is_absolute():
-            target = source_dir / name
-            mesh.set("filename", os.path.relpath(target, out_dir.resolve()) if out_dir is not None else str(target))
+    root = parse_urdf(Path(mount.path))
+    rebase_meshes(root, Path(mount.path), out_dir)
     link = next(link for link in root.iter("link") if link.get("name") == mount.foot_link)
+    replace_foot(link, props, mesh_filename, sphere_radius, sphere_centre_z, comment)
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def replace_foot(
+    link: ET.Element,
+    props: MassProperties,
+    mesh_filename: str | None,
+    sphere_radius: float,
+    sphere_centre_z: float,
+    comment: str,
+) -> None:
+    """Give a foot link (in place) the new inertial, a mesh visual (if a file is named) and the
+    contact sphere as its collision."""
     for child in list(link):
         if child.tag in ("inertial", "visual", "collision"):
             link.remove(child)
@@ -236,11 +258,10 @@ def patched_urdf(
         iyz=_fmt(i[1, 2]),
         izz=_fmt(i[2, 2]),
     )
-    visual = ET.SubElement(link, "visual")
-    ET.SubElement(visual, "origin", xyz="0 0 0", rpy="0 0 0")
-    ET.SubElement(ET.SubElement(visual, "geometry"), "mesh", filename=mesh_filename)
+    if mesh_filename is not None:
+        visual = ET.SubElement(link, "visual")
+        ET.SubElement(visual, "origin", xyz="0 0 0", rpy="0 0 0")
+        ET.SubElement(ET.SubElement(visual, "geometry"), "mesh", filename=mesh_filename)
     collision = ET.SubElement(link, "collision")
     ET.SubElement(collision, "origin", xyz=f"0 0 {_fmt(sphere_centre_z)}", rpy="0 0 0")
     ET.SubElement(ET.SubElement(collision, "geometry"), "sphere", radius=_fmt(sphere_radius))
-    ET.indent(root, space="  ")
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"

@@ -24,7 +24,9 @@ A robot YAML (schema ``hound-id/robot/1``)::
         motor_spec: ilm85
         matrix: [[0.1, 0.0], [0.05, 0.1]]
 
-Every joint belongs to exactly one transmission; motor names are unique.
+Every joint belongs to exactly one transmission; motor names are unique. An optional
+``urdf: hound_like.urdf`` (relative to this file) names the robot's URDF, whose joints carry
+the same names; the MuJoCo and URDF exports need it.
 """
 
 from __future__ import annotations
@@ -45,7 +47,7 @@ from hound_id.mor.transmission import Transmission, from_matrix, from_ratios, ho
 from hound_id.units import as_number
 
 SCHEMA = "hound-id/robot/1"
-_TOP_KEYS = ("schema", "name", "source", "notes", "motor_specs", "joints", "transmissions")
+_TOP_KEYS = ("schema", "name", "source", "notes", "motor_specs", "joints", "transmissions", "urdf")
 _TX_KEYS = {
     "ratio": ("ratios",),
     "hollow_shaft": ("hip_ratio", "knee_ratio"),
@@ -68,6 +70,8 @@ class Robot:
     """Spec of each motor, by motor name."""
     source: str | None = None
     """Where the numbers came from."""
+    urdf: str | None = None
+    """The robot's URDF (absolute path), for the exports that need its bodies; None if not given."""
 
     @property
     def motors(self) -> tuple[str, ...]:
@@ -174,12 +178,20 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
     if not isinstance(name, str) or not name:
         raise _err(source, "field 'name'", f"found {name!r}, expected text")
     src = data.get("source")
+    urdf = data.get("urdf")
+    if urdf is not None:
+        if not isinstance(urdf, str) or not urdf:
+            raise _err(source, "field 'urdf'", f"found {urdf!r}, expected the path of the robot's URDF")
+        if not (base / urdf).is_file():
+            raise _err(source, "field 'urdf'", f"{base / urdf} not found; the path is relative to the robot file")
+        urdf = str((base / urdf).resolve())
     return Robot(
         name=name,
         joints=tuple(joints),
         transmissions=tuple(transmissions),
         motor_specs=motor_specs,
         source=src if isinstance(src, str) else None,
+        urdf=urdf,
     )
 
 

@@ -1,0 +1,229 @@
+"""Export formats: the bundle, Isaac Lab actuator fields, a URDF with limits, a MuJoCo model.
+
+Every writer takes an :class:`Export` (the robot with its fits, its bundle and its URDF) and a
+folder, writes its files atomically and returns what it wrote with a short report. They are
+registered in :data:`FORMATS` (sorted by name); ``hound-id export --format NAME`` runs one.
+
+Joint-side numbers of an uncoupled joint with gear ratio G (motor turns per joint turn):
+torque G tau_m, speed omega_m / G, rotor inertia J G^2, Coulomb friction G f_c, viscous G^2 b.
+For coupled joints the URDF gets the diagonal of A^-T diag(b) A^-1 for damping and the
+worst case sum_m |(A^-T)_jm| f_c,m for friction; the exact coupled model is in the bundle, the
+runtime and the MuJoCo tendons.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hound_id import io
+from hound_id.errors import SpecError
+from hound_id.mor.robot import Robot
+
+ISAACLAB_SCHEMA = "hound-id/isaaclab/1"
+
+
+@dataclass(frozen=True)
+class Export:
+    """What every format is written from."""
+
+    robot: Robot
+    """The robot, with fitted motor specs in place."""
+    bundle: dict[str, Any]
+    """Its ``hound-id/bundle/1`` content."""
+    mujoco_actuator: str = "dcmotor"
+    """``dcmotor`` (the region in MuJoCo) or ``motor`` (plain torque, saturate with the runtime)."""
+
+    @property
+    def A(self) -> np.ndarray:
+        return np.asarray(self.bundle["saturation"]["A"], dtype=float)
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-side (Coulomb [N m], viscous [N m s/rad]) per joint (module docstring)."""
+        A_inv = np.linalg.inv(self.A)
+        fc = np.array([m["friction"]["coulomb"] for m in self.bundle["motors"]])
+        b = np.array([m["friction"]["viscous"] for m in self.bundle["motors"]])
+        coulomb = np.abs(A_inv.T) @ fc
+        viscous = np.diag(A_inv.T @ np.diag(b) @ A_inv)
+        return coulomb, viscous
+
+    def urdf(self) -> Path:
+        if self.robot.urdf is None:
+            raise SpecError(
+                f"robot {self.robot.name}: this format needs the robot's URDF; add 'urdf: my_robot.urdf' to the "
+                "robot file (relative to it), or pass --urdf"
+            )
+        return Path(self.robot.urdf)
+
+
+@dataclass(frozen=True)
+class Written:
+    """Files a writer produced, and what the user should know."""
+
+    files: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+
+
+def _stem(ex: Export) -> str:
+    return ex.robot.name
+
+
+def write_bundle(ex: Export, out: Path) -> Written:
+    """``<robot>_bundle.yaml`` and the same content as ``<robot>_bundle.json``."""
+    import yaml
+
+    y, j = out / f"{_stem(ex)}_bundle.yaml", out / f"{_stem(ex)}_bundle.json"
+    io.write_text(y, yaml.safe_dump(ex.bundle, sort_keys=False))
+    io.write_json(j, ex.bundle)
+    return Written((str(y), str(j)), ("load it in a trainer with hound_id.runtime.load",))
+
+
+def isaaclab_fields(ex: Export) -> dict[str, Any]:
+    """Isaac Lab ``DCMotorCfg``-style fields per uncoupled joint; coupled joints point to the runtime."""
+    b = ex.bundle
+    coulomb, viscous = ex.joint_friction()
+    joints: dict[str, Any] = {}
+    index = {j: i for i, j in enumerate(b["joints"])}
+    for tx in b["transmissions"]:
+        A = np.asarray(tx["A"], dtype=float)
+        coupled = bool(np.any(A[~np.eye(len(A), dtype=bool)] != 0))
+        for k, joint in enumerate(tx["joints"]):
+            i = index[joint]
+            m = b["motors"][i]
+            if coupled:
+                joints[joint] = {
+                    "coupled": True,
+                    "use": "hound_id.runtime",
+                    "reason": (
+                        f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
+                        "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
+                        "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle).saturate(tau, qd) "
+                        "to the group (see the README)."
+                    ),
+                    "inner_box": b["joint_boxes"][joint]["inner"],
+                }
+                continue
+            gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
+            joints[joint] = {
+                "coupled": False,
+                "saturation_effort": m["stall_torque"] * gear,
+                "effort_limit": m["torque_limit"] * gear,
+                "velocity_limit": m["no_load_speed"] / gear,
+                "armature": (m["rotor_inertia"] or 0.0) * gear**2,
+                "friction": float(coulomb[i]),
+                "damping_from_friction": float(viscous[i]),
+                "gear_ratio": gear,
+            }
+    return {
+        "schema": ISAACLAB_SCHEMA,
+        "robot": b["robot"],
+        "units": "SI, joint side: N m, rad/s, kg m^2",
+        "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint)",
+        "joints": joints,
+        "notes": [
+            "saturation_effort = stall torque Kt V/R x G, velocity_limit = no-load speed / G, effort_limit = "
+            "min(peak torque, Kt i_max) x G: Isaac Lab's DCMotor clip with these equals hound-id's MOR clip "
+            "(tested), past the no-load speed included",
+            "damping_from_friction is the fitted viscous friction; Isaac Lab's actuator 'damping' is a PD gain, "
+            "so add it as joint damping, not as the actuator's",
+        ],
+    }
+
+
+def write_isaaclab(ex: Export, out: Path) -> Written:
+    """``<robot>_isaaclab.yaml``: :func:`isaaclab_fields`."""
+    import yaml
+
+    data = isaaclab_fields(ex)
+    path = out / f"{_stem(ex)}_isaaclab.yaml"
+    io.write_text(path, yaml.safe_dump(data, sort_keys=False))
+    coupled = [j for j, v in data["joints"].items() if v["coupled"]]
+    notes = (f"{len(coupled)} coupled joints point to hound_id.runtime",) if coupled else ()
+    return Written((str(path),), notes)
+
+
+def _fmt(v: float) -> str:
+    return f"{v:.9g}"
+
+
+def limited_urdf(ex: Export, out_dir: Path | None) -> str:
+    """The robot's URDF with inner-box limits, fitted friction and the optimised foot (XML text)."""
+    from hound_id.foot.urdf import parse_urdf, rebase_meshes
+
+    path = ex.urdf()
+    root = parse_urdf(path)
+    rebase_meshes(root, path, out_dir)
+    joints = {j.get("name"): j for j in root.iter("joint")}
+    missing = [j for j in ex.bundle["joints"] if j not in joints]
+    if missing:
+        raise SpecError(f"{path}: joints {', '.join(missing)} of robot {ex.robot.name} are not in the URDF")
+    coulomb, viscous = ex.joint_friction()
+    for i, name in enumerate(ex.bundle["joints"]):
+        joint = joints[name]
+        box = ex.bundle["joint_boxes"][name]["inner"]
+        limit = joint.find("limit")
+        if limit is None:
+            limit = ET.SubElement(joint, "limit", lower="-3.14159265", upper="3.14159265")
+        limit.set("effort", _fmt(box["effort"]))
+        limit.set("velocity", _fmt(box["velocity"]))
+        dynamics = joint.find("dynamics")
+        if dynamics is None:
+            dynamics = ET.SubElement(joint, "dynamics")
+        dynamics.set("damping", _fmt(float(viscous[i])))
+        dynamics.set("friction", _fmt(float(coulomb[i])))
+    foot = ex.bundle.get("foot")
+    if foot:
+        _put_feet(root, foot, path)
+    root.insert(0, ET.Comment(f" limits from hound-id ({ex.bundle['schema']}): inner boxes of the operating regions "))
+    ET.indent(root, space="  ")
+    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def _put_feet(root: ET.Element, foot: dict[str, Any], path: Path) -> None:
+    from hound_id.arrays import frozen
+    from hound_id.foot.geometry import MassProperties
+    from hound_id.foot.urdf import replace_foot
+
+    props = MassProperties(
+        mass=float(foot["mass"]), com=frozen(np.asarray(foot["com"])), inertia=frozen(np.asarray(foot["inertia"]))
+    )
+    feet = [link for link in root.iter("link") if str(link.get("name", "")).endswith("foot")]
+    if not feet:
+        raise SpecError(f"{path}: no link whose name ends in 'foot' to put the optimised foot on")
+    for link in feet:
+        replace_foot(
+            link,
+            props,
+            None,
+            float(foot["sphere_radius"]),
+            float(foot["sphere_centre_z"]),
+            f"optimised foot from {foot.get('source', 'hound-id foot')}",
+        )
+
+
+def write_urdf(ex: Export, out: Path) -> Written:
+    """``<robot>_limits.urdf``: :func:`limited_urdf`."""
+    path = out / f"{_stem(ex)}_limits.urdf"
+    io.write_text(path, limited_urdf(ex, out))
+    notes = ["effort/velocity limits are the inner boxes (always feasible); coupled joints get the group's box"]
+    return Written((str(path),), tuple(notes))
+
+
+def _write_mujoco(ex: Export, out: Path) -> Written:
+    from hound_id.export.mujoco import write_mujoco  # imports mujoco when used
+
+    return write_mujoco(ex, out)
+
+
+#: Every format, by name (sorted).
+FORMATS: dict[str, Callable[[Export, Path], Written]] = {
+    "bundle": write_bundle,
+    "isaaclab": write_isaaclab,
+    "mujoco": _write_mujoco,
+    "urdf": write_urdf,
+}

@@ -1,0 +1,152 @@
+"""MuJoCo export: every motor a ``<dcmotor>`` on a fixed tendon that encodes the transmission.
+
+For motor k the fixed tendon's length is the motor angle, theta_k = sum_j (A^-1)_kj q_j, so its
+velocity is the motor speed and a tendon force f (the motor torque) reaches the joints as
+A^-T f: the coupled hip/knee is exact, and power balances. On the tendon:
+
+* ``armature`` = the rotor inertia (MuJoCo adds A^-T diag(J) A^-1 to the joint-space mass
+  matrix, the reflected inertia);
+* ``frictionloss`` = the fitted Coulomb friction, ``damping`` = the fitted viscous friction
+  (motor side).
+
+The actuator is MuJoCo's ``dcmotor`` with a torque feed-forward input (``input="ff"``): its
+on-board controller drives the voltage v = (R/K) tau + K omega, clamped to V_bus
+(``controller`` Vmax), and the torque is clamped to the torque limit (``saturation``). That is
+the operating region's clip at the current speed. MuJoCo has one motor constant K for torque
+and back-EMF, so hound-id sets K = Ke = 1/Kv and scales the resistance to R Ke/Kt: then
+stall torque Kt V/R and no-load speed V Kv are the spec's, and the voltage lines are exact.
+
+Differences from the paper's clip are listed in :data:`DIFFERENCES`; the tests measure them.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hound_id import io
+from hound_id.errors import SpecError
+from hound_id.export.formats import Export, Written
+
+#: Where the exported dcmotor differs from hound-id's clip, and by how much.
+DIFFERENCES = (
+    "motor constant: MuJoCo uses one K for torque and back-EMF; hound-id sets K = 1/Kv and R' = R Ke/Kt so "
+    "the voltage lines and the torque limit are exact; MuJoCo's internal current is then tau/Ke, which differs "
+    "from the real current tau/Kt by the factor Kt Kv (0.867 for the sample motor): read currents from "
+    "hound_id.runtime.current, not from MuJoCo",
+    "rated speed: dcmotor has no max_speed cut-off; a motor with max_speed in its spec is clipped by hound-id "
+    "to braking torque only above it, by MuJoCo not at all (use --mujoco-actuator motor with the runtime)",
+    "state: the export adds no inductance, thermal or LuGre state, so the dcmotor is algebraic like the "
+    "paper's clip; the clip uses the velocity at the start of each step, as the paper's does",
+    "friction: MuJoCo's frictionloss is a constraint (exact dry friction, sticks at rest), the fit's Coulomb "
+    "term is smooth (tanh(omega / 0.01 rad/s)); damping is the same linear term",
+)
+
+
+def _foot_urdf(ex: Export) -> str:
+    """The robot's URDF for MuJoCo: optimised feet, no visuals, no joint dynamics (friction lives on the tendons)."""
+    import xml.etree.ElementTree as ET
+
+    from hound_id.export.formats import _put_feet
+    from hound_id.foot.urdf import parse_urdf, rebase_meshes
+
+    path = ex.urdf()
+    root = parse_urdf(path)
+    rebase_meshes(root, path, None)
+    if ex.bundle.get("foot"):
+        _put_feet(root, ex.bundle["foot"], path)
+    for link in root.iter("link"):
+        for visual in link.findall("visual"):
+            link.remove(visual)
+    for joint in root.iter("joint"):
+        for dyn in joint.findall("dynamics"):
+            joint.remove(dyn)
+    return ET.tostring(root, encoding="unicode")
+
+
+def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
+    """The MjSpec of the robot with tendons and actuators (see the module docstring)."""
+    import mujoco
+
+    if actuator not in ("dcmotor", "motor"):
+        raise SpecError(f"--mujoco-actuator: found {actuator!r}, expected dcmotor or motor")
+    try:
+        spec = mujoco.MjSpec.from_string(_foot_urdf(ex))
+    except ValueError as err:
+        raise SpecError(f"{ex.urdf()}: MuJoCo cannot read the URDF ({err})") from err
+    spec.modelname = ex.robot.name
+    joints = {j.name for j in spec.joints}
+    missing = [j for j in ex.bundle["joints"] if j not in joints]
+    if missing:
+        raise SpecError(f"{ex.urdf()}: joints {', '.join(missing)} of robot {ex.robot.name} are not in the URDF")
+    for joint in spec.joints:  # the URDF's effort limits would clamp the tendon actuators at the joints
+        joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
+    base = spec.worldbody.first_body()
+    base.add_freejoint(name="floating_base")
+    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
+    A_inv = np.linalg.inv(np.asarray(ex.bundle["saturation"]["A"], dtype=float))
+    for k, m in enumerate(ex.bundle["motors"]):
+        tendon = spec.add_tendon(name=f"{m['name']}_tendon")
+        for j, joint in enumerate(ex.bundle["joints"]):
+            if A_inv[k, j] != 0.0:
+                tendon.wrap_joint(joint, float(A_inv[k, j]))
+        tendon.armature = float(m["rotor_inertia"] or 0.0)
+        tendon.frictionloss = float(m["friction"]["coulomb"])
+        tendon.damping = [float(m["friction"]["viscous"]), 0.0, 0.0]  # linear: f = -a v
+        act = spec.add_actuator(name=m["name"], target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
+        if actuator == "dcmotor":
+            ke = 1.0 / float(m["kv"])
+            act.set_to_dcmotor(
+                motorconst=[ke, ke],
+                resistance=float(m["resistance"]) * ke / float(m["kt"]),
+                saturation=[float(m["torque_limit"]), 0.0, 0.0],
+                controller=[0.0, 0.0, 0.0, 0.0, 0.0, float(m["bus_voltage"])],
+                ctrlspec=int(mujoco.mjtCtrlInput.mjINPUT_FF),
+            )
+        else:
+            act.set_to_motor()
+            act.forcelimited = True
+            act.forcerange = [-float(m["torque_limit"]), float(m["torque_limit"])]
+    _stand_key(spec)
+    return spec
+
+
+def _stand_key(spec: Any) -> None:
+    """A keyframe ``stand``: joints at 0 clamped to their ranges, the base just above the floor."""
+    import mujoco
+
+    model = spec.compile()
+    data = mujoco.MjData(model)
+    qpos = model.qpos0.copy()
+    qpos[2] = 1.0
+    for j in range(model.njnt):
+        if model.jnt_type[j] == mujoco.mjtJoint.mjJNT_HINGE and model.jnt_limited[j]:
+            lo, hi = model.jnt_range[j]
+            qpos[model.jnt_qposadr[j]] = min(max(0.0, lo), hi)
+    data.qpos[:] = qpos
+    mujoco.mj_kinematics(model, data)
+    floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
+    lowest = min(data.geom_xpos[g, 2] - model.geom_rbound[g] for g in range(model.ngeom) if g != floor)
+    qpos[2] = 1.0 - lowest + 0.005
+    spec.add_key(name="stand", qpos=qpos.tolist())
+
+
+def write_mujoco(ex: Export, out: Path) -> Written:
+    """``<robot>.xml``: the MJCF, compiled once here and again from the written text."""
+    import mujoco
+
+    spec = mujoco_spec(ex, ex.mujoco_actuator)
+    spec.compile()
+    xml = spec.to_xml()
+    mujoco.MjModel.from_xml_string(xml)  # what is written loads
+    path = out / f"{ex.robot.name}.xml"
+    io.write_text(path, xml)
+    if ex.mujoco_actuator == "motor":
+        notes = (
+            "plain <motor> actuators on the tendons, force-limited to the torque limit only: call "
+            "hound_id.runtime.load(bundle).saturate(tau, qd) every step and send sat.motor_torque(tau) as ctrl",
+        )
+        return Written((str(path),), notes)
+    return Written((str(path),), DIFFERENCES)

@@ -1,0 +1,181 @@
+"""What a trainer imports: the motor-space saturation, fitted friction and current compensation
+of a hound-id bundle, for numpy arrays or torch tensors on any device.
+
+    import hound_id.runtime
+    sat = hound_id.runtime.load("bundle.yaml")        # written by hound-id export --format bundle
+    tau = sat.saturate(tau_cmd, qd)                    # (..., n_joints) joint torques [N m]
+    tau = tau + sat.friction_torque(qd)                # optional: the fitted motor friction, joint side
+    i_cmd = sat.current(sat.motor_torque(tau))         # on the robot: motor currents [A] to command
+
+Arrays are shaped (..., n_joints) in the bundle's joint order; torch stays torch (same dtype and
+device, autograd intact). Only numpy (and torch, when given tensors) are imported; the clip is
+:class:`hound_id.mor.saturation.Saturation`, the same code ``hound-id saturate`` runs.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.arrays import frozen
+from hound_id.mor.saturation import Saturation
+
+#: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
+EPS_SPEED = 0.01
+
+
+def _is_torch(x: Any) -> bool:
+    return type(x).__module__.startswith("torch")
+
+
+@dataclass(frozen=True)
+class Runtime:
+    """The trainer-side view of a bundle (see the module docstring). Build it with :func:`load`."""
+
+    joints: tuple[str, ...]
+    """Joint order of the last axis of every array."""
+    motors: tuple[str, ...]
+    """Motor order: motor i is the one listed with joint i."""
+    clip: Saturation
+    """The coupled motor-space clip."""
+    coulomb: NDArray[np.float64]
+    """Per motor Coulomb friction [N m] (0 where not fitted)."""
+    viscous: NDArray[np.float64]
+    """Per motor viscous friction [N m s/rad]."""
+    stribeck: NDArray[np.float64]
+    """Per motor extra static friction at rest [N m]."""
+    stribeck_speed: NDArray[np.float64]
+    """Per motor speed over which the static friction fades [rad/s] (1 where not fitted)."""
+    kt: NDArray[np.float64]
+    """Per motor torque constant [N m/A] (the fitted one where a fit was given)."""
+    compensation: tuple[tuple[tuple[int, ...], tuple[float, ...]] | None, ...]
+    """Per motor (powers, coefficients) of current [A] = sum c_k tau^k, or None (then tau / Kt)."""
+    _consts: dict[Any, tuple[Any, ...]] = field(default_factory=dict, compare=False, repr=False)
+
+    @property
+    def n(self) -> int:
+        return len(self.joints)
+
+    def _constants(self, like: Any) -> tuple[Any, ...]:
+        """(A^-1, A, friction arrays) in the array type, dtype and device of ``like``, cached."""
+        key = (type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
+        if key not in self._consts:
+            values = (
+                self.clip.A_inv,
+                self.clip.A,
+                self.coulomb,
+                self.viscous,
+                self.stribeck,
+                self.stribeck_speed,
+            )
+            if _is_torch(like):
+                import torch
+
+                kw = {"dtype": like.dtype, "device": like.device}
+                self._consts[key] = tuple(torch.tensor(np.array(v), **kw) for v in values)
+            else:
+                dtype = like.dtype if isinstance(like, np.ndarray) and like.dtype.kind == "f" else np.float64
+                self._consts[key] = tuple(np.asarray(v, dtype=dtype) for v in values)
+        return self._consts[key]
+
+    def saturate(self, tau_cmd: Any, qd: Any) -> Any:
+        """Joint torques [N m] after each motor's operating region, for (..., n_joints) commands and speeds."""
+        return self.clip(tau_cmd, qd)
+
+    __call__ = saturate
+
+    def motor_velocity(self, qd: Any) -> Any:
+        """Motor speeds A^-1 qd [rad/s], (..., n_motors)."""
+        A_inv = self._constants(qd)[0]
+        return qd @ A_inv.T
+
+    def motor_torque(self, tau: Any) -> Any:
+        """Motor torques A^T tau [N m] (the power-consistent map), (..., n_motors)."""
+        A = self._constants(tau)[1]
+        return tau @ A
+
+    def friction_torque(self, qd: Any) -> Any:
+        """The fitted motor friction seen at the joints, A^-T f(omega_m) [N m]; opposes the motors' motion.
+
+        f(omega) = -(coulomb sgn(omega) + viscous omega + stribeck sgn(omega) exp(-(omega/stribeck_speed)^2)),
+        sgn(omega) = tanh(omega / 0.01 rad/s) as in the fit.
+        """
+        A_inv, _, coulomb, viscous, stribeck, w_s = self._constants(qd)
+        w = qd @ A_inv.T
+        if _is_torch(qd):
+            import torch
+
+            sgn, exp = torch.tanh(w / EPS_SPEED), torch.exp(-((w / w_s) ** 2))
+        else:
+            sgn, exp = np.tanh(w / EPS_SPEED), np.exp(-((w / w_s) ** 2))
+        f_motor = -(coulomb * sgn + viscous * w + stribeck * sgn * exp)
+        return f_motor @ A_inv  # tau_j = A^-T f, row-vector form f @ A^-1
+
+    def current(self, tau_motor: Any) -> Any:
+        """Motor currents [A] that make the motor torques, from each fitted current-torque curve.
+
+        Uses the compensation polynomial of ``hound-id fit-current`` (odd powers) where the bundle
+        has one, tau / Kt elsewhere. (..., n_motors) in, same shape out.
+        """
+        out: Any
+        if _is_torch(tau_motor):
+            import torch
+
+            out = torch.empty_like(tau_motor)
+        else:
+            out = np.empty_like(np.asarray(tau_motor, dtype=float))
+        for m, comp in enumerate(self.compensation):
+            t = tau_motor[..., m]
+            if comp is None:
+                out[..., m] = t / float(self.kt[m])
+            else:
+                powers, coefficients = comp
+                out[..., m] = sum(c * t**p for p, c in zip(powers, coefficients, strict=True))
+        return out
+
+
+def from_bundle(bundle: dict[str, Any]) -> Runtime:
+    """A runtime from a bundle dict (see :func:`load`)."""
+    s = bundle["saturation"]
+    A = np.asarray(s["A"], dtype=float)
+    max_speed = np.array([np.inf if v is None else float(v) for v in s["max_speed"]])
+    clip = Saturation(
+        joints=tuple(bundle["joints"]),
+        A=frozen(A),
+        A_inv=frozen(np.linalg.inv(A)),
+        stall_torque=frozen(np.asarray(s["stall_torque"], dtype=float)),
+        back_emf_damping=frozen(np.asarray(s["back_emf_damping"], dtype=float)),
+        torque_limit=frozen(np.asarray(s["torque_limit"], dtype=float)),
+        max_speed=frozen(max_speed),
+    )
+    motors = bundle["motors"]
+
+    def per_motor(key: str, default: float) -> NDArray[np.float64]:
+        return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))
+
+    comps = []
+    for m in motors:
+        c = m.get("compensation")
+        comps.append((tuple(int(p) for p in c["powers"]), tuple(float(v) for v in c["coefficients"])) if c else None)
+    return Runtime(
+        joints=tuple(bundle["joints"]),
+        motors=tuple(m["name"] for m in motors),
+        clip=clip,
+        coulomb=per_motor("coulomb", 0.0),
+        viscous=per_motor("viscous", 0.0),
+        stribeck=per_motor("stribeck", 0.0),
+        stribeck_speed=per_motor("stribeck_speed", 1.0),
+        kt=frozen(np.array([float(m["kt"]) for m in motors])),
+        compensation=tuple(comps),
+    )
+
+
+def load(path: str | Path) -> Runtime:
+    """The runtime of a bundle file (YAML or JSON) written by ``hound-id export --format bundle``."""
+    from hound_id.export.bundle import load_bundle
+
+    return from_bundle(load_bundle(path))
