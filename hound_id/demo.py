@@ -204,12 +204,38 @@ def step_foot(out: Path) -> StepResult:
     )
 
 
+def step_export(out: Path) -> StepResult:
+    """Export every format of the sample robot with the fitted motor and the new foot; run the MuJoCo model."""
+    from hound_id.export.mujoco import rollout_check
+    from hound_id.export.run import export_robot, formats_from, prepare
+
+    fit, foot = out / "hound_ilm85_fitted.yaml", out / "foot" / "foot.json"
+    ex = prepare(
+        samples_dir() / "robots" / "hound_like.yaml", [fit] if fit.is_file() else [], foot if foot.is_file() else None
+    )
+    report = export_robot(ex, formats_from("all"), out / "export")
+    stats = rollout_check(out / "export" / "hound_like.xml", out / "export" / "hound_like_bundle.yaml", seconds=1.0)
+    files = tuple(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
+    io.write_json(out / "export" / "export.json", report | {"mujoco_check": stats})
+    return StepResult(
+        "export to trainers",
+        f"{', '.join(report['formats'])} for {report['robot']} "
+        f"(fitted: {', '.join(report['fitted_motors']) or 'none'}, "
+        f"foot: {'optimised' if report['foot'] else 'original'}); MuJoCo ran {stats['steps']} steps with "
+        f"{stats['clipped_fraction']:.0%} of the commands past the region: realised motor torques within "
+        f"{stats['max_difference']:.1e} N m of hound_id.runtime, {stats['max_outside']:.1e} N m outside the region",
+        (*files, "export/export.json"),
+        {k: float(v) for k, v in stats.items()},
+    )
+
+
 STEPS: tuple[Callable[[Path], StepResult], ...] = (
     step_motor_regions,
     step_robot_regions,
     step_saturate_log,
     step_fit_current,
     step_foot,
+    step_export,
 )
 
 

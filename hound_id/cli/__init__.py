@@ -14,6 +14,7 @@ from hound_id import __version__
 from hound_id.cli import demo as _demo
 from hound_id.cli import dyno as _dyno
 from hound_id.cli import dyno_rig as _dyno_rig
+from hound_id.cli import export as _export
 from hound_id.cli import foot as _foot
 from hound_id.cli import mor as _mor
 from hound_id.errors import HoundIdError
@@ -32,6 +33,7 @@ app.command("fit-current", no_args_is_help=True)(_dyno.fit_current)
 app.command("effects")(_dyno.effects)
 app.add_typer(_dyno_rig.app, name="dyno")
 app.command("foot")(_foot.foot)
+app.command("export", no_args_is_help=True)(_export.export)
 app.command("demo")(_demo.demo)
 
 

@@ -150,3 +150,42 @@ def write_mujoco(ex: Export, out: Path) -> Written:
         )
         return Written((str(path),), notes)
     return Written((str(path),), DIFFERENCES)
+
+
+def rollout_check(xml: Path, bundle: Path, seconds: float = 1.0) -> dict[str, float]:
+    """Drive the exported model with PD commands far past the region and compare each step's realised
+    motor torques with :mod:`hound_id.runtime`'s saturation (the demo's check; the tests have their own).
+
+    Returns the steps, the fraction whose commands were clipped, the largest difference between MuJoCo
+    and the runtime [N m], and the largest excursion outside the region [N m] (0 when inside).
+    """
+    import mujoco
+
+    import hound_id.runtime
+
+    model = mujoco.MjModel.from_xml_path(str(xml))
+    data = mujoco.MjData(model)
+    sat = hound_id.runtime.load(bundle)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in sat.joints]
+    actuators = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, m) for m in sat.motors]
+    qadr, vadr = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
+    q0 = data.qpos[qadr].copy()
+    steps = int(round(seconds / model.opt.timestep))
+    clipped, worst, outside = 0, 0.0, 0.0
+    for step in range(steps):
+        q, qd = data.qpos[qadr].copy(), data.qvel[vadr].copy()
+        target = q0 + 0.6 * np.sin(2 * np.pi * 3 * step * model.opt.timestep)
+        tau_cmd = 2000.0 * (target - q) - 5.0 * qd
+        data.ctrl[actuators] = sat.motor_torque(tau_cmd)
+        mujoco.mj_forward(model, data)
+        realised = data.actuator_force[actuators]
+        expected = sat.motor_torque(sat.saturate(tau_cmd, qd))
+        lo, hi = sat.clip.torque_bounds(qd)
+        clipped += bool(np.any(np.abs(expected - sat.motor_torque(tau_cmd)) > 1e-9))
+        worst = max(worst, float(np.max(np.abs(realised - expected))))
+        outside = max(outside, float(np.max(realised - hi)), float(np.max(lo - realised)), 0.0)
+        mujoco.mj_step(model, data)
+    if not np.all(np.isfinite(data.qpos)):
+        raise SpecError(f"{xml}: the simulation diverged (NaN in qpos)")
+    return {"steps": steps, "clipped_fraction": clipped / steps, "max_difference": worst, "max_outside": outside}

@@ -16,6 +16,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
         "saturate a command log",
         "fit a dyno log",
         "optimise the foot",
+        "export to trainers",
     ]
     for step in data["steps"]:
         for name in step["files"]:
@@ -38,6 +39,10 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     foot = json.loads((tmp_path / "out" / "foot" / "foot.json").read_text())
     assert foot["schema"] == "hound-id/foot/1" and all(c["satisfied"] for c in foot["constraints"].values())
     assert data["steps"][4]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
+    export = json.loads((tmp_path / "out" / "export" / "export.json").read_text())
+    assert export["schema"] == "hound-id/export/1" and export["fitted_motors"] == ["hound_ilm85"] and export["foot"]
+    assert export["mujoco_check"]["max_outside"] == 0.0 and export["mujoco_check"]["max_difference"] < 1e-5
+    assert export["mujoco_check"]["clipped_fraction"] > 0.5
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["schema"] == "hound-id/demo/1"
 

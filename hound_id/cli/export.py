@@ -1,0 +1,42 @@
+"""``hound-id export``: the bundle, MuJoCo, URDF and Isaac Lab formats of a robot."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Optional
+
+import typer
+
+from hound_id.cli._render import console, print_json
+
+
+def export(
+    robot: Path = typer.Option(..., "--robot", help="Robot YAML (its 'urdf:' names the robot's URDF)."),
+    fmt: str = typer.Option("bundle", "--format", help="bundle, isaaclab, mujoco, urdf (comma-separated) or all."),
+    out: Path = typer.Option(..., "--out", help="Folder for the exported files (created if missing)."),
+    fit: Optional[list[Path]] = typer.Option(
+        None, "--fit", help="Fitted motor YAML from fit-current --out (repeatable)."
+    ),
+    foot: Optional[Path] = typer.Option(None, "--foot", help="foot.json from hound-id foot --optimise."),
+    urdf: Optional[Path] = typer.Option(None, "--urdf", help="The robot's URDF, instead of the robot file's 'urdf:'."),
+    mujoco_actuator: str = typer.Option(
+        "dcmotor", "--mujoco-actuator", help="dcmotor (the region in MuJoCo) or motor (saturate with the runtime)."
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/export/1)."),
+) -> None:
+    """Export what hound-id identified to the formats trainers read."""
+    from hound_id.export.run import export_robot, formats_from, prepare
+
+    names = formats_from(fmt)
+    ex = prepare(robot, fit or [], foot, urdf, mujoco_actuator)
+    report = export_robot(ex, names, out)
+    if json_out:
+        print_json(report)
+        return
+    console.print(f"[bold]hound-id export[/bold] {report['robot']}: {len(report['joints'])} joints", highlight=False)
+    if report["fitted_motors"]:
+        console.print(f"fitted motors: {', '.join(report['fitted_motors'])}", highlight=False)
+    for name, part in report["formats"].items():
+        console.print(f"[bold]{name}[/bold]: {', '.join(part['files'])}", highlight=False)
+        for note in part["notes"]:
+            console.print(f"  - {note}", highlight=False, soft_wrap=False)

@@ -1,0 +1,76 @@
+"""``hound-id export``: load the robot, apply the dyno fits and the foot, write the formats."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from dataclasses import replace
+from pathlib import Path
+from typing import Any
+
+from hound_id.errors import SpecError
+from hound_id.export.bundle import apply_fits, build_bundle, foot_from_json
+from hound_id.export.formats import FORMATS, Export
+
+SCHEMA = "hound-id/export/1"
+
+
+def formats_from(text: str) -> list[str]:
+    """``bundle,mujoco`` or ``all`` -> format names, checked against :data:`FORMATS`."""
+    names = list(FORMATS) if text.strip() == "all" else [t.strip() for t in text.split(",") if t.strip()]
+    unknown = [n for n in names if n not in FORMATS]
+    if unknown or not names:
+        raise SpecError(
+            f"--format: found {text!r}, expected one or more of {', '.join(FORMATS)} (comma-separated) or all"
+        )
+    return names
+
+
+def prepare(
+    robot_path: Path,
+    fits: Sequence[Path] = (),
+    foot: Path | None = None,
+    urdf: Path | None = None,
+    mujoco_actuator: str = "dcmotor",
+) -> Export:
+    """The robot with its fits, URDF and foot, and its bundle."""
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.spec import load_motor_spec
+
+    if mujoco_actuator not in ("dcmotor", "motor"):
+        raise SpecError(f"--mujoco-actuator: found {mujoco_actuator!r}, expected dcmotor or motor")
+    robot = load_robot(robot_path)
+    robot = apply_fits(robot, [load_motor_spec(f) for f in fits])
+    if urdf is not None:
+        if not urdf.is_file():
+            raise SpecError(f"--urdf {urdf}: file not found")
+        robot = replace(robot, urdf=str(urdf.resolve()))
+    sources = {
+        "robot": str(Path(robot_path).resolve()),
+        "fits": [str(Path(f).resolve()) for f in fits],
+        "foot": str(foot.resolve()) if foot else None,
+        "urdf": robot.urdf,
+    }
+    bundle = build_bundle(robot, foot_from_json(foot) if foot else None, sources)
+    return Export(robot=robot, bundle=bundle, mujoco_actuator=mujoco_actuator)
+
+
+def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any]:
+    """Write the formats into ``out`` (created if missing); the ``hound-id/export/1`` report."""
+    if out.exists() and not out.is_dir():
+        raise SpecError(f"--out {out}: is a file; give a folder")
+    if any(f in ("mujoco", "urdf") for f in formats):
+        ex.urdf()  # fail before writing anything
+    try:
+        out.mkdir(parents=True, exist_ok=True)
+    except OSError as err:
+        raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
+    written = {name: FORMATS[name](ex, out) for name in formats}
+    fitted = sorted({m["spec"] for m in ex.bundle["motors"] if m["fitted"]})
+    return {
+        "schema": SCHEMA,
+        "robot": ex.robot.name,
+        "formats": {name: {"files": list(w.files), "notes": list(w.notes)} for name, w in written.items()},
+        "fitted_motors": fitted,
+        "foot": ex.bundle["foot"] is not None,
+        "joints": ex.bundle["joints"],
+    }

@@ -1,0 +1,42 @@
+import json
+
+import pytest
+
+from tests.cli.test_mor_cli import assert_one_line_error
+from tests.conftest import ROBOT, SAMPLES, run_cli
+from tests.export.conftest import fitted_motor
+
+
+def test_export_everything_from_the_command_line(tmp_path):
+    foot = run_cli("foot", "--optimise", "--out", str(tmp_path / "foot"))
+    assert foot.returncode == 0, foot.stderr
+    fit, foot_json = str(fitted_motor(tmp_path)), str(tmp_path / "foot" / "foot.json")
+    proc = run_cli("export", "--robot", str(ROBOT), "--format", "all", "--out", str(tmp_path / "out"),
+                   "--fit", fit, "--foot", foot_json, "--json")  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["schema"] == "hound-id/export/1" and list(data["formats"]) == ["bundle", "isaaclab", "mujoco", "urdf"]
+    assert data["fitted_motors"] == ["hound_ilm85"] and data["foot"]
+    names = sorted(p.name for p in (tmp_path / "out").iterdir())
+    assert names == ["hound_like.xml", "hound_like_bundle.json", "hound_like_bundle.yaml", "hound_like_isaaclab.yaml",
+                     "hound_like_limits.urdf"]  # fmt: skip
+    bundle = json.loads((tmp_path / "out" / "hound_like_bundle.json").read_text())
+    assert bundle["foot"]["mass"] < 0.05 and bundle["motors"][0]["friction"]["coulomb"] == 0.08
+    table = run_cli("export", "--robot", str(ROBOT), "--format", "mujoco,bundle", "--out", str(tmp_path / "t"))
+    assert table.returncode == 0 and "motor constant" in table.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--format", "mjcf"], ["--format: found 'mjcf'", "bundle, isaaclab, mujoco, urdf"]),
+        (["--fit", str(SAMPLES / "motors" / "hound_ilm85.yaml")], ["has no 'fit:' block"]),
+        (["--foot", str(ROBOT)], ["--foot", "not JSON"]),
+        (["--mujoco-actuator", "servo"], ["--mujoco-actuator: found 'servo'"]),
+        (["--urdf", "missing.urdf"], ["--urdf missing.urdf: file not found"]),
+    ],
+)
+def test_export_bad_input_is_one_line(tmp_path, args, fragments):
+    proc = run_cli("export", "--robot", str(ROBOT), "--out", "out", *args, cwd=tmp_path)
+    assert_one_line_error(proc, *fragments)
+    assert not (tmp_path / "out").exists()

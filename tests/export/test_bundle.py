@@ -1,0 +1,79 @@
+"""The bundle: content against the robot's regions, YAML = JSON, old files still load, clear refusals."""
+
+import json
+
+import numpy as np
+import pytest
+
+from hound_id.errors import SpecError
+from hound_id.export.bundle import SCHEMA, apply_fits, build_bundle, load_bundle
+from hound_id.mor.joint_space import robot_regions
+from hound_id.mor.robot import load_robot
+from hound_id.mor.spec import load_motor_spec
+from tests.conftest import ROBOT, ROOT
+
+V1 = ROOT / "tests" / "data" / "bundle_v1_hound_like.yaml"
+
+
+@pytest.fixture(scope="module")
+def robot():
+    return load_robot(ROBOT)
+
+
+def test_bundle_carries_the_robot(robot):
+    b = build_bundle(robot)
+    assert b["schema"] == SCHEMA and b["joints"] == list(robot.joints)
+    regions = robot_regions(robot)
+    for j in regions.joints:
+        assert b["joint_boxes"][j.joint]["inner"] == pytest.approx(j.inner_box.to_dict())
+        assert b["joint_boxes"][j.joint]["outer"] == pytest.approx(j.outer_box.to_dict())
+    A = np.asarray(b["saturation"]["A"])
+    assert A.shape == (12, 12) and np.allclose(A, robot.velocity_map())
+    m = b["motors"][2]  # FL_KFE's motor on the sample spec sheet, no fit
+    assert (m["joint"], m["kt"], m["bus_voltage"], m["fitted"]) == ("FL_KFE", 0.138, 81.0, False)
+    assert m["friction"] == {"coulomb": 0.0, "viscous": 0.0, "stribeck": 0.0, "stribeck_speed": 0.0}
+    assert m["halfspaces"]["labels"] == ["voltage+", "voltage-", "torque+", "torque-"]
+    # the reflected inertia is A^-T diag(J) A^-1: for HAA (ratio 9) J 9^2
+    assert b["reflected_inertia"][0][0] == pytest.approx(1.7e-4 * 81)
+    assert b["foot"] is None
+    json.dumps(b)
+
+
+def test_fits_replace_the_spec_sheet(robot, tmp_path):
+    from tests.export.conftest import fitted_motor
+
+    fitted = apply_fits(robot, [load_motor_spec(fitted_motor(tmp_path))])
+    b = build_bundle(fitted)
+    m = b["motors"][0]
+    assert m["fitted"] and m["kt"] == pytest.approx(0.1375)
+    assert m["friction"]["coulomb"] == pytest.approx(0.08) and m["friction"]["viscous"] == pytest.approx(2e-4)
+    assert m["effects"]["coulomb"]["unit"] == "N m" and m["compensation"]["powers"] == [1, 3]
+
+
+def test_bundle_files_of_version_1_still_load():
+    b = load_bundle(V1)
+    assert b["schema"] == "hound-id/bundle/1" and len(b["joints"]) == 12
+    assert b["motors"][0]["fitted"] and b["foot"]["mass"] < 0.05
+    from hound_id.runtime import from_bundle
+
+    sat = from_bundle(b)
+    tau = np.full((3, 12), 500.0)
+    assert np.all(np.abs(sat.saturate(tau, np.zeros((3, 12)))) < 500.0)
+
+
+def test_bad_bundles_and_fits_are_refused(robot, tmp_path, write_yaml):
+    with pytest.raises(SpecError, match="schema 'hound-id/bundle/9'; this hound-id reads hound-id/bundle/1"):
+        load_bundle(write_yaml("b.yaml", "schema: hound-id/bundle/9\n"))
+    with pytest.raises(SpecError, match="field 'saturation' missing"):
+        load_bundle(write_yaml("c.yaml", "schema: hound-id/bundle/1\njoints: []\nmotors: []\n"))
+    bad = tmp_path / "d.json"
+    bad.write_text("{")
+    with pytest.raises(SpecError, match="not JSON"):
+        load_bundle(bad)
+    with pytest.raises(SpecError, match="has no 'fit:' block"):
+        apply_fits(robot, [load_motor_spec(ROOT / "data" / "samples" / "motors" / "hound_ilm85.yaml")])
+    from tests.export.conftest import fitted_motor
+
+    other = load_motor_spec(fitted_motor(tmp_path, base="qdd_small.yaml"))
+    with pytest.raises(SpecError, match="the fitted motor is 'qdd_small', but the robot's motors are hound_ilm85"):
+        apply_fits(robot, [other])

@@ -1,0 +1,148 @@
+"""Each format through the tool that consumes it: mujoco, Pinocchio, Isaac Lab's clip, the runtime."""
+
+import numpy as np
+import pytest
+
+import hound_id.runtime
+from hound_id.errors import SpecError
+from hound_id.export.run import export_robot, formats_from, prepare
+from hound_id.mor.saturation import dc_motor_clip
+from tests.conftest import ROBOT
+
+
+@pytest.fixture(scope="module")
+def exported(tmp_path_factory):
+    from tests.export.conftest import fitted_motor
+
+    folder = tmp_path_factory.mktemp("export")
+    ex = prepare(ROBOT, [fitted_motor(folder)])
+    report = export_robot(ex, formats_from("all"), folder / "out")
+    return ex, report, folder / "out"
+
+
+def _ids(model, kind, names):
+    import mujoco
+
+    return [mujoco.mj_name2id(model, kind, n) for n in names]
+
+
+def drive(model, sat, seconds, on_step):
+    """PD commands far past the region (2000 N m/rad) towards a 3 Hz sweep, from the stand keyframe."""
+    import mujoco
+
+    data = mujoco.MjData(model)
+    mujoco.mj_resetDataKeyframe(model, data, 0)
+    jids = _ids(model, mujoco.mjtObj.mjOBJ_JOINT, sat.joints)
+    qadr, vadr = model.jnt_qposadr[jids], model.jnt_dofadr[jids]
+    aid = _ids(model, mujoco.mjtObj.mjOBJ_ACTUATOR, sat.motors)
+    q0 = data.qpos[qadr].copy()
+    for step in range(int(seconds / model.opt.timestep)):
+        t = step * model.opt.timestep
+        q, qd = data.qpos[qadr].copy(), data.qvel[vadr].copy()
+        target = q0 + 0.6 * np.sin(2 * np.pi * 3 * t) * np.array([0.3, 1.0, 1.0] * 4)
+        tau_cmd = 2000.0 * (target - q) - 5.0 * qd
+        on_step(data, aid, tau_cmd, qd)
+        mujoco.mj_step(model, data)
+    return data
+
+
+def test_mujoco_dcmotor_realises_the_operating_region(exported):
+    import mujoco
+
+    _, report, out = exported
+    model = mujoco.MjModel.from_xml_path(str(out / "hound_like.xml"))
+    sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
+    assert model.nu == 12 and model.ntendon == 12 and model.nkey == 1
+    stats = {"steps": 0, "clipped": 0, "worst": 0.0, "outside": 0.0}
+
+    def on_step(data, aid, tau_cmd, qd):
+        data.ctrl[aid] = sat.motor_torque(tau_cmd)
+        mujoco.mj_forward(model, data)
+        realised = data.actuator_force[aid]
+        expected = sat.motor_torque(sat.saturate(tau_cmd, qd))
+        lo, hi = sat.clip.torque_bounds(qd)
+        stats["steps"] += 1
+        stats["clipped"] += bool(np.any(np.abs(expected - sat.motor_torque(tau_cmd)) > 1e-9))
+        stats["worst"] = max(stats["worst"], float(np.max(np.abs(realised - expected))))
+        stats["outside"] = max(stats["outside"], float(np.max(realised - hi)), float(np.max(lo - realised)))
+
+    data = drive(model, sat, 3.0, on_step)
+    assert np.all(np.isfinite(data.qpos))
+    assert stats["steps"] == 1500 and stats["clipped"] > stats["steps"] / 2  # the commands violate the region
+    assert stats["outside"] <= 1e-9  # realised motor torques inside the region
+    assert stats["worst"] < 1e-5  # and equal to the runtime's saturation [N m]
+    # the tendons carry the transmission: motor speed = A^-1 qd, rotor inertia as armature
+    assert model.tendon_armature == pytest.approx([1.7e-4] * 12)
+    assert model.tendon_frictionloss == pytest.approx([0.08] * 12)  # every motor is the fitted ILM85
+
+
+def test_mujoco_motor_fallback_with_the_runtime_each_step(exported, tmp_path):
+    import mujoco
+
+    ex, _, out = exported
+    from dataclasses import replace
+
+    export_robot(replace(ex, mujoco_actuator="motor"), ["mujoco"], tmp_path)
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "hound_like.xml"))
+    sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
+    worst = []
+
+    def on_step(data, aid, tau_cmd, qd):
+        data.ctrl[aid] = sat.motor_torque(sat.saturate(tau_cmd, qd))
+        mujoco.mj_forward(model, data)
+        lo, hi = sat.clip.torque_bounds(qd)
+        worst.append(max(float(np.max(data.actuator_force[aid] - hi)), float(np.max(lo - data.actuator_force[aid]))))
+
+    drive(model, sat, 1.0, on_step)
+    assert max(worst) <= 1e-9
+
+
+def test_urdf_with_limits_loads_in_pinocchio(exported):
+    import pinocchio as pin
+
+    ex, _, out = exported
+    model = pin.buildModelFromUrdf(str(out / "hound_like_limits.urdf"))
+    boxes = ex.bundle["joint_boxes"]
+    for joint in ex.bundle["joints"]:
+        jid = model.getJointId(joint)
+        v = model.joints[jid].idx_v
+        assert model.effortLimit[v] == pytest.approx(boxes[joint]["inner"]["effort"], rel=1e-8)
+        assert model.velocityLimit[v] == pytest.approx(boxes[joint]["inner"]["velocity"], rel=1e-8)
+    # HAA of ratio 9: friction 9 x 0.08 N m, damping 81 x 2e-4 N m s/rad
+    haa = model.joints[model.getJointId("FL_HAA")].idx_v
+    assert model.friction[haa] == pytest.approx(0.72) and model.damping[haa] == pytest.approx(0.0162)
+
+
+def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported):
+    ex, _, out = exported
+    import yaml
+
+    fields = yaml.safe_load((out / "hound_like_isaaclab.yaml").read_text())
+    assert fields["schema"] == "hound-id/isaaclab/1"
+    sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
+    rng = np.random.default_rng(4)
+    for i, joint in enumerate(sat.joints):
+        f = fields["joints"][joint]
+        if f["coupled"]:
+            assert f["use"] == "hound_id.runtime" and "per-joint DCMotor" in f["reason"]
+            continue
+        tau = rng.uniform(-300, 300, 2000)
+        qd = rng.uniform(-1.5, 1.5, 2000) * f["velocity_limit"]  # past the no-load speed too
+        full_tau, full_qd = np.zeros((2000, 12)), np.zeros((2000, 12))
+        full_tau[:, i], full_qd[:, i] = tau, qd
+        ours = sat.saturate(full_tau, full_qd)[:, i]
+        isaac = dc_motor_clip(tau, qd, f["saturation_effort"], f["velocity_limit"], f["effort_limit"])
+        assert ours == pytest.approx(isaac, abs=1e-9)
+        assert f["armature"] == pytest.approx(1.7e-4 * 81) and f["friction"] == pytest.approx(0.72)
+    assert sum(not f["coupled"] for f in fields["joints"].values()) == 4
+
+
+def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):
+    text = ROBOT.read_text().replace("urdf: hound_like.urdf\n", "")
+    robot = write_yaml("r.yaml", text.replace("../motors/", str(ROBOT.parent.parent / "motors") + "/"))
+    ex = prepare(robot)
+    with pytest.raises(SpecError, match="needs the robot's URDF; add 'urdf: my_robot.urdf'"):
+        export_robot(ex, ["bundle", "mujoco"], tmp_path / "out")
+    assert not (tmp_path / "out").exists()
+    with pytest.raises(SpecError, match="--format: found 'mjcf'"):
+        formats_from("mjcf")

@@ -1,0 +1,126 @@
+"""hound_id.runtime: the trainer-side clip, friction and current compensation, numpy and torch."""
+
+import re
+import subprocess
+import sys
+from types import SimpleNamespace
+
+import numpy as np
+import pytest
+import torch
+
+import hound_id.runtime
+from hound_id.export.bundle import apply_fits, build_bundle
+from hound_id.mor.robot import load_robot
+from hound_id.mor.saturation import saturation_for
+from hound_id.mor.spec import load_motor_spec
+from tests.conftest import ROBOT, ROOT
+from tests.export.conftest import fitted_motor
+
+
+@pytest.fixture(scope="module")
+def fitted(tmp_path_factory):
+    robot = apply_fits(load_robot(ROBOT), [load_motor_spec(fitted_motor(tmp_path_factory.mktemp("fit")))])
+    return robot, hound_id.runtime.from_bundle(build_bundle(robot))
+
+
+def test_runtime_clip_is_the_robots_clip(fitted):
+    robot, sat = fitted
+    rng = np.random.default_rng(0)
+    tau, qd = rng.uniform(-150, 150, (256, 12)), rng.uniform(-80, 80, (256, 12))
+    assert np.array_equal(sat.saturate(tau, qd), saturation_for(robot)(tau, qd))
+    t = torch.tensor(tau, dtype=torch.float32, requires_grad=True)
+    out = sat(t, torch.tensor(qd, dtype=torch.float32))
+    out.sum().backward()
+    assert out.dtype == torch.float32 and t.grad is not None
+    assert np.allclose(out.detach().numpy(), sat.saturate(tau, qd), atol=1e-3)
+
+
+def test_friction_dissipates_and_maps_through_the_gears(fitted):
+    _, sat = fitted
+    rng = np.random.default_rng(1)
+    qd = rng.uniform(-30, 30, (500, 12))
+    tau_f = sat.friction_torque(qd)
+    # power balance: the friction power at the joints equals the motors' and is never positive
+    w_m = sat.motor_velocity(qd)
+    f_m = sat.motor_torque(tau_f)
+    assert np.allclose((tau_f * qd).sum(-1), (f_m * w_m).sum(-1))
+    assert np.all((tau_f * qd).sum(-1) <= 1e-12)
+    # an uncoupled HAA (ratio 9) far from rest: -(9 * 0.08 sgn + 81 * 2e-4 qd)
+    i = 0
+    assert tau_f[:, i] == pytest.approx(-(9 * 0.08 * np.sign(qd[:, i]) + 81 * 2e-4 * qd[:, i]), abs=1e-6)
+    assert sat.friction_torque(torch.tensor(qd)).dtype == torch.float64
+
+
+def test_current_compensation(fitted):
+    _, sat = fitted
+    tau_m = np.array([[1.0, -2.0] + [0.5] * 10])
+    i = sat.current(tau_m)
+    assert i[0, 0] == pytest.approx(7.2727 + 0.001) and i[0, 1] == pytest.approx(-2 * 7.2727 - 0.008)
+    assert sat.current(torch.tensor(tau_m)).shape == (1, 12)
+
+
+def test_runtime_imports_nothing_heavy():
+    code = (
+        "import sys, hound_id.runtime; "
+        "print(sorted(m for m in ('torch','pinocchio','mujoco','matplotlib','scipy','pandas','pint','casadi') "
+        "if m in sys.modules))"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip() == "[]"
+
+
+def readme_example(tag: str) -> str:
+    text = (ROOT / "README.md").read_text()
+    blocks = re.findall(r"```python\n(# example: " + tag + r"\n.*?)```", text, flags=re.S)
+    assert len(blocks) == 1, tag
+    return blocks[0]
+
+
+@pytest.fixture
+def bundle_dir(tmp_path, monkeypatch):
+    """The README's export command, run where the examples expect its output."""
+    from tests.conftest import run_cli
+
+    proc = run_cli("export", "--robot", str(ROBOT), "--format", "bundle", "--out", "out", cwd=tmp_path)
+    assert proc.returncode == 0, proc.stderr
+    monkeypatch.chdir(tmp_path)
+    return tmp_path
+
+
+def test_readme_isaaclab_actuator_example(bundle_dir):
+    ns: dict = {}
+    exec(readme_example("isaaclab"), ns)
+    n = 64
+    actuator = ns["HoundIdActuator"]("out/hound_like_bundle.yaml", stiffness=80.0, damping=2.0)
+    action = SimpleNamespace(  # stand-in for isaaclab.utils.types.ArticulationActions
+        joint_positions=torch.full((n, 12), 1.5),
+        joint_velocities=torch.zeros(n, 12),
+        joint_efforts=torch.zeros(n, 12),
+    )
+    joint_pos, joint_vel = torch.zeros(n, 12), torch.linspace(-40, 40, n)[:, None].repeat(1, 12)
+    result = actuator.compute(action, joint_pos, joint_vel)
+    assert result.joint_positions is None and result.joint_efforts.shape == (n, 12)
+    sat = hound_id.runtime.load("out/hound_like_bundle.yaml")
+    lo, hi = sat.clip.torque_bounds(joint_vel.double())
+    tau_m = sat.motor_torque(result.joint_efforts.double())
+    assert torch.all(tau_m <= hi + 1e-4) and torch.all(tau_m >= lo - 1e-4)
+    assert torch.any(actuator.computed_effort != actuator.applied_effort)  # the commands went past the region
+
+
+def test_readme_legged_gym_example(bundle_dir):
+    ns: dict = {}
+    exec(readme_example("legged_gym"), ns)
+    n = 32
+    env = SimpleNamespace(  # stand-in for a legged_gym LeggedRobot
+        cfg=SimpleNamespace(control=SimpleNamespace(action_scale=0.25)),
+        p_gains=torch.full((12,), 80.0),
+        d_gains=torch.full((12,), 2.0),
+        default_dof_pos=torch.zeros(12),
+        dof_pos=torch.zeros(n, 12),
+        dof_vel=torch.linspace(-50, 50, n)[:, None].repeat(1, 12),
+        torque_limits=torch.full((12,), 100.0),
+    )
+    torques = ns["_compute_torques"](env, torch.full((n, 12), 8.0))
+    sat = hound_id.runtime.load("out/hound_like_bundle.yaml")
+    assert torch.allclose(torques, sat.saturate(80.0 * 2.0 - 2.0 * env.dof_vel, env.dof_vel))
