@@ -22,6 +22,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
+from hound_id.errors import SaturationError
 from hound_id.mor.saturation import Saturation
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
@@ -60,6 +61,19 @@ class Runtime:
     def n(self) -> int:
         return len(self.joints)
 
+    def _array(self, x: Any, what: str) -> Any:
+        """``x`` as a float array (torch stays torch) shaped (..., n), or SaturationError."""
+        if not _is_torch(x):
+            x = np.asarray(x)
+            if not np.issubdtype(x.dtype, np.floating):
+                x = x.astype(np.float64)
+        if tuple(x.shape[-1:]) != (self.n,):
+            raise SaturationError(
+                f"runtime: {what} has shape {tuple(x.shape)}; expected (..., {self.n}) in the bundle's order "
+                f"({', '.join(self.joints if what != 'tau_motor' else self.motors)})"
+            )
+        return x
+
     def _constants(self, like: Any) -> tuple[Any, ...]:
         """(A^-1, A, friction arrays) in the array type, dtype and device of ``like``, cached."""
         key = (type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
@@ -90,11 +104,13 @@ class Runtime:
 
     def motor_velocity(self, qd: Any) -> Any:
         """Motor speeds A^-1 qd [rad/s], (..., n_motors)."""
+        qd = self._array(qd, "qd")
         A_inv = self._constants(qd)[0]
         return qd @ A_inv.T
 
     def motor_torque(self, tau: Any) -> Any:
         """Motor torques A^T tau [N m] (the power-consistent map), (..., n_motors)."""
+        tau = self._array(tau, "tau")
         A = self._constants(tau)[1]
         return tau @ A
 
@@ -104,6 +120,7 @@ class Runtime:
         f(omega) = -(coulomb sgn(omega) + viscous omega + stribeck sgn(omega) exp(-(omega/stribeck_speed)^2)),
         sgn(omega) = tanh(omega / 0.01 rad/s) as in the fit.
         """
+        qd = self._array(qd, "qd")
         A_inv, _, coulomb, viscous, stribeck, w_s = self._constants(qd)
         w = qd @ A_inv.T
         if _is_torch(qd):
@@ -121,6 +138,7 @@ class Runtime:
         Uses the compensation polynomial of ``hound-id fit-current`` (odd powers) where the bundle
         has one, tau / Kt elsewhere. (..., n_motors) in, same shape out.
         """
+        tau_motor = self._array(tau_motor, "tau_motor")
         out: Any
         if _is_torch(tau_motor):
             import torch

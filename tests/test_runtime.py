@@ -124,3 +124,14 @@ def test_readme_legged_gym_example(bundle_dir):
     torques = ns["_compute_torques"](env, torch.full((n, 12), 8.0))
     sat = hound_id.runtime.load("out/hound_like_bundle.yaml")
     assert torch.allclose(torques, sat.saturate(80.0 * 2.0 - 2.0 * env.dof_vel, env.dof_vel))
+
+
+def test_wrong_shapes_are_named(fitted):
+    from hound_id.errors import SaturationError
+
+    _, sat = fitted
+    for call in (sat.friction_torque, sat.motor_velocity, sat.motor_torque, sat.current):
+        with pytest.raises(SaturationError, match=r"has shape \(4, 11\); expected \(..., 12\)"):
+            call(np.zeros((4, 11)))
+    with pytest.raises(SaturationError, match="expected"):
+        sat.saturate(np.zeros((4, 11)), np.zeros((4, 11)))

@@ -22,6 +22,18 @@ def test_export_everything_from_the_command_line(tmp_path):
                      "hound_like_limits.urdf"]  # fmt: skip
     bundle = json.loads((tmp_path / "out" / "hound_like_bundle.json").read_text())
     assert bundle["foot"]["mass"] < 0.05 and bundle["motors"][0]["friction"]["coulomb"] == 0.08
+    # the optimised foot is on every leg, in the URDF (Pinocchio) and in the MJCF (mujoco)
+    import mujoco
+    import pinocchio as pin
+
+    model = pin.buildModelFromUrdf(str(tmp_path / "out" / "hound_like_limits.urdf"))
+    data = model.createData()
+    pin.computeSubtreeMasses(model, data)
+    for leg in ("FL", "FR", "RL", "RR"):
+        assert data.mass[model.getJointId(f"{leg}_KFE")] == pytest.approx(0.25 + bundle["foot"]["mass"], rel=1e-8)
+    mj = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "hound_like.xml"))
+    foot_id = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, "FL_foot")
+    assert mj.body_mass[foot_id] == pytest.approx(bundle["foot"]["mass"], rel=1e-5)  # MJCF prints 6 digits
     table = run_cli("export", "--robot", str(ROBOT), "--format", "mujoco,bundle", "--out", str(tmp_path / "t"))
     assert table.returncode == 0 and "motor constant" in table.stdout
 
