@@ -2,18 +2,20 @@
 of a hound-id bundle, for numpy arrays or torch tensors on any device.
 
     import hound_id.runtime
-    sat = hound_id.runtime.load("bundle.yaml")        # written by hound-id export --format bundle
+    sat = hound_id.runtime.load("bundle.yaml", joint_names=sim_joint_order)  # from hound-id export
     tau = sat.saturate(tau_cmd, qd)                    # (..., n_joints) joint torques [N m]
-    tau = tau + sat.friction_torque(qd)                # optional: the fitted motor friction, joint side
-    i_cmd = sat.current(sat.motor_torque(tau))         # on the robot: motor currents [A] to command
+    tau_sim = tau + sat.friction_torque(qd)            # in simulation, optionally: the fitted friction
+    i_cmd = sat.current(sat.motor_torque(tau))         # on the robot: motor currents [A] for tau
 
-Arrays are shaped (..., n_joints) in the bundle's joint order; torch stays torch (same dtype and
-device, autograd intact). Only numpy (and torch, when given tensors) are imported; the clip is
+Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order of
+``joint_names``; torch stays torch (same dtype and device, autograd intact). Only numpy (and
+torch, when given tensors) are imported; the clip is
 :class:`hound_id.mor.saturation.Saturation`, the same code ``hound-id saturate`` runs.
 """
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -156,21 +158,60 @@ class Runtime:
         return out
 
 
-def from_bundle(bundle: dict[str, Any]) -> Runtime:
-    """A runtime from a bundle dict (see :func:`load`)."""
-    s = bundle["saturation"]
-    A = np.asarray(s["A"], dtype=float)
-    max_speed = np.array([np.inf if v is None else float(v) for v in s["max_speed"]])
+def _validated(bundle: dict[str, Any], source: str) -> tuple[NDArray[np.float64], dict[str, Any], list[Any]]:
+    """(A, saturation block, motors) of a bundle, or SpecError naming what is wrong."""
+    from hound_id.errors import SpecError
+
+    try:
+        joints, motors, s = list(bundle["joints"]), list(bundle["motors"]), dict(bundle["saturation"])
+        A = np.asarray(s["A"], dtype=float)
+        n = len(joints)
+        arrays = {k: np.asarray([np.inf if v is None else v for v in s[k]], dtype=float) for k in _SAT_KEYS}
+    except (KeyError, TypeError, ValueError) as err:
+        raise SpecError(f"{source}: not a complete hound-id bundle ({type(err).__name__}: {err})") from err
+    if A.shape != (n, n) or len(motors) != n or any(a.shape != (n,) for a in arrays.values()):
+        raise SpecError(
+            f"{source}: {n} joints but A is {A.shape}, {len(motors)} motors and saturation arrays of lengths "
+            f"{[a.size for a in arrays.values()]}; expected one motor per joint and an n x n A"
+        )
+    if not np.all(np.isfinite(A)) or np.linalg.cond(A) > 1e10:
+        raise SpecError(f"{source}: saturation.A is singular or not finite; re-export the bundle")
+    return A, arrays, motors
+
+
+_SAT_KEYS = ("stall_torque", "back_emf_damping", "torque_limit", "max_speed")
+
+
+def from_bundle(bundle: dict[str, Any], joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
+    """A runtime from a bundle dict (see :func:`load`).
+
+    ``joint_names`` is the order your simulator uses (Isaac Lab's ``asset.joint_names``, for
+    instance, which is breadth-first): every joint-space array you pass and get back is then in
+    that order. By default it is the bundle's order.
+    """
+    from hound_id.errors import SpecError
+
+    A, arrays, motors = _validated(bundle, source)
+    joints = list(bundle["joints"])
+    if joint_names is not None:
+        names = list(joint_names)
+        if sorted(names) != sorted(joints):
+            missing, extra = sorted(set(joints) - set(names)), sorted(set(names) - set(joints))
+            raise SpecError(
+                f"{source}: joint_names must be the bundle's joints in your order; missing {missing or 'none'}, "
+                f"not in the bundle {extra or 'none'}"
+            )
+        A = A[[joints.index(j) for j in names], :]  # rows follow your joints; motors keep their order
+        joints = names
     clip = Saturation(
-        joints=tuple(bundle["joints"]),
+        joints=tuple(joints),
         A=frozen(A),
         A_inv=frozen(np.linalg.inv(A)),
-        stall_torque=frozen(np.asarray(s["stall_torque"], dtype=float)),
-        back_emf_damping=frozen(np.asarray(s["back_emf_damping"], dtype=float)),
-        torque_limit=frozen(np.asarray(s["torque_limit"], dtype=float)),
-        max_speed=frozen(max_speed),
+        stall_torque=frozen(arrays["stall_torque"]),
+        back_emf_damping=frozen(arrays["back_emf_damping"]),
+        torque_limit=frozen(arrays["torque_limit"]),
+        max_speed=frozen(arrays["max_speed"]),
     )
-    motors = bundle["motors"]
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:
         return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))
@@ -180,7 +221,7 @@ def from_bundle(bundle: dict[str, Any]) -> Runtime:
         c = m.get("compensation")
         comps.append((tuple(int(p) for p in c["powers"]), tuple(float(v) for v in c["coefficients"])) if c else None)
     return Runtime(
-        joints=tuple(bundle["joints"]),
+        joints=tuple(joints),
         motors=tuple(m["name"] for m in motors),
         clip=clip,
         coulomb=per_motor("coulomb", 0.0),
@@ -192,8 +233,12 @@ def from_bundle(bundle: dict[str, Any]) -> Runtime:
     )
 
 
-def load(path: str | Path) -> Runtime:
-    """The runtime of a bundle file (YAML or JSON) written by ``hound-id export --format bundle``."""
+def load(path: str | Path, joint_names: Sequence[str] | None = None) -> Runtime:
+    """The runtime of a bundle file (YAML or JSON) written by ``hound-id export --format bundle``.
+
+    Pass ``joint_names`` when your simulator orders joints differently from the bundle (see
+    :func:`from_bundle`); arrays are matched by position, so a wrong order gives wrong torques.
+    """
     from hound_id.export.bundle import load_bundle
 
-    return from_bundle(load_bundle(path))
+    return from_bundle(load_bundle(path), joint_names, source=str(path))

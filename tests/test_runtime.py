@@ -92,7 +92,8 @@ def test_readme_isaaclab_actuator_example(bundle_dir):
     ns: dict = {}
     exec(readme_example("isaaclab"), ns)
     n = 64
-    actuator = ns["HoundIdActuator"]("out/hound_like_bundle.yaml", stiffness=80.0, damping=2.0)
+    breadth_first = [f"{leg}_{j}" for j in ("HAA", "HFE", "KFE") for leg in ("FL", "FR", "RL", "RR")]
+    actuator = ns["HoundIdActuator"]("out/hound_like_bundle.yaml", breadth_first, stiffness=80.0, damping=2.0)
     action = SimpleNamespace(  # stand-in for isaaclab.utils.types.ArticulationActions
         joint_positions=torch.full((n, 12), 1.5),
         joint_velocities=torch.zeros(n, 12),
@@ -101,7 +102,7 @@ def test_readme_isaaclab_actuator_example(bundle_dir):
     joint_pos, joint_vel = torch.zeros(n, 12), torch.linspace(-40, 40, n)[:, None].repeat(1, 12)
     result = actuator.compute(action, joint_pos, joint_vel)
     assert result.joint_positions is None and result.joint_efforts.shape == (n, 12)
-    sat = hound_id.runtime.load("out/hound_like_bundle.yaml")
+    sat = hound_id.runtime.load("out/hound_like_bundle.yaml", joint_names=breadth_first)
     lo, hi = sat.clip.torque_bounds(joint_vel.double())
     tau_m = sat.motor_torque(result.joint_efforts.double())
     assert torch.all(tau_m <= hi + 1e-4) and torch.all(tau_m >= lo - 1e-4)
@@ -131,7 +132,43 @@ def test_wrong_shapes_are_named(fitted):
 
     _, sat = fitted
     for call in (sat.friction_torque, sat.motor_velocity, sat.motor_torque, sat.current):
-        with pytest.raises(SaturationError, match=r"has shape \(4, 11\); expected \(..., 12\)"):
+        with pytest.raises(SaturationError, match=r"has shape \(4, 11\); expected \(\.\.\., 12\)"):
             call(np.zeros((4, 11)))
     with pytest.raises(SaturationError, match="expected"):
         sat.saturate(np.zeros((4, 11)), np.zeros((4, 11)))
+
+
+def test_simulator_joint_order(fitted, tmp_path):
+    """Isaac Lab orders joints breadth-first; the runtime follows joint_names, or would clip the wrong joints."""
+    from hound_id.errors import SpecError
+
+    robot, sat = fitted
+    bundle = build_bundle(robot)
+    order = [f"{leg}_{j}" for j in ("HAA", "HFE", "KFE") for leg in ("FL", "FR", "RL", "RR")]
+    mine = hound_id.runtime.from_bundle(bundle, joint_names=order)
+    perm = [list(robot.joints).index(j) for j in order]
+    rng = np.random.default_rng(5)
+    tau, qd = rng.uniform(-150, 150, (200, 12)), rng.uniform(-60, 60, (200, 12))
+    assert np.allclose(mine.saturate(tau[:, perm], qd[:, perm]), sat.saturate(tau, qd)[:, perm], atol=1e-12)
+    assert np.allclose(mine.friction_torque(qd[:, perm]), sat.friction_torque(qd)[:, perm], atol=1e-12)
+    assert np.allclose(mine.motor_torque(tau[:, perm]), sat.motor_torque(tau), atol=1e-12)
+    with pytest.raises(SpecError, match=r"missing \['RR_KFE'\], not in the bundle \['RR_knee'\]"):
+        hound_id.runtime.from_bundle(bundle, joint_names=[*order[:-1], "RR_knee"])
+
+
+def test_damaged_bundles_are_named(fitted):
+    from hound_id.errors import SpecError
+
+    robot, _ = fitted
+    bundle = build_bundle(robot)
+    del bundle["saturation"]["A"]
+    with pytest.raises(SpecError, match="not a complete hound-id bundle"):
+        hound_id.runtime.from_bundle(bundle)
+    bundle = build_bundle(robot)
+    bundle["motors"] = bundle["motors"][:11]
+    with pytest.raises(SpecError, match="12 joints but A is \\(12, 12\\), 11 motors"):
+        hound_id.runtime.from_bundle(bundle)
+    bundle = build_bundle(robot)
+    bundle["saturation"]["A"] = np.zeros((12, 12)).tolist()
+    with pytest.raises(SpecError, match="singular"):
+        hound_id.runtime.from_bundle(bundle)

@@ -17,7 +17,9 @@ def export(
     fit: Optional[list[Path]] = typer.Option(
         None, "--fit", help="Fitted motor YAML from fit-current --out (repeatable)."
     ),
-    foot: Optional[Path] = typer.Option(None, "--foot", help="foot.json from hound-id foot --optimise."),
+    foot: Optional[Path] = typer.Option(
+        None, "--foot", metavar="foot.json", help="foot.json from hound-id foot --optimise."
+    ),
     urdf: Optional[Path] = typer.Option(None, "--urdf", help="The robot's URDF, instead of the robot file's 'urdf:'."),
     mujoco_actuator: str = typer.Option(
         "dcmotor", "--mujoco-actuator", help="dcmotor (the region in MuJoCo) or motor (saturate with the runtime)."

@@ -53,6 +53,9 @@ def apply_fits(robot: Robot, fitted: list[MotorSpec]) -> Robot:
                 f"--fit: the fitted motor is '{spec.name}', but the robot's motors are {', '.join(sorted(names))}; "
                 "fit-current --out keeps the spec sheet's name, so check 'base:' in the fitted file"
             )
+    dupes = sorted({s.name for s in fitted if [f.name for f in fitted].count(s.name) > 1})
+    if dupes:
+        raise SpecError(f"--fit: more than one fit for motor {', '.join(dupes)}; give one per motor")
     by_name = {s.name: s for s in fitted}
     return replace(robot, motor_specs={m: by_name.get(s.name, s) for m, s in robot.motor_specs.items()})
 
@@ -162,7 +165,7 @@ def foot_from_json(path: Path) -> dict[str, Any]:
         "sphere_centre_z": g["centre_z"],
         "mass_ratio": data["mass_ratio"],
         "inertia_ratio": data["inertia_ratio"],
-        "source": str(path),
+        "source": str(path.resolve()),
     }
 
 
@@ -180,9 +183,10 @@ def load_bundle(path: str | Path) -> dict[str, Any]:
         from hound_id.io import read_yaml
 
         data = read_yaml(p, "bundle")
-    if not isinstance(data, dict) or data.get("schema") not in READABLE:
-        found = data.get("schema") if isinstance(data, dict) else type(data).__name__
-        raise SpecError(f"{p}: schema {found!r}; this hound-id reads {', '.join(READABLE)}")
+    if not isinstance(data, dict):
+        raise SpecError(f"{p}: found {type(data).__name__}, expected a hound-id bundle (a YAML or JSON mapping)")
+    if data.get("schema") not in READABLE:
+        raise SpecError(f"{p}: schema {data.get('schema')!r}; this hound-id reads {', '.join(READABLE)}")
     for key in ("joints", "motors", "saturation"):
         if key not in data:
             raise SpecError(f"{p}: field '{key}' missing; is this a hound-id bundle?")

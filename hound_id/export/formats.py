@@ -84,9 +84,14 @@ def write_bundle(ex: Export, out: Path) -> Written:
 
 
 def isaaclab_fields(ex: Export) -> dict[str, Any]:
-    """Isaac Lab ``DCMotorCfg``-style fields per uncoupled joint; coupled joints point to the runtime."""
+    """Isaac Lab ``DCMotorCfg`` fields per uncoupled joint; coupled joints point to the runtime.
+
+    Each joint has ``armature`` and ``friction`` (joint side); an uncoupled joint also has
+    ``dcmotor``: the keyword arguments of ``DCMotorCfg`` that hold its region.
+    """
     b = ex.bundle
     coulomb, viscous = ex.joint_friction()
+    reflected = np.asarray(b["reflected_inertia"]) if b["reflected_inertia"] is not None else None
     joints: dict[str, Any] = {}
     index = {j: i for i, j in enumerate(b["joints"])}
     for tx in b["transmissions"]:
@@ -95,42 +100,48 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
         for k, joint in enumerate(tx["joints"]):
             i = index[joint]
             m = b["motors"][i]
-            if coupled:
-                joints[joint] = {
-                    "coupled": True,
-                    "use": "hound_id.runtime",
-                    "reason": (
-                        f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
-                        "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
-                        "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle).saturate(tau, qd) "
-                        "to the group (see the README)."
-                    ),
-                    "inner_box": b["joint_boxes"][joint]["inner"],
-                }
-                continue
-            gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
-            joints[joint] = {
-                "coupled": False,
-                "saturation_effort": m["stall_torque"] * gear,
-                "effort_limit": m["torque_limit"] * gear,
-                "velocity_limit": m["no_load_speed"] / gear,
-                "armature": (m["rotor_inertia"] or 0.0) * gear**2,
+            entry: dict[str, Any] = {
+                "coupled": coupled,
+                "armature": float(reflected[i, i]) if reflected is not None else 0.0,
                 "friction": float(coulomb[i]),
-                "damping_from_friction": float(viscous[i]),
-                "gear_ratio": gear,
+                "viscous_friction": float(viscous[i]),
+                "inner_box": b["joint_boxes"][joint]["inner"],
             }
+            if coupled:
+                entry["use"] = "hound_id.runtime"
+                entry["reason"] = (
+                    f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
+                    "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
+                    "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle, joint_names)"
+                    ".saturate(tau, qd) to the group (see the README); armature is the diagonal of the reflected "
+                    "inertia, friction the worst case sum |A^-T| f_c"
+                )
+            else:
+                gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
+                entry["gear_ratio"] = gear
+                entry["dcmotor"] = {
+                    "saturation_effort": m["stall_torque"] * gear,
+                    "effort_limit": m["torque_limit"] * gear,
+                    "velocity_limit": m["no_load_speed"] / gear,
+                    "armature": (m["rotor_inertia"] or 0.0) * gear**2,
+                    "friction": float(coulomb[i]),
+                }
+            joints[joint] = entry
     return {
         "schema": ISAACLAB_SCHEMA,
         "robot": b["robot"],
-        "units": "SI, joint side: N m, rad/s, kg m^2",
-        "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint)",
+        "units": "SI, joint side: N m, rad/s, kg m^2, N m s/rad",
+        "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']))",
         "joints": joints,
         "notes": [
             "saturation_effort = stall torque Kt V/R x G, velocity_limit = no-load speed / G, effort_limit = "
-            "min(peak torque, Kt i_max) x G: Isaac Lab's DCMotor clip with these equals hound-id's MOR clip "
-            "(tested), past the no-load speed included",
-            "damping_from_friction is the fitted viscous friction; Isaac Lab's actuator 'damping' is a PD gain, "
-            "so add it as joint damping, not as the actuator's",
+            "min(peak torque, Kt i_max) x G. Isaac Lab's DCMotor clip with these equals hound-id's at every "
+            "speed in releases that first clamp the joint speed to the speed at the effort limit "
+            "(vel_at_effort_lim, as mjlab's DcMotorActuator does); releases that only clamp the upper bound at >= 0 "
+            "differ past the no-load speed",
+            "friction is in N m, joint side; viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's "
+            "actuator 'damping' is a PD gain: do not put viscous friction there. Check your release's friction "
+            "convention (older PhysX releases used a unitless coefficient)",
         ],
     }
 

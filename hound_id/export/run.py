@@ -55,21 +55,44 @@ def prepare(
 
 
 def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any]:
-    """Write the formats into ``out`` (created if missing); the ``hound-id/export/1`` report."""
+    """Write the formats into ``out`` (created if missing); the ``hound-id/export/1`` report.
+
+    Every file is written into a temporary folder beside ``out`` first and moved in only when
+    all formats succeeded, so a failing format leaves ``out`` as it was.
+    """
+    import os
+    import shutil
+    import tempfile
+
     if out.exists() and not out.is_dir():
         raise SpecError(f"--out {out}: is a file; give a folder")
+    parent = out.resolve().parent
+    if not parent.is_dir():
+        raise SpecError(f"--out {out}: folder {parent} does not exist; create it or choose another --out")
     if any(f in ("mujoco", "urdf") for f in formats):
         ex.urdf()  # fail before writing anything
+    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))  # same depth: relative paths hold
     try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
-    written = {name: FORMATS[name](ex, out) for name in formats}
+        written = {name: FORMATS[name](ex, staging) for name in formats}
+        try:
+            out.mkdir(exist_ok=True)
+        except OSError as err:
+            raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
+        for item in staging.iterdir():
+            os.replace(item, out / item.name)
+    finally:
+        shutil.rmtree(staging, ignore_errors=True)
     fitted = sorted({m["spec"] for m in ex.bundle["motors"] if m["fitted"]})
+
+    def final(path: str) -> str:
+        return str(out / Path(path).name)
+
     return {
         "schema": SCHEMA,
         "robot": ex.robot.name,
-        "formats": {name: {"files": list(w.files), "notes": list(w.notes)} for name, w in written.items()},
+        "formats": {
+            name: {"files": [final(f) for f in w.files], "notes": list(w.notes)} for name, w in written.items()
+        },
         "fitted_motors": fitted,
         "foot": ex.bundle["foot"] is not None,
         "joints": ex.bundle["joints"],

@@ -150,10 +150,10 @@ class Saturation:
             qd = qd.astype(tau.dtype, copy=False)
         elif qd.dtype != tau.dtype:
             qd = qd.to(tau.dtype)
-        if tau.shape[-1:] != (self.n,) or qd.shape[-1:] != (self.n,):
+        if tau.shape[-1:] != (self.n,) or qd.shape[-1:] != (self.n,) or tuple(tau.shape) != tuple(qd.shape):
             raise SaturationError(
                 f"saturation: tau has shape {tuple(tau.shape)} and qd {tuple(qd.shape)}; "
-                f"expected (..., {self.n}) with joints in the order {', '.join(self.joints)}"
+                f"expected both (..., {self.n}), the same shape, with joints in the order {', '.join(self.joints)}"
             )
         return tau, qd
 

@@ -1,5 +1,7 @@
 """Each format through the tool that consumes it: mujoco, Pinocchio, Isaac Lab's clip, the runtime."""
 
+from pathlib import Path
+
 import numpy as np
 import pytest
 
@@ -126,15 +128,20 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported):
         if f["coupled"]:
             assert f["use"] == "hound_id.runtime" and "per-joint DCMotor" in f["reason"]
             continue
+        d = f["dcmotor"]
         tau = rng.uniform(-300, 300, 2000)
-        qd = rng.uniform(-1.5, 1.5, 2000) * f["velocity_limit"]  # past the no-load speed too
+        qd = rng.uniform(-1.5, 1.5, 2000) * d["velocity_limit"]  # past the no-load speed too
         full_tau, full_qd = np.zeros((2000, 12)), np.zeros((2000, 12))
         full_tau[:, i], full_qd[:, i] = tau, qd
         ours = sat.saturate(full_tau, full_qd)[:, i]
-        isaac = dc_motor_clip(tau, qd, f["saturation_effort"], f["velocity_limit"], f["effort_limit"])
+        isaac = dc_motor_clip(tau, qd, d["saturation_effort"], d["velocity_limit"], d["effort_limit"])
         assert ours == pytest.approx(isaac, abs=1e-9)
-        assert f["armature"] == pytest.approx(1.7e-4 * 81) and f["friction"] == pytest.approx(0.72)
+        assert d["armature"] == pytest.approx(1.7e-4 * 81) and d["friction"] == pytest.approx(0.72)
+        assert set(d) == {"saturation_effort", "effort_limit", "velocity_limit", "armature", "friction"}
     assert sum(not f["coupled"] for f in fields["joints"].values()) == 4
+    # coupled joints still get their reflected inertia (diagonal of A^-T diag(J) A^-1) and friction
+    hfe = fields["joints"]["FL_HFE"]
+    assert hfe["armature"] == pytest.approx(ex.bundle["reflected_inertia"][1][1]) and hfe["friction"] > 0
 
 
 def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):
@@ -146,3 +153,20 @@ def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):
     assert not (tmp_path / "out").exists()
     with pytest.raises(SpecError, match="--format: found 'mjcf'"):
         formats_from("mjcf")
+
+
+def test_a_failing_format_leaves_the_output_folder_as_it_was(exported, tmp_path):
+    """All formats or none: a URDF that lacks a joint stops the export before anything moves in."""
+    ex, _, out = exported
+    before = {p.name: p.read_bytes() for p in out.iterdir()}
+    broken = tmp_path / "broken.urdf"
+    broken.write_text(Path(ex.robot.urdf).read_text().replace('"RR_KFE"', '"RR_knee"'))
+    from dataclasses import replace
+
+    with pytest.raises(SpecError, match="RR_KFE"):
+        export_robot(replace(ex, robot=replace(ex.robot, urdf=str(broken))), formats_from("all"), out)
+    assert {p.name: p.read_bytes() for p in out.iterdir()} == before
+    assert [p.name for p in out.parent.iterdir() if p.name.startswith(".")] == []  # no staging folder left
+    with pytest.raises(SpecError):
+        export_robot(replace(ex, robot=replace(ex.robot, urdf=str(broken))), ["bundle", "urdf"], tmp_path / "new")
+    assert not (tmp_path / "new").exists()

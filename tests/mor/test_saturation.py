@@ -182,8 +182,10 @@ def test_batch_shapes_and_errors():
     tau = np.zeros((3, 5, N))
     assert ROBOT_SAT(tau, tau).shape == (3, 5, N)
     assert ROBOT_SAT(np.zeros(N, dtype=int), np.zeros(N)).dtype == np.float64
-    with pytest.raises(SaturationError, match=r"expected \(\.\.\., 12\)"):
+    with pytest.raises(SaturationError, match=r"expected both \(\.\.\., 12\), the same shape"):
         ROBOT_SAT(np.zeros((4, 11)), np.zeros((4, 11)))
+    with pytest.raises(SaturationError, match=r"tau has shape \(10, 12\) and qd \(5, 12\)"):
+        ROBOT_SAT(np.zeros((10, N)), np.zeros((5, N)))
     with pytest.raises(SaturationError, match="both be numpy arrays or both torch"):
         ROBOT_SAT(torch.zeros(N), np.zeros(N))
 
