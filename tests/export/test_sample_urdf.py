@@ -1,6 +1,5 @@
 """The sample quadruped data/samples/robots/hound_like.urdf and its generator make_hound_urdf.py."""
 
-import importlib.util
 import re
 
 import numpy as np
@@ -9,7 +8,7 @@ import pytest
 import yaml
 
 from hound_id.foot.urdf import read_foot
-from tests.conftest import SAMPLES
+from tests.conftest import SAMPLES, load_script
 
 ROBOTS = SAMPLES / "robots"
 URDF = ROBOTS / "hound_like.urdf"
@@ -21,10 +20,7 @@ STANCE = np.array([0.0, 0.7, -1.4] * 4)  # HAA, HFE, KFE per leg: knees bent, in
 
 
 def load_generator():
-    spec = importlib.util.spec_from_file_location("make_hound_urdf", ROBOTS / "make_hound_urdf.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(ROBOTS / "make_hound_urdf.py")
 
 
 @pytest.fixture(scope="module")

@@ -1,6 +1,5 @@
 """The sample running log data/samples/gait/hound_running.csv and its generator."""
 
-import importlib.util
 import math
 
 import numpy as np
@@ -8,7 +7,7 @@ import pytest
 
 from hound_id.foot.angles import contact_angles
 from hound_id.tables import read_table
-from tests.conftest import SAMPLES
+from tests.conftest import SAMPLES, load_script
 
 GAIT = SAMPLES / "gait"
 LOG = GAIT / "hound_running.csv"
@@ -17,10 +16,7 @@ THIGH, CALF = 0.27, 0.28  # hound_leg.urdf
 
 
 def load_generator():
-    spec = importlib.util.spec_from_file_location("make_gait_log", GAIT / "make_gait_log.py")
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return load_script(GAIT / "make_gait_log.py")
 
 
 @pytest.fixture(scope="module")
