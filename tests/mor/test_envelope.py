@@ -1,0 +1,98 @@
+"""Envelope models (issue 7 groundwork): the spec boundary, and each effect moving it the way physics says."""
+
+import numpy as np
+import pytest
+
+from hound_id.errors import SpecError
+from hound_id.mor.envelope import COPPER_ALPHA, EFFECTS, EnvelopeInputs, effect_names, envelope, feasible, simulate_log
+from hound_id.mor.region import operating_region, torque_interval
+from hound_id.mor.spec import load_motor_spec
+from tests.conftest import MOTOR, SMALL_MOTOR
+
+SPEC = load_motor_spec(MOTOR)
+INPUTS = EnvelopeInputs(SPEC)
+NO_LOAD = SPEC.bus_voltage * SPEC.kv
+W = np.linspace(-0.95, 0.95, 41) * NO_LOAD
+
+
+@pytest.mark.parametrize("motor", [MOTOR, SMALL_MOTOR])
+def test_no_effect_is_the_spec_sheet_region(motor):
+    spec = load_motor_spec(motor)
+    w = np.linspace(-0.99, 0.99, 101) * spec.bus_voltage * spec.kv
+    lo, hi = envelope(w, {}, EnvelopeInputs(spec))
+    ref_lo, ref_hi = torque_interval(w, operating_region(spec))
+    assert np.max(np.abs(lo - ref_lo)) < 1e-9 and np.max(np.abs(hi - ref_hi)) < 1e-9
+
+
+def test_bus_sag_lowers_only_the_motoring_edge():
+    lo0, hi0 = envelope(W, {}, INPUTS)
+    lo, hi = envelope(W, {"bus_sag": 0.2}, INPUTS)
+    motoring_hi = hi0 * W > 0  # upper edge at positive speed: motoring
+    assert np.all(hi[motoring_hi] <= hi0[motoring_hi] + 1e-12)
+    assert np.any(hi[motoring_hi] < hi0[motoring_hi] - 0.1)
+    # at rest nothing moves; the edge solves V_req (1 + R_pack i / V) = V where the voltage binds
+    assert hi[20] == pytest.approx(hi0[20]) and lo[20] == pytest.approx(lo0[20])
+    k = int(np.argmax(W))
+    i = hi[k] / SPEC.kt
+    v_req = SPEC.resistance * i + W[k] / SPEC.kv
+    assert v_req * (1 + 0.2 * i / SPEC.bus_voltage) == pytest.approx(SPEC.bus_voltage, rel=1e-9)
+
+
+def test_regen_rise_matters_only_past_the_no_load_speed():
+    """Braking below the no-load speed needs less voltage than the bus has: a higher bus changes nothing."""
+    assert np.allclose(envelope(W, {"regen_rise": 1.0}, INPUTS)[0], envelope(W, {}, INPUTS)[0])
+    fast = np.array([1.02, 1.05]) * NO_LOAD  # overspeed: a minimum braking torque, which a higher bus lowers
+    with_rise, without = envelope(fast, {"regen_rise": 1.0}, INPUTS)[1], envelope(fast, {}, INPUTS)[1]
+    assert np.all(np.isfinite(without)) and np.all(without < 0) and np.all(with_rise > without)
+
+
+def test_a_hot_winding_narrows_the_voltage_lines():
+    hot = EnvelopeInputs(SPEC, temperature=np.full(W.shape, 105.0))
+    lo, hi = envelope(W, {"thermal_resistance": COPPER_ALPHA}, hot)
+    _, hi0 = envelope(W, {}, INPUTS)
+    k = int(np.argmax(W))
+    r_hot = SPEC.resistance * (1 + COPPER_ALPHA * 80.0)
+    assert hi[k] == pytest.approx(SPEC.kt / r_hot * (SPEC.bus_voltage - W[k] / SPEC.kv), rel=1e-9)
+    assert hi[k] < hi0[k]
+
+
+def test_inductance_costs_voltage_at_speed_only():
+    lo, hi = envelope(W, {"inductance": 7e-5}, INPUTS)
+    lo0, hi0 = envelope(W, {}, INPUTS)
+    assert hi[20] == pytest.approx(hi0[20])
+    assert np.all(hi <= hi0 + 1e-12) and np.all(lo >= lo0 - 1e-12) and hi[-1] < hi0[-1] - 0.1
+
+
+def test_current_limit_and_kt_saturation():
+    lo, hi = envelope(W, {"current_limit": 40.0}, INPUTS)
+    assert np.max(hi) == pytest.approx(SPEC.kt * 40.0) and np.min(lo) == pytest.approx(-SPEC.kt * 40.0)
+    # a curve that needs 10 % more current at 9 N m than Kt says: the voltage line bends inwards
+    comp = ((1, 3), (1 / SPEC.kt, 0.1 / (SPEC.kt * 81.0)))
+    bent = EnvelopeInputs(SPEC, compensation=comp)
+    _, hi_s = envelope(W, {"kt_saturation": 1.0}, bent)
+    _, hi0 = envelope(W, {}, INPUTS)
+    assert np.all(hi_s <= hi0 + 1e-12) and hi_s[-1] < hi0[-1]
+    assert np.array_equal(envelope(W, {"kt_saturation": 0.0}, bent)[1], hi0)
+
+
+def test_effects_need_their_inputs_and_sensible_values():
+    assert effect_names(INPUTS) == ["bus_sag", "current_limit", "inductance", "regen_rise"]  # sample has pole pairs
+    with pytest.raises(SpecError, match="thermal_resistance needs temperature"):
+        envelope(W, {"thermal_resistance": 0.004}, INPUTS)
+    with pytest.raises(SpecError, match="bus_sag r_pack = -1 ohm is outside"):
+        envelope(W, {"bus_sag": -1.0}, INPUTS)
+    with pytest.raises(SpecError, match="unknown effect 'sag'"):
+        feasible(np.zeros(3), np.zeros(3), {"sag": 1.0}, INPUTS)
+    assert sorted(EFFECTS) == list(EFFECTS)
+
+
+def test_simulated_logs_stay_inside_their_true_envelope():
+    log = simulate_log(INPUTS, {"bus_sag": 0.15}, n=4000, noise=0.0, seed=2)
+    inputs = EnvelopeInputs(SPEC, temperature=log["temperature"])
+    lo, hi = envelope(log["velocity"], {"bus_sag": 0.15}, inputs)
+    assert np.all(log["torque"] <= hi + 1e-9) and np.all(log["torque"] >= lo - 1e-9)
+    at_edge = np.isclose(log["torque"], hi) | np.isclose(log["torque"], lo)
+    assert 0.3 < at_edge.mean() < 0.9  # many commands past the region
+    _, hi_spec = envelope(log["velocity"], {}, inputs)
+    assert np.mean(log["torque"] > hi_spec + 1e-9) == 0.0 and np.any(hi < hi_spec - 0.1)  # it falls short
+    assert np.all(log["bus_voltage"][log["torque"] * log["velocity"] > 0] <= SPEC.bus_voltage + 1e-9)
