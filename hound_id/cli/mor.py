@@ -18,9 +18,29 @@ def mor(
     spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec YAML: the motor-side region."),
     robot: Optional[Path] = typer.Option(None, "--robot", help="Robot YAML: joint-space regions and URDF boxes."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="Write a PNG plot of the region(s) to this file."),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/mor/1 or mor-robot/1)."),
+    compare: Optional[Path] = typer.Option(
+        None, "--compare", metavar="LOG", help="Torque-speed log (CSV/Parquet) to compare with --spec's region."
+    ),
+    columns: Optional[str] = typer.Option(None, "--columns", help="With --compare: torque=tau_m,velocity=w,..."),
+    units: Optional[str] = typer.Option(None, "--units", help="With --compare: velocity=rpm,torque=mN*m,..."),
+    joint: Optional[str] = typer.Option(None, "--joint", help="With --compare and --robot: the log's joint."),
+    add: Optional[list[str]] = typer.Option(None, "--add", metavar="EFFECT", help="With --compare: add an effect."),
+    auto: bool = typer.Option(False, "--auto", help="With --compare: add significant effects until none is left."),
+    json_out: bool = typer.Option(
+        False, "--json", help="Print JSON (schema hound-id/mor/1, mor-robot/1 or mor-compare/1)."
+    ),
 ) -> None:
-    """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot)."""
+    """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot); with
+    --compare LOG, the region against measured data and the effects that explain the difference."""
+    if compare is not None:
+        if spec is None:
+            raise HoundIdError(
+                "mor --compare: give --spec MOTOR.yaml (the motor whose region the log is compared with)"
+            )
+        _mor_compare(spec, compare, columns, units, robot, joint, add or [], auto, plot, json_out)
+        return
+    if columns or units or joint or add or auto:
+        raise HoundIdError("mor: --columns, --units, --joint, --add and --auto go with --compare LOG")
     if (spec is None) == (robot is None):
         raise HoundIdError("mor: give exactly one of --spec MOTOR.yaml or --robot ROBOT.yaml")
     if spec is not None:
@@ -28,6 +48,75 @@ def mor(
     else:
         assert robot is not None
         _mor_robot(robot, plot, json_out)
+
+
+def _mor_compare(
+    spec_path: Path,
+    log_path: Path,
+    columns: str | None,
+    units: str | None,
+    robot_path: Path | None,
+    joint: str | None,
+    add: list[str],
+    auto: bool,
+    plot: Path | None,
+    json_out: bool,
+) -> None:
+    from hound_id.dyno.log import parse_mapping
+    from hound_id.mor.compare import compare, comparison_json, compensation_of, load_envelope_log
+    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.mor.spec import load_motor_spec
+
+    check_output(plot, (".png",), "plot")
+    spec = load_motor_spec(spec_path)
+    robot = None
+    if robot_path is not None:
+        from hound_id.mor.robot import load_robot
+
+        robot = load_robot(robot_path)
+    log = load_envelope_log(
+        log_path, parse_mapping(columns, "--columns"), parse_mapping(units, "--units"), robot=robot, joint=joint
+    )
+    with console.status("comparing the log with the operating region"):
+        result = compare(log, EnvelopeInputs(spec, compensation=compensation_of(spec)), add=add, auto=auto)
+    if plot is not None:
+        from hound_id.mor.plot import plot_compare
+
+        save_figure(plot_compare(result), plot)
+    data = comparison_json(result)
+    data["plot"] = str(plot) if plot else None
+    if json_out:
+        print_json(data)
+        return
+    out = data["outside"]
+    console.print(
+        f"[bold]{spec.name}[/bold] against {log.source} ({log.side}, {log.n} samples): "
+        f"{out['fraction']:.1%} of the samples outside the region (by more than {out['threshold']:.3g} N m"
+        + (f"; up to {out['max_excess']:.3g} N m, quadrants {out['by_quadrant']})" if out["samples"] else ")"),
+        highlight=False,
+    )
+    console.print(
+        f"{data['bins_at_limit']} speed bins show the motor at its limit ({data['limit_method']}); envelope error "
+        f"{data['envelope_rmse']['model']:.3g} N m against the spec sheet, noise level {data['noise_level']:.2g} N m",
+        highlight=False,
+    )
+    for step in data["ladder"][1:]:
+        params = ", ".join(f"{k} = {v:.4g}" for k, v in step["model"].items())
+        console.print(f"+ {step['added']}: envelope error {step['envelope_rmse']:.3g} N m ({params})", highlight=False)
+    table = Table(title="Candidate effects on top of the model", title_justify="left")
+    for col in ("effect", "parameter", "explained", "error after", "significant"):
+        table.add_column(col, justify="left" if col == "effect" else "right")
+    for sug in data["suggestions"]:
+        table.add_row(sug["effect"], f"{sug['value']:.4g} {sug['unit']}", f"{sug['explained']:.1%}",
+                      f"{sug['rmse']:.3g} N m", "yes" if sug["significant"] else "no")  # fmt: skip
+    console.print(table)
+    significant = [s for s in data["suggestions"] if s["significant"]]
+    if significant:
+        console.print(f"suggested: --add {significant[0]['effect']}: {significant[0]['reason']}", highlight=False)
+    else:
+        console.print("no missing effect is significant: the model explains the envelope", highlight=False)
+    if plot is not None:
+        console.print(f"plot written to {plot}", highlight=False)
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:

@@ -1,0 +1,162 @@
+"""mor --compare: simulated envelopes with one hidden effect each (and none)."""
+
+from dataclasses import replace
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hound_id.errors import DynoDataError, SpecError
+from hound_id.mor.compare import (
+    EnvelopeLog,
+    compare,
+    comparison_json,
+    load_envelope_log,
+    polyline,
+)
+from hound_id.mor.envelope import EnvelopeInputs, envelope, simulate_log
+from hound_id.mor.robot import load_robot
+from hound_id.mor.spec import load_motor_spec
+from tests.conftest import MOTOR, ROBOT
+
+SPEC = load_motor_spec(MOTOR)
+#: A curve that needs 30 % more current at 9 N m than Kt says (as fit-current's compensation would give).
+CURVE = ((1, 3), (1 / SPEC.kt, 0.3 / (SPEC.kt * 81.0)))
+
+
+def log_of(spec, truth, *, curve=None, n=8000, seed=3, cmd=False, bus=True, speed=0.9):
+    inputs = EnvelopeInputs(spec, compensation=curve)
+    d = simulate_log(inputs, truth, n=n, noise=0.02, seed=seed, speed_fraction=speed)
+    cmd_col = None
+    if cmd:  # the command that produced each sample: past the edge where the sample sits on it
+        lo, hi = envelope(d["velocity"], truth, EnvelopeInputs(spec, d["temperature"], curve))
+        rng = np.random.default_rng(seed + 1)
+        at_hi, at_lo = np.isclose(d["torque"], hi, atol=0.1), np.isclose(d["torque"], lo, atol=0.1)
+        cmd_col = np.where(
+            at_hi, hi + rng.uniform(0.5, 5, n), np.where(at_lo, lo - rng.uniform(0.5, 5, n), d["torque"])
+        )
+    log = EnvelopeLog(
+        torque=d["torque"], velocity=d["velocity"], temperature=d["temperature"], torque_cmd=cmd_col,
+        bus_voltage=d["bus_voltage"] if bus else None, current=d["current"],
+    )  # fmt: skip
+    return log, inputs
+
+
+CASES = [
+    ("bus_sag", {"bus_sag": 0.15}, SPEC, None, 0.9),
+    ("inductance", {"inductance": 1.2e-4}, SPEC, None, 0.9),
+    ("current_limit", {"current_limit": 50.0}, SPEC, None, 0.9),
+    ("thermal_resistance", {"thermal_resistance": 0.0039}, SPEC, None, 0.99),
+    ("kt_saturation", {"kt_saturation": 1.0}, replace(SPEC, max_current=None), CURVE, 0.9),
+]
+
+
+@pytest.mark.parametrize(("name", "truth", "spec", "curve", "speed"), CASES, ids=[c[0] for c in CASES])
+def test_the_hidden_effect_is_named_and_explains_the_envelope(name, truth, spec, curve, speed):
+    log, inputs = log_of(spec, truth, curve=curve, speed=speed)
+    result = compare(log, inputs, auto=True)
+    first = result.ladder[0]
+    assert first.suggestions[0].effect == name and first.suggestions[0].significant
+    assert result.ladder[1].added == name
+    before, after = first.offsets, result.final.offsets
+    assert before.rmse > 4 * before.noise  # the spec sheet misses it
+    assert after.rmse < 2.5 * after.noise  # near the noise level once added
+    assert not any(s.significant for s in result.final.suggestions)  # nothing significant left
+    fitted = result.final.model[name]
+    assert fitted == pytest.approx(truth[name], rel=0.15)
+
+
+def test_data_that_match_the_model_flag_nothing():
+    log, inputs = log_of(SPEC, {})
+    result = compare(log, inputs, auto=True)
+    assert len(result.ladder) == 1
+    assert not any(s.significant for s in result.ladder[0].suggestions)
+    assert result.outside["fraction"] < 0.002  # noise only
+    assert result.ladder[0].offsets.rmse < 2.5 * result.ladder[0].offsets.noise
+
+
+def test_a_commanded_torque_channel_finds_the_limit_directly():
+    log, inputs = log_of(SPEC, {"bus_sag": 0.15}, cmd=True)
+    result = compare(log, inputs, add=["bus_sag"])
+    assert result.walls.method == "command"
+    assert result.final.offsets.rmse < 2.5 * result.final.offsets.noise
+    assert result.final.model["bus_sag"] == pytest.approx(0.15, rel=0.15)
+
+
+def test_a_log_past_the_region_is_measured_and_located():
+    """A stronger pack than the spec says (more voltage): the log spills over the motoring edge at speed."""
+    strong = replace(SPEC, bus_voltage=SPEC.bus_voltage * 1.08)
+    d = simulate_log(EnvelopeInputs(strong), {}, n=8000, noise=0.02, seed=5, speed_fraction=0.99)
+    log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"])
+    result = compare(log, EnvelopeInputs(SPEC))
+    out = result.outside
+    assert out["fraction"] > 0.001 and out["max_excess"] > 0.5
+    q = out["by_quadrant"]
+    assert q["I"] > 0 and q["III"] > 0 and q["I"] + q["III"] > 5 * (q["II"] + q["IV"])  # motoring edges
+    assert out["speed_range"][0] > 0.85 * SPEC.bus_voltage * SPEC.kv  # only near the no-load speed
+
+
+def test_a_log_that_never_reaches_its_limits_is_refused():
+    rng = np.random.default_rng(0)
+    n = 5000
+    log = EnvelopeLog(torque=rng.uniform(-3, 3, n), velocity=rng.uniform(-300, 300, n))
+    with pytest.raises(SpecError, match="does not push the motor to its envelope"):
+        compare(log, EnvelopeInputs(SPEC))
+
+
+def test_polyline_is_within_its_stated_accuracy():
+    inputs = EnvelopeInputs(SPEC)
+    line = polyline({"bus_sag": 0.15, "inductance": 1e-4}, inputs)
+    assert line["max_error"] <= line["tolerance"] == pytest.approx(0.002 * SPEC.torque_limit)
+    w = np.linspace(min(line["speeds"]), max(line["speeds"]), 2001)
+    lo, hi = envelope(w, {"bus_sag": 0.15, "inductance": 1e-4}, inputs)
+    ok = np.isfinite(hi)
+    assert np.max(np.abs(np.interp(w[ok], line["speeds"], line["upper"]) - hi[ok])) < 2 * line["tolerance"]
+
+
+def test_loader_units_mapping_and_joint_side(tmp_path):
+    log, _ = log_of(SPEC, {"bus_sag": 0.15}, n=2000)
+    rpm = 60 / (2 * np.pi)
+    path = tmp_path / "log.csv"
+    pd.DataFrame({"speed [rpm]": log.velocity * rpm, "tq [mN*m]": log.torque * 1e3, "vbus": log.bus_voltage}).to_csv(
+        path, index=False
+    )
+    got = load_envelope_log(path, {"velocity": "speed", "torque": "tq", "bus_voltage": "vbus"})
+    assert got.velocity == pytest.approx(log.velocity) and got.torque == pytest.approx(log.torque)
+    robot = load_robot(ROBOT)
+    # an uncoupled HAA (ratio 9): joint torque 9 tau_m, joint speed omega_m / 9
+    joint = tmp_path / "haa.csv"
+    pd.DataFrame({"torque": log.torque * 9, "velocity": log.velocity / 9}).to_csv(joint, index=False)
+    mapped = load_envelope_log(joint, robot=robot, joint="FL_HAA")
+    assert mapped.torque == pytest.approx(log.torque) and mapped.velocity == pytest.approx(log.velocity)
+    # the coupled hip/knee: both joints' columns, mapped through A
+    tx = robot.transmission_of("FL_KFE")
+    tau_m = np.column_stack([log.torque, 0.5 * log.torque])
+    w_m = np.column_stack([log.velocity, -0.3 * log.velocity])
+    tau_j, qd_j = tau_m @ np.linalg.inv(tx.A), w_m @ tx.A.T  # inverse of tau_m = A^T tau_j and omega_m = A^-1 qd
+    coupled = tmp_path / "hipknee.csv"
+    pd.DataFrame({"FL_HFE_torque": tau_j[:, 0], "FL_KFE_torque": tau_j[:, 1], "FL_HFE_velocity": qd_j[:, 0],
+                  "FL_KFE_velocity": qd_j[:, 1]}).to_csv(coupled, index=False)  # fmt: skip
+    knee = load_envelope_log(coupled, robot=robot, joint="FL_KFE")
+    assert knee.torque == pytest.approx(0.5 * log.torque) and knee.velocity == pytest.approx(-0.3 * log.velocity)
+    assert "hollow_shaft" in knee.side
+    with pytest.raises(DynoDataError, match="column 'velocity' missing"):
+        pd.DataFrame({"torque": log.torque}).to_csv(tmp_path / "t.csv", index=False)
+        load_envelope_log(tmp_path / "t.csv")
+    with pytest.raises(DynoDataError, match="--columns velocity=spd: no such column"):
+        load_envelope_log(path, {"velocity": "spd", "torque": "tq"})
+    with pytest.raises(SpecError, match="--robot and --joint go together"):
+        load_envelope_log(path, {"velocity": "speed", "torque": "tq"}, robot=robot)
+
+
+def test_json_has_the_issue_fields():
+    log, inputs = log_of(SPEC, {"bus_sag": 0.15})
+    data = comparison_json(compare(log, inputs, add=["bus_sag"]))
+    assert data["schema"] == "hound-id/mor-compare/1"
+    assert set(data["envelope_rmse"]) == {"model", "with_added"}
+    assert data["envelope_rmse"]["with_added"] < data["envelope_rmse"]["model"]
+    assert all(set(s) >= {"effect", "explained", "significant", "reason"} for s in data["suggestions"])
+    assert 0.0 <= data["outside_fraction"] <= 1.0
+    import json
+
+    json.dumps(data)
