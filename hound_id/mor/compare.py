@@ -342,11 +342,11 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         )
     # Logged channels settle what the envelope alone cannot: a sagging bus, inductance and a saturating core all
     # shorten the motoring edge at speed; the bus voltage and the current say which it is.
-    for effect, evidence in (("bus_sag", bus_evidence(log, inputs)), ("kt_saturation", current_evidence(log, inputs))):
+    for named, evidence in (("bus_sag", bus_evidence(log, inputs)), ("kt_saturation", current_evidence(log, inputs))):
         if evidence is None:
             continue
         for k, sug in enumerate(out):
-            if sug.effect == effect and sug.explained > 0.5:
+            if sug.effect == named and sug.explained > 0.5:
                 out[k] = replace(sug, reason=sug.reason + f"; {evidence['text']}", supported=evidence["significant"])
     out.sort(key=lambda s: (-int(s.supported and s.significant), -s.explained))
     return out
