@@ -103,6 +103,8 @@ def _mor_compare(
     for step in data["ladder"][1:]:
         params = ", ".join(f"{k} = {v:.4g}" for k, v in step["model"].items())
         console.print(f"+ {step['added']}: envelope error {step['envelope_rmse']:.3g} N m ({params})", highlight=False)
+        if step["why"]:
+            console.print(f"  why: {step['why']['reason']} (p = {step['why']['p_value']:.1e})", highlight=False)
     table = Table(title="Candidate effects on top of the model", title_justify="left")
     for col in ("effect", "parameter", "explained", "error after", "significant"):
         table.add_column(col, justify="left" if col == "effect" else "right")

@@ -546,6 +546,21 @@ def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]
     return tuple(int(p) for p in comp["powers"]), tuple(float(c) for c in comp["coefficients"])
 
 
+def _rung(c: Comparison, k: int) -> dict[str, Any]:
+    """One step of the ladder, with the suggestion (from the step before) that added its effect."""
+    step = c.ladder[k]
+    why = None
+    if k > 0:
+        why = next((x.to_dict() for x in c.ladder[k - 1].suggestions if x.effect == step.added), None)
+    return {
+        "added": step.added,
+        "model": step.model,
+        "envelope_rmse": step.offsets.rmse,
+        "noise_level": step.offsets.noise,
+        "why": why,
+    }
+
+
 def comparison_json(c: Comparison) -> dict[str, Any]:
     """The ``hound-id/mor-compare/1`` JSON."""
     first, last = c.ladder[0], c.final
@@ -565,10 +580,7 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "model": last.model,
         "added": [s.added for s in c.ladder[1:]],
         "suggestions": [s.to_dict() for s in last.suggestions],
-        "ladder": [
-            {"added": s.added, "model": s.model, "envelope_rmse": s.offsets.rmse, "noise_level": s.offsets.noise}
-            for s in c.ladder
-        ],
+        "ladder": [_rung(c, k) for k in range(len(c.ladder))],
         "bins": [
             {
                 "speed": float(w),

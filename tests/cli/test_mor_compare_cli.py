@@ -1,0 +1,53 @@
+import json
+
+import pytest
+
+from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
+from tests.conftest import MOTOR, SAMPLES, load_script, run_cli
+
+LOG = SAMPLES / "envelope" / "ilm85_sag_log.csv"
+COLUMNS = "velocity=speed,current=iq,temperature=winding_temp,bus_voltage=vbus"
+
+
+def test_sample_sag_is_named_and_explained(tmp_path):
+    plot = tmp_path / "compare.png"
+    proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--auto",
+                   "--plot", str(plot), "--json")  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    truth = json.loads((SAMPLES / "envelope" / "ilm85_sag_truth.json").read_text())
+    assert data["schema"] == "hound-id/mor-compare/1" and data["added"] == ["bus_sag"]
+    assert data["model"]["bus_sag"] == pytest.approx(truth["effects"]["bus_sag"], rel=0.1)
+    assert data["envelope_rmse"]["with_added"] < data["noise_level"] < data["envelope_rmse"]["model"] / 5
+    assert data["ladder"][1]["why"]["significant"] and "logged bus voltage" in data["ladder"][1]["why"]["reason"]
+    assert not any(s["significant"] for s in data["suggestions"])
+    assert plot.read_bytes().startswith(PNG_MAGIC)
+
+
+def test_table_output_and_add(tmp_path):
+    proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "inductance")
+    assert proc.returncode == 0, proc.stderr
+    # inductance also shortens the edge at speed, but the logged bus voltage still points at the supply
+    assert "+ inductance" in proc.stdout and "suggested: --add bus_sag" in proc.stdout
+
+
+@pytest.mark.parametrize(
+    ("args", "fragments"),
+    [
+        (["--compare", str(LOG)], ["mor --compare: give --spec"]),
+        (["--spec", str(MOTOR), "--columns", COLUMNS], ["go with --compare LOG"]),
+        (["--spec", str(MOTOR), "--compare", str(LOG)], ["column 'velocity' missing", "map with --columns"]),
+        (["--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "sag"],
+         ["--add: unknown effect"]),
+        (["--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--joint", "FL_HAA"],
+         ["--robot and --joint go together"]),
+    ],
+)  # fmt: skip
+def test_compare_bad_input_is_one_line(args, fragments):
+    assert_one_line_error(run_cli("mor", *args), *fragments)
+
+
+def test_sample_log_regenerates_byte_for_byte(tmp_path):
+    module = load_script(SAMPLES / "envelope" / "make_envelope_log.py")
+    module.main(tmp_path)
+    assert (tmp_path / "ilm85_sag_log.csv").read_bytes() == LOG.read_bytes()
