@@ -203,6 +203,9 @@ def from_bundle(bundle: dict[str, Any], joint_names: Sequence[str] | None = None
             )
         A = A[[joints.index(j) for j in names], :]  # rows follow your joints; motors keep their order
         joints = names
+    from hound_id.mor.saturation import polyline_of
+
+    lines = tuple(polyline_of(p) for p in bundle["saturation"].get("polylines") or [])
     clip = Saturation(
         joints=tuple(joints),
         A=frozen(A),
@@ -211,6 +214,7 @@ def from_bundle(bundle: dict[str, Any], joint_names: Sequence[str] | None = None
         back_emf_damping=frozen(arrays["back_emf_damping"]),
         torque_limit=frozen(arrays["torque_limit"]),
         max_speed=frozen(arrays["max_speed"]),
+        polylines=lines if any(p is not None for p in lines) else (),
     )
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:

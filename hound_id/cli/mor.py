@@ -26,6 +26,9 @@ def mor(
     joint: Optional[str] = typer.Option(None, "--joint", help="With --compare and --robot: the log's joint."),
     add: Optional[list[str]] = typer.Option(None, "--add", metavar="EFFECT", help="With --compare: add an effect."),
     auto: bool = typer.Option(False, "--auto", help="With --compare: add significant effects until none is left."),
+    out: Optional[Path] = typer.Option(
+        None, "--out", help="With --compare: write a motor spec YAML with the measured envelope (for saturate/export)."
+    ),
     json_out: bool = typer.Option(
         False, "--json", help="Print JSON (schema hound-id/mor/1, mor-robot/1 or mor-compare/1)."
     ),
@@ -37,10 +40,10 @@ def mor(
             raise HoundIdError(
                 "mor --compare: give --spec MOTOR.yaml (the motor whose region the log is compared with)"
             )
-        _mor_compare(spec, compare, columns, units, robot, joint, add or [], auto, plot, json_out)
+        _mor_compare(spec, compare, columns, units, robot, joint, add or [], auto, plot, json_out, out)
         return
-    if columns or units or joint or add or auto:
-        raise HoundIdError("mor: --columns, --units, --joint, --add and --auto go with --compare LOG")
+    if columns or units or joint or add or auto or out:
+        raise HoundIdError("mor: --columns, --units, --joint, --add, --auto and --out go with --compare LOG")
     if (spec is None) == (robot is None):
         raise HoundIdError("mor: give exactly one of --spec MOTOR.yaml or --robot ROBOT.yaml")
     if spec is not None:
@@ -61,6 +64,7 @@ def _mor_compare(
     auto: bool,
     plot: Path | None,
     json_out: bool,
+    out: Path | None = None,
 ) -> None:
     from hound_id.dyno.log import parse_mapping
     from hound_id.mor.compare import compare, comparison_json, compensation_of, load_envelope_log
@@ -68,6 +72,7 @@ def _mor_compare(
     from hound_id.mor.spec import load_motor_spec
 
     check_output(plot, (".png",), "plot")
+    check_output(out, (".yaml", ".yml"), "motor spec")
     spec = load_motor_spec(spec_path)
     robot = None
     if robot_path is not None:
@@ -85,14 +90,26 @@ def _mor_compare(
         save_figure(plot_compare(result), plot)
     data = comparison_json(result)
     data["plot"] = str(plot) if plot else None
+    data["out"] = str(out) if out else None
+    if out is not None:
+        import yaml
+
+        from hound_id.io import write_text
+        from hound_id.mor.compare import envelope_spec
+
+        write_text(out, yaml.safe_dump(envelope_spec(spec_path, out, result), sort_keys=False))
     if json_out:
         print_json(data)
         return
-    out = data["outside"]
+    outside = data["outside"]
     console.print(
         f"[bold]{spec.name}[/bold] against {log.source} ({log.side}, {log.n} samples): "
-        f"{out['fraction']:.1%} of the samples outside the region (by more than {out['threshold']:.3g} N m"
-        + (f"; up to {out['max_excess']:.3g} N m, quadrants {out['by_quadrant']})" if out["samples"] else ")"),
+        f"{outside['fraction']:.1%} of the samples outside the region (by more than {outside['threshold']:.3g} N m"
+        + (
+            f"; up to {outside['max_excess']:.3g} N m, quadrants {outside['by_quadrant']})"
+            if outside["samples"]
+            else ")"
+        ),
         highlight=False,
     )
     console.print(
@@ -119,6 +136,8 @@ def _mor_compare(
         console.print("no missing effect is significant: the model explains the envelope", highlight=False)
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
+    if out is not None:
+        console.print(f"motor spec with the measured envelope written to {out}", highlight=False)
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:

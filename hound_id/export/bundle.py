@@ -12,7 +12,8 @@
 * per transmission its velocity map A (qd_joint = A thetad_motor) and the global map;
 * per joint the inner box (every point feasible whatever the coupled joints do) and the
   outer box (everything reachable), and the reflected rotor inertia A^-T diag(J) A^-1;
-* ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from;
+* ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from, with the measured
+  envelopes' polyline edges (``mor --compare --out``) where a motor spec has one;
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
 Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unless a field says
@@ -106,6 +107,7 @@ def build_bundle(
                 "effects": params,
                 "friction": friction,
                 "compensation": comp,
+                "envelope": dict(spec.envelope) if spec.envelope else None,
             }
         )
     rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
@@ -135,12 +137,22 @@ def build_bundle(
             "back_emf_damping": sat.back_emf_damping.tolist(),
             "torque_limit": sat.torque_limit.tolist(),
             "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
+            "polylines": [
+                {"speeds": p[0].tolist(), "lower": _nan_to_none(p[1]), "upper": _nan_to_none(p[2])}
+                if p is not None
+                else None
+                for p in (sat.polylines or (None,) * len(robot.motors))
+            ],
         },
         "foot": foot,
     }
     # plain numbers and lists only (numpy scalars from the regions), so YAML and JSON agree
     plain: dict[str, Any] = json.loads(json.dumps(bundle, default=lambda o: o.tolist()))
     return plain
+
+
+def _nan_to_none(values: Any) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
 
 
 def foot_from_json(path: Path) -> dict[str, Any]:

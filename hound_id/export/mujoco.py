@@ -143,6 +143,14 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
     path = out / f"{ex.robot.name}.xml"
     io.write_text(path, xml)
+    curved = [m["name"] for m in ex.bundle["motors"] if m.get("envelope")]
+    if curved and ex.mujoco_actuator == "dcmotor":
+        note = (
+            f"motors {', '.join(curved)} have a measured envelope (mor --compare --out): dcmotor holds the spec "
+            "sheet's straight voltage lines, not its polyline; use --mujoco-actuator motor with hound_id.runtime to "
+            "apply it"
+        )
+        return Written((str(path),), (*DIFFERENCES, note))
     if ex.mujoco_actuator == "motor":
         notes = (
             "plain <motor> actuators on the tendons, force-limited to the torque limit only: call "

@@ -507,7 +507,8 @@ def _refit(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: E
 
 def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: float | None = None) -> dict[str, Any]:
     """The model's edges as polylines over speed, refined until linear interpolation is within ``tolerance``
-    [N m] (default :data:`POLYLINE_TOLERANCE` x the torque limit) of the model at every segment's midpoint.
+    [N m] (default :data:`POLYLINE_TOLERANCE` x the torque limit) of the model at a quarter, half and three
+    quarters of every segment (``max_error`` is the largest miss found there).
 
     Temperature-dependent effects are evaluated at the spec's reference temperature.
     """
@@ -517,15 +518,20 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
     ref = EnvelopeInputs(spec, compensation=inputs.compensation)
     top = spec.bus_voltage * spec.kv
     speeds = np.linspace(-top, top, 17)
-    for _ in range(12):
+    err = np.zeros(0)
+    for _ in range(14):  # split every segment whose interpolation misses the model at 1/4, 1/2 or 3/4 of it
         lo, hi = envelope(speeds, plain, ref)
-        mids = 0.5 * (speeds[:-1] + speeds[1:])
-        mlo, mhi = envelope(mids, plain, ref)
-        err = np.maximum(np.abs(0.5 * (hi[:-1] + hi[1:]) - mhi), np.abs(0.5 * (lo[:-1] + lo[1:]) - mlo))
-        bad = np.nan_to_num(err, nan=0.0) > tol
+        worst = np.zeros(speeds.size - 1)
+        for f in (0.25, 0.5, 0.75):
+            probe = speeds[:-1] + f * np.diff(speeds)
+            plo, phi = envelope(probe, plain, ref)
+            miss = np.maximum(np.abs(hi[:-1] + f * np.diff(hi) - phi), np.abs(lo[:-1] + f * np.diff(lo) - plo))
+            worst = np.maximum(worst, np.nan_to_num(miss, nan=0.0))
+        err = worst
+        bad = worst > tol
         if not bad.any():
             break
-        speeds = np.sort(np.concatenate([speeds, mids[bad]]))
+        speeds = np.sort(np.concatenate([speeds, (speeds[:-1] + 0.5 * np.diff(speeds))[bad]]))
     lo, hi = envelope(speeds, plain, ref)
     return {
         "speeds": speeds.tolist(),
@@ -601,3 +607,32 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "polyline": polyline(last.model, c.inputs),
         "units": "SI, motor side: N m, rad/s",
     }
+
+
+def envelope_spec(spec_path: Path, out_path: Path, c: Comparison) -> dict[str, Any]:
+    """A motor spec file (``hound-id/motor/1``) with the measured envelope, for the saturation and the export:
+    the spec sheet (by ``base:``, relative to ``out_path``) plus ``envelope`` = the model's effects and its
+    polyline edges (:func:`polyline`)."""
+    import os
+
+    from hound_id.io import read_yaml
+
+    raw = read_yaml(spec_path, "motor spec")
+    line = polyline(c.final.model, c.inputs)
+    env = {
+        "effects": line["model"],
+        "speeds": line["speeds"],
+        "lower": [None if not math.isfinite(v) else v for v in line["lower"]],
+        "upper": [None if not math.isfinite(v) else v for v in line["upper"]],
+        "tolerance": line["tolerance"],
+        "units": "rad/s, N m (motor side)",
+        "source": f"hound-id mor --compare {c.log.source}",
+    }
+    folder = out_path.resolve().parent
+    if isinstance(raw, dict) and "base" in raw:  # a fitted spec: keep its own fields, rebase its base
+        data = dict(raw)
+        data["base"] = os.path.relpath((spec_path.resolve().parent / raw["base"]).resolve(), folder)
+    else:
+        data = {"schema": "hound-id/motor/1", "base": os.path.relpath(spec_path.resolve(), folder)}
+    data["envelope"] = env
+    return data

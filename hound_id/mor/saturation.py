@@ -74,6 +74,9 @@ class Saturation:
     """Per motor min(peak torque, Kt i_max) [N m]."""
     max_speed: NDArray[np.float64]
     """Per motor rated maximum speed [rad/s]; inf where the spec gives none."""
+    polylines: tuple[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None, ...] = ()
+    """Per motor (speeds, lower, upper) edges of a measured envelope (``mor --compare --out``), or None.
+    Where given, the motor's torque interval at speeds inside the polyline is interpolated from it."""
     _cache: dict[Any, tuple[Any, ...]] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
@@ -81,6 +84,7 @@ class Saturation:
         """Collect the robot's transmissions and motor regions into arrays."""
         regions = [operating_region(robot.motor_specs[m]) for m in robot.motors]
         A = robot.velocity_map()
+        polylines = tuple(polyline_of(robot.motor_specs[m].envelope) for m in robot.motors)
         return cls(
             joints=robot.joints,
             A=frozen(A),
@@ -89,6 +93,7 @@ class Saturation:
             back_emf_damping=frozen([r.back_emf_damping for r in regions]),
             torque_limit=frozen([r.torque_limit for r in regions]),
             max_speed=frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
+            polylines=polylines if any(p is not None for p in polylines) else (),
         )
 
     @property
@@ -163,6 +168,13 @@ class Saturation:
         return self._bounds(qd, self._constants(qd))
 
     def _bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
+        lo, hi = self._line_bounds(qd, consts)
+        if self.polylines:
+            omega = qd @ consts[1].T
+            lo, hi = _polyline_bounds(self.polylines, omega, lo, hi)
+        return lo, hi
+
+    def _line_bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
         _, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
         u = qd @ speed_map  # back-EMF damping * motor speed
         if _is_torch(qd):
@@ -197,6 +209,14 @@ class Saturation:
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
         A, A_inv = consts[0], consts[1]
+        if self.polylines:  # measured envelopes: the general path (interpolated bounds)
+            lo, hi = self._bounds(qd, consts)
+            tau_m = tau @ A
+            if _is_torch(tau):
+                import torch
+
+                return tau + (torch.clamp(tau_m, lo, hi) - tau_m) @ A_inv
+            return tau + (np.clip(tau_m, lo, hi) - tau_m) @ A_inv
         if _is_torch(tau) and (tau.requires_grad or qd.requires_grad):
             import torch
 
@@ -266,6 +286,54 @@ class Saturation:
 
             return torch.clamp(tau_m - hi, min=0.0) + torch.clamp(lo - tau_m, min=0.0)
         return np.maximum(tau_m - hi, 0.0) + np.maximum(lo - tau_m, 0.0)
+
+
+def polyline_of(envelope: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """(speeds, lower, upper) arrays of a motor spec's ``envelope`` block, or None."""
+    if not envelope:
+        return None
+    return (
+        frozen(envelope["speeds"]),
+        frozen([np.nan if v is None else v for v in envelope["lower"]]),
+        frozen([np.nan if v is None else v for v in envelope["upper"]]),
+    )
+
+
+def _interp(x: Any, xp: NDArray[np.float64], fp: NDArray[np.float64]) -> Any:
+    """Piecewise-linear interpolation of (xp, fp) at x, numpy or torch (x outside xp: the end values)."""
+    if not _is_torch(x):
+        return np.interp(x, xp, fp)
+    import torch
+
+    xp_t = torch.tensor(np.array(xp), dtype=x.dtype, device=x.device)
+    fp_t = torch.tensor(np.array(fp), dtype=x.dtype, device=x.device)
+    k = torch.clamp(torch.searchsorted(xp_t, x.contiguous()), 1, xp_t.numel() - 1)
+    x0, x1, f0, f1 = xp_t[k - 1], xp_t[k], fp_t[k - 1], fp_t[k]
+    t = torch.clamp((x - x0) / (x1 - x0), 0.0, 1.0)
+    return f0 + t * (f1 - f0)
+
+
+def _polyline_bounds(polylines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
+    """Replace the straight-line bounds of motors with a polyline, at speeds inside its range."""
+    where: Any
+    if _is_torch(omega):
+        import torch
+
+        lo, hi = lo.clone(), hi.clone()
+        where = torch.where
+    else:
+        lo, hi = lo.copy(), hi.copy()
+        where = np.where
+    for m, line in enumerate(polylines):
+        if line is None:
+            continue
+        speeds, lower, upper = line
+        w = omega[..., m]
+        inside = (w >= float(speeds[0])) & (w <= float(speeds[-1]))
+        ok = np.isfinite(lower) & np.isfinite(upper)
+        lo[..., m] = where(inside, _interp(w, speeds[ok], lower[ok]), lo[..., m])
+        hi[..., m] = where(inside, _interp(w, speeds[ok], upper[ok]), hi[..., m])
+    return lo, hi
 
 
 def saturation_for(robot: Robot) -> Saturation:

@@ -30,6 +30,8 @@ from dataclasses import dataclass, field, fields
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from hound_id.errors import SpecError, where
 from hound_id.io import read_yaml
 from hound_id.units import to_si
@@ -55,7 +57,7 @@ _QUANTITY_KEYS: dict[str, tuple[str, bool]] = {
     "rotor_inertia": ("inertia", False),
     "inductance": ("inductance", False),
 }
-_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed", "base", "fit")
+_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed", "base", "fit", "envelope")
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
 
@@ -91,6 +93,8 @@ class MotorSpec:
     """Fields whose values are assumed rather than sourced."""
     fit: Mapping[str, Any] | None = field(default=None, compare=False)
     """The dynamometer fit (schema hound-id/fit/1) whose Kt and peak torque this spec carries, if any."""
+    envelope: Mapping[str, Any] | None = field(default=None, compare=False)
+    """A measured envelope (``mor --compare --out``): effects and polyline edges over speed, or None."""
 
     @property
     def torque_limit(self) -> float:
@@ -248,8 +252,28 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         source=src,
         assumed=tuple(assumed),
         fit=fit,
+        envelope=_envelope(data.get("envelope"), source),
         **values,
     )
+
+
+def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
+    """A spec's ``envelope`` block, checked: increasing speeds, lower <= upper, equal lengths."""
+    if data is None:
+        return None
+    try:
+        speeds = [float(v) for v in data["speeds"]]
+        lower = [float("nan") if v is None else float(v) for v in data["lower"]]
+        upper = [float("nan") if v is None else float(v) for v in data["upper"]]
+    except (KeyError, TypeError, ValueError) as err:
+        raise SpecError(f"{where(source, 'envelope')}: expected speeds, lower and upper lists ({err})") from err
+    ok = len(speeds) == len(lower) == len(upper) >= 2 and all(np.diff(speeds) > 0)
+    if not ok or any(lo > hi for lo, hi in zip(lower, upper, strict=True) if lo == lo and hi == hi):
+        raise SpecError(
+            f"{where(source, 'envelope')}: needs at least two increasing speeds with lower <= upper at each; "
+            "write it with hound-id mor --compare --out"
+        )
+    return dict(data)
 
 
 def load_motor_spec(path: str | Path) -> MotorSpec:

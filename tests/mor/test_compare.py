@@ -160,3 +160,42 @@ def test_json_has_the_issue_fields():
     import json
 
     json.dumps(data)
+
+
+def test_measured_envelope_reaches_the_saturation_the_bundle_and_the_runtime(tmp_path):
+    """mor --compare --out writes a spec whose polyline the clip, the bundle and the runtime all use."""
+    import torch
+    import yaml
+
+    import hound_id.runtime
+    from hound_id.export.bundle import build_bundle
+    from hound_id.mor.compare import envelope_spec
+    from hound_id.mor.saturation import Saturation
+
+    log, inputs = log_of(SPEC, {"bus_sag": 0.15})
+    result = compare(log, inputs, auto=True)
+    out = tmp_path / "ilm85_envelope.yaml"
+    out.write_text(yaml.safe_dump(envelope_spec(MOTOR, out, result)))
+    spec = load_motor_spec(out)
+    assert spec.kt == SPEC.kt and spec.envelope["effects"]["bus_sag"] == pytest.approx(0.15, rel=0.15)
+    robot = load_robot(ROBOT)
+    robot = replace(robot, motor_specs={m: spec for m in robot.motor_specs})
+    sat = Saturation.from_robot(robot)
+    assert len(sat.polylines) == 12
+    rng = np.random.default_rng(9)
+    tau, qd = rng.uniform(-200, 200, (400, 12)), rng.uniform(-70, 70, (400, 12))
+    tau_m = sat(tau, qd) @ sat.A
+    omega = qd @ sat.A_inv.T
+    lo, hi = envelope(omega.ravel(), spec.envelope["effects"], EnvelopeInputs(SPEC))
+    tol = spec.envelope["tolerance"] * 2 + 1e-9
+    inside = np.isfinite(hi) & (np.abs(omega.ravel()) <= spec.envelope["speeds"][-1])  # past it: the spec's lines
+    assert inside.mean() > 0.5
+    t = tau_m.ravel()[inside]
+    assert np.all(t <= hi[inside] + tol) and np.all(t >= lo[inside] - tol)
+    assert np.any(tau_m.ravel() < SPEC.torque_limit - 0.5)  # the sag bites at speed
+    t = torch.tensor(tau, requires_grad=True)
+    out_t = sat(t, torch.tensor(qd))
+    out_t.sum().backward()
+    assert np.allclose(out_t.detach().numpy(), sat(tau, qd), atol=1e-9) and t.grad is not None
+    runtime = hound_id.runtime.from_bundle(build_bundle(robot))
+    assert np.allclose(runtime.saturate(tau, qd), sat(tau, qd), atol=1e-12)
