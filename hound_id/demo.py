@@ -204,6 +204,41 @@ def step_foot(out: Path) -> StepResult:
     )
 
 
+def step_compare(out: Path) -> StepResult:
+    """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
+    import yaml
+
+    from hound_id.mor.compare import compare, comparison_json, envelope_spec, load_envelope_log
+    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.mor.plot import plot_compare
+    from hound_id.mor.spec import load_motor_spec
+
+    spec_path = samples_dir() / "motors" / "hound_ilm85.yaml"
+    columns = {"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"}
+    log = load_envelope_log(samples_dir() / "envelope" / "ilm85_sag_log.csv", columns)
+    result = compare(log, EnvelopeInputs(load_motor_spec(spec_path)), auto=True)
+    data = comparison_json(result)
+    io.write_json(out / "compare_ilm85_sag.json", data)
+    _save_png(plot_compare(result), out / "compare_ilm85_sag.png")
+    io.write_text(
+        out / "hound_ilm85_envelope.yaml",
+        yaml.safe_dump(envelope_spec(spec_path, out / "hound_ilm85_envelope.yaml", result), sort_keys=False),
+    )
+    added = ", ".join(f"{k} = {v:.4g}" for k, v in data["model"].items()) or "nothing"
+    return StepResult(
+        "compare a log with the region",
+        f"{data['outside_fraction']:.1%} of the samples outside the region; added {added}; envelope error "
+        f"{data['envelope_rmse']['model']:.3g} -> {data['envelope_rmse']['with_added']:.3g} N m "
+        f"(noise level {data['noise_level']:.2g} N m)",
+        ("compare_ilm85_sag.json", "compare_ilm85_sag.png", "hound_ilm85_envelope.yaml"),
+        {
+            "envelope_rmse_model": data["envelope_rmse"]["model"],
+            "envelope_rmse_with_added": data["envelope_rmse"]["with_added"],
+            "noise_level": data["noise_level"],
+        },
+    )
+
+
 def step_export(out: Path) -> StepResult:
     """Export every format of the sample robot with the fitted motor and the new foot; run the MuJoCo model."""
     from hound_id.export.mujoco import rollout_check
@@ -234,6 +269,7 @@ STEPS: tuple[Callable[[Path], StepResult], ...] = (
     step_robot_regions,
     step_saturate_log,
     step_fit_current,
+    step_compare,
     step_foot,
     step_export,
 )

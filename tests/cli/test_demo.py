@@ -15,6 +15,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
         "robot regions and saturation",
         "saturate a command log",
         "fit a dyno log",
+        "compare a log with the region",
         "optimise the foot",
         "export to trainers",
     ]
@@ -38,7 +39,9 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert run_cli("mor", "--spec", str(tmp_path / "out" / "hound_ilm85_fitted.yaml")).returncode == 0
     foot = json.loads((tmp_path / "out" / "foot" / "foot.json").read_text())
     assert foot["schema"] == "hound-id/foot/1" and all(c["satisfied"] for c in foot["constraints"].values())
-    assert data["steps"][4]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
+    assert data["steps"][5]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
+    compare = json.loads((tmp_path / "out" / "compare_ilm85_sag.json").read_text())
+    assert compare["schema"] == "hound-id/mor-compare/1" and compare["added"] == ["bus_sag"]
     export = json.loads((tmp_path / "out" / "export" / "export.json").read_text())
     assert export["schema"] == "hound-id/export/1" and export["fitted_motors"] == ["hound_ilm85"] and export["foot"]
     assert export["mujoco_check"]["max_outside"] == 0.0 and export["mujoco_check"]["max_difference"] < 1e-5
