@@ -5,8 +5,11 @@ commanded-torque channel (``torque_cmd``) a sample is at its upper limit when th
 exceeds the measured torque by more than :data:`CMD_GAP` of the torque limit (and at its lower
 limit the other way round). Without one, hound-id looks for a *wall* in each speed bin: the
 margins r = tau - edge(omega) of samples driven into a limit pile up, so the top of the
-margin distribution is narrow, (q98 - q90) < :data:`WALL` x (q98 - q50). The samples of a wall
-(margins above q90 - 2 (q98 - q90)) form the bin's cluster.
+margin distribution is narrow, (q98 - q90) < :data:`WALL` x (q98 - q50) and below
+:data:`WALL_WIDTH` of the torque limit. Where the true edge drifts against the model's across a
+bin (steep past the no-load speed), the linear drift of the top fifth of the margins is taken
+out first. Walls in fewer than three neighbouring bins are taken for chance: a limit spans a range of speeds. The
+samples of a wall (margins above q90 - 2 (q98 - q90)) form the bin's cluster.
 
 **Edge offsets.** For a model (the spec sheet plus effects with parameters), a bin's edge
 offset is the mean margin of its cluster against that model [N m], with its standard error.
@@ -45,6 +48,8 @@ CHANNELS = ("torque", "velocity", "torque_cmd", "current", "temperature", "bus_v
 CMD_GAP = 0.02
 #: A bin has a wall when (q98 - q90) < WALL (q98 - q50) of its margins.
 WALL = 0.1
+#: ... and its top (q98 - q90) narrower than this share of the torque limit: piled up within the noise.
+WALL_WIDTH = 0.03
 #: Speed bins across the logged range, and the fewest samples a bin (and a wall) needs.
 BINS = 32
 MIN_SAMPLES = 40
@@ -175,6 +180,15 @@ class Walls:
     """``command`` or ``wall``."""
 
 
+def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int64]:
+    """The members whose margins form a wall at the top of the bin (module docstring), or none. The top
+    must also be narrower than ``width`` [N m] in absolute terms: piled up within the sensor noise."""
+    q50, q90, q98 = np.quantile(m, [0.5, 0.9, 0.98])
+    if (q98 - q90) < WALL * (q98 - q50) and (q98 - q90) < width:
+        return members[m >= q90 - 2 * (q98 - q90)]
+    return np.array([], dtype=np.int64)
+
+
 def find_walls(log: EnvelopeLog, inputs: EnvelopeInputs, bins: int = BINS) -> Walls:
     """The samples at the limit in each speed bin (module docstring)."""
     w = log.velocity
@@ -183,6 +197,7 @@ def find_walls(log: EnvelopeLog, inputs: EnvelopeInputs, bins: int = BINS) -> Wa
     lo, hi = envelope(w, {}, inputs)
     upper, lower = [], []
     gap = CMD_GAP * inputs.spec.torque_limit
+    width = WALL_WIDTH * inputs.spec.torque_limit
     for b in range(bins):
         members = np.flatnonzero(index == b)
         found = []
@@ -194,14 +209,40 @@ def find_walls(log: EnvelopeLog, inputs: EnvelopeInputs, bins: int = BINS) -> Wa
                 at = members[cmd_side * (log.torque_cmd[members] - log.torque[members]) > gap]
             else:
                 m = margin_of(members)
-                q50, q90, q98 = np.quantile(m, [0.5, 0.9, 0.98])
-                wall = (q98 - q90) < WALL * (q98 - q50)
-                at = members[m >= q90 - 2 * (q98 - q90)] if wall else np.array([], dtype=np.int64)
+                finite = np.isfinite(m)
+                if finite.sum() < MIN_SAMPLES:
+                    found.append(np.array([], dtype=np.int64))
+                    continue
+                cand, m = members[finite], m[finite]
+                at = _wall(cand, m, width)
+                if at.size == 0:
+                    # The true edge may drift against the model's across the bin (steep past the no-load speed):
+                    # take out the linear drift of the top fifth of the margins and look again.
+                    top = m >= np.quantile(m, 0.8)
+                    if top.sum() >= 5 and np.ptp(w[cand[top]]) > 0:
+                        slope = np.polyfit(w[cand[top]], m[top], 1)[0]
+                        at = _wall(cand, m - slope * (w[cand] - np.mean(w[cand])), width)
             found.append(at if at.size >= MIN_WALL else np.array([], dtype=np.int64))
         upper.append(found[0])
         lower.append(found[1])
     centres = 0.5 * (edges[:-1] + edges[1:])
+    if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls are chance
+        upper, lower = _contiguous(upper), _contiguous(lower)
     return Walls(centres, tuple(upper), tuple(lower), "command" if log.torque_cmd is not None else "wall")
+
+
+def _contiguous(walls: list[NDArray[np.int64]], run: int = 3) -> list[NDArray[np.int64]]:
+    """Keep the walls that belong to a run of at least ``run`` neighbouring bins with walls."""
+    has = np.array([w.size > 0 for w in walls])
+    keep = np.zeros_like(has)
+    start = 0
+    for b in range(len(has) + 1):
+        if b == len(has) or not has[b]:
+            if b - start >= run:
+                keep[start:b] = True
+            start = b + 1
+    empty = np.array([], dtype=np.int64)
+    return [w if keep[b] else empty for b, w in enumerate(walls)]
 
 
 @dataclass(frozen=True)

@@ -48,6 +48,8 @@ CASES = [
     ("current_limit", {"current_limit": 50.0}, SPEC, None, 0.9),
     ("thermal_resistance", {"thermal_resistance": 0.0039}, SPEC, None, 0.99),
     ("kt_saturation", {"kt_saturation": 1.0}, replace(SPEC, max_current=None), CURVE, 0.9),
+    # a regenerating bus shows only past the no-load speed, where braking needs voltage
+    ("regen_rise", {"regen_rise": 0.5}, SPEC, None, 1.06),
 ]
 
 
@@ -96,8 +98,9 @@ def test_a_log_past_the_region_is_measured_and_located():
     assert out["speed_range"][0] > 0.85 * SPEC.bus_voltage * SPEC.kv  # only near the no-load speed
 
 
-def test_a_log_that_never_reaches_its_limits_is_refused():
-    rng = np.random.default_rng(0)
+@pytest.mark.parametrize("seed", range(6))
+def test_a_log_that_never_reaches_its_limits_is_refused(seed):
+    rng = np.random.default_rng(seed)
     n = 5000
     log = EnvelopeLog(torque=rng.uniform(-3, 3, n), velocity=rng.uniform(-300, 300, n))
     with pytest.raises(SpecError, match="does not push the motor to its envelope"):
