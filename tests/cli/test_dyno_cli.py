@@ -145,7 +145,11 @@ def test_ctrl_c_stops_recording_with_the_file_valid(tmp_path):
             stderr=subprocess.PIPE,
             text=True,
         )
-        time.sleep(2.5)
+        # wait until the recorder runs (its sidecar appears; slow to start on a loaded machine), then record a while
+        deadline = time.monotonic() + 60
+        while not (tmp_path / "run.csv.meta.json").exists() and time.monotonic() < deadline and rec.poll() is None:
+            time.sleep(0.1)
+        time.sleep(1.5)
         rec.send_signal(signal.SIGINT)
         rec.wait(timeout=15)
     finally:
