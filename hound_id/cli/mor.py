@@ -129,11 +129,31 @@ def _mor_compare(
         table.add_row(sug["effect"], f"{sug['value']:.4g} {sug['unit']}", f"{sug['explained']:.1%}",
                       f"{sug['rmse']:.3g} N m", "yes" if sug["significant"] else "no")  # fmt: skip
     console.print(table)
+    cov = data["coverage"]
+    console.print(
+        "the log shows the limits at motor speeds "
+        + "; ".join(f"{k} edge {v[0]:.4g} to {v[1]:.4g} rad/s" for k, v in cov.items() if v)
+        + (f"; {data['rows_dropped']} rows with NaN or inf dropped" if data["rows_dropped"] else ""),
+        highlight=False,
+    )
     significant = [s for s in data["suggestions"] if s["significant"]]
+    final = data["envelope_rmse"]["with_added"]
     if significant:
         console.print(f"suggested: --add {significant[0]['effect']}: {significant[0]['reason']}", highlight=False)
-    else:
+    elif data["explained"]:
         console.print("no missing effect is significant: the model explains the envelope", highlight=False)
+    else:
+        console.print(
+            f"no candidate effect is significant, but the model does not explain the log: envelope error "
+            f"{final:.3g} N m ({final / max(data['noise_level'], 1e-12):.0f}x the noise level), "
+            f"{data['outside_fraction']:.1%} of the samples past the region. Check the units, log torque_cmd, "
+            "or suspect an effect hound-id does not model",
+            highlight=False,
+        )
+    if any(k == "thermal_resistance" for k in data["model"]):
+        console.print(
+            "note: thermal_resistance enters --out at 25 degC (the polyline has no temperature)", highlight=False
+        )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
     if out is not None:

@@ -56,6 +56,10 @@ MIN_SAMPLES = 40
 MIN_WALL = 8
 #: Family-wise false-alarm rate of the significance tests.
 ALPHA = 0.01
+#: The model explains the envelope when its error is at most this many noise levels ...
+EXPLAINED = 3.0
+#: ... and (for the spec sheet itself) at most this share of the samples lies past its edges.
+OUTSIDE_OK = 0.005
 #: Accuracy of the polyline boundary, as a share of the torque limit.
 POLYLINE_TOLERANCE = 0.002
 
@@ -74,6 +78,8 @@ class EnvelopeLog:
     source: str = "log"
     side: str = "motor"
     """``motor``, or how joint-side data was mapped (joint, transmission)."""
+    dropped: int = 0
+    """Rows dropped for a non-finite value in any channel used."""
 
     @property
     def n(self) -> int:
@@ -153,7 +159,11 @@ def load_envelope_log(
         side = f"joint {joint} through the {tx.kind} transmission of {', '.join(tx.joints)}"
     rest = {name: channel(name, False) for name in CHANNELS[2:]}
     if robot is not None and joint is not None and rest["torque_cmd"] is not None:
-        rest["torque_cmd"] = None  # a joint-side command cannot be mapped without the other joints' commands
+        tx = robot.transmission_of(joint)
+        if tx.coupled:  # a joint-side command cannot be mapped without the other joints' commands
+            rest["torque_cmd"] = None
+        else:
+            rest["torque_cmd"] = rest["torque_cmd"] * float(tx.A[0, 0])
     data = {"torque": torque, "velocity": velocity, **rest}
     good = np.ones(torque.size, dtype=bool)
     for values in data.values():
@@ -164,7 +174,7 @@ def load_envelope_log(
             f"{source}: {int(good.sum())} usable rows; an envelope comparison needs at least {10 * MIN_SAMPLES}"
         )
     picked = {k: (v[good] if v is not None else None) for k, v in data.items()}
-    return EnvelopeLog(source=source, side=side, **picked)  # type: ignore[arg-type]
+    return EnvelopeLog(source=source, side=side, dropped=int((~good).sum()), **picked)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -328,7 +338,8 @@ class Suggestion:
 
 def _fit_one(
     log: EnvelopeLog, walls: Walls, model: Mapping[str, float], name: str, inputs: EnvelopeInputs
-) -> tuple[float, float]:
+) -> tuple[float, float, bool]:
+    """(fitted parameter, sum of squares, whether it sits at a bound of the search)."""
     from scipy.optimize import minimize_scalar
 
     effect = EFFECTS[name]
@@ -342,7 +353,8 @@ def _fit_one(
         method="bounded",
         options={"xatol": (hi_b - lo_b) * 1e-5},
     )
-    return float(res.x), float(res.fun)
+    at_bound = min(abs(float(res.x) - lo_b), abs(hi_b - float(res.x))) < 1e-3 * (hi_b - lo_b)
+    return float(res.x), float(res.fun), bool(at_bound and float(res.x) != effect.neutral)
 
 
 def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> list[Suggestion]:
@@ -360,7 +372,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     names = [c for c in effect_names(_inputs_for(log, inputs, np.arange(log.n))) if c not in model]
     out = []
     for name in names:
-        value, sse1 = _fit_one(log, walls, model, name, inputs)
+        value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
         dof = max(n - 1, 1)
         f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
         p = float(f_dist.sf(f_stat, 1, dof))
@@ -374,10 +386,11 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 rmse=math.sqrt(sse1 / n),
                 f_statistic=float(f_stat),
                 p_value=p,
-                significant=bool(p < ALPHA / max(len(names), 1)),
+                significant=bool(p < ALPHA / max(len(names), 1)) and not at_bound,
                 reason=(
                     f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
                     f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
+                    + (" (at the bound of its search: not identified)" if at_bound else "")
                 ),
             )
         )
@@ -593,6 +606,15 @@ def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]
     return tuple(int(p) for p in comp["powers"]), tuple(float(c) for c in comp["coefficients"])
 
 
+def coverage(off: Offsets) -> dict[str, list[float] | None]:
+    """Motor speeds [rad/s] the bins at the limit span, per edge: where the data say anything."""
+    out: dict[str, list[float] | None] = {}
+    for side, name in ((1, "upper"), (-1, "lower")):
+        w = off.speeds[off.side == side]
+        out[name] = [float(w.min()), float(w.max())] if w.size else None
+    return out
+
+
 def _rung(c: Comparison, k: int) -> dict[str, Any]:
     """One step of the ladder, with the suggestion (from the step before) that added its effect."""
     step = c.ladder[k]
@@ -617,11 +639,18 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "side": c.log.side,
         "motor": c.inputs.spec.name,
         "samples": c.log.n,
+        "rows_dropped": c.log.dropped,
         "limit_method": c.walls.method,
         "bins_at_limit": int(first.offsets.offset.size),
         "outside_fraction": c.outside["fraction"],
         "outside": c.outside,
         "envelope_rmse": {"model": first.offsets.rmse, "with_added": last.offsets.rmse},
+        # explained: the error at the noise level, and (against the spec sheet) no share of samples past its edges
+        "explained": bool(
+            last.offsets.rmse <= EXPLAINED * max(last.offsets.noise, 1e-12)
+            and (bool(last.model) or c.outside["fraction"] <= OUTSIDE_OK)
+        ),
+        "coverage": coverage(last.offsets),
         "noise_level": first.offsets.noise,
         "sample_noise": first.offsets.sample_noise,
         "model": last.model,
@@ -666,7 +695,8 @@ def envelope_spec(spec_path: Path, out_path: Path, c: Comparison) -> dict[str, A
         "lower": [None if not math.isfinite(v) else v for v in line["lower"]],
         "upper": [None if not math.isfinite(v) else v for v in line["upper"]],
         "tolerance": line["tolerance"],
-        "units": "rad/s, N m (motor side)",
+        "coverage": coverage(c.final.offsets),
+        "units": "rad/s, N m (motor side); outside the coverage the polyline is the model's extrapolation",
         "source": f"hound-id mor --compare {c.log.source}",
     }
     folder = out_path.resolve().parent

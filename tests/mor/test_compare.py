@@ -74,6 +74,7 @@ def test_data_that_match_the_model_flag_nothing():
     assert len(result.ladder) == 1
     assert not any(s.significant for s in result.ladder[0].suggestions)
     assert result.outside["fraction"] < 0.002  # noise only
+    assert comparison_json(result)["explained"] is True
     assert result.ladder[0].offsets.rmse < 2.5 * result.ladder[0].offsets.noise
 
 
@@ -96,6 +97,7 @@ def test_a_log_past_the_region_is_measured_and_located():
     q = out["by_quadrant"]
     assert q["I"] > 0 and q["III"] > 0 and q["I"] + q["III"] > 5 * (q["II"] + q["IV"])  # motoring edges
     assert out["speed_range"][0] > 0.85 * SPEC.bus_voltage * SPEC.kv  # only near the no-load speed
+    assert comparison_json(result)["explained"] is False  # no candidate adds voltage: said, not hidden
 
 
 @pytest.mark.parametrize("seed", range(6))
