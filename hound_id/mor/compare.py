@@ -199,12 +199,14 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
     return np.array([], dtype=np.int64)
 
 
-def find_walls(log: EnvelopeLog, inputs: EnvelopeInputs, bins: int = BINS) -> Walls:
-    """The samples at the limit in each speed bin (module docstring)."""
+def find_walls(
+    log: EnvelopeLog, inputs: EnvelopeInputs, model: Mapping[str, float] | None = None, bins: int = BINS
+) -> Walls:
+    """The samples at the limit in each speed bin, against ``model``'s edges (module docstring)."""
     w = log.velocity
     edges = np.linspace(float(w.min()), float(w.max()), bins + 1)
     index = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bins - 1)
-    lo, hi = envelope(w, {}, inputs)
+    lo, hi = envelope(w, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
     upper, lower = [], []
     gap = CMD_GAP * inputs.spec.torque_limit
     width = WALL_WIDTH * inputs.spec.torque_limit
@@ -475,8 +477,11 @@ class Comparison:
     log: EnvelopeLog
     inputs: EnvelopeInputs
     walls: Walls
+    """The samples at the limit, found against the final model's edges."""
     ladder: tuple[Step, ...]
     outside: dict[str, Any] = field(default_factory=dict)
+    baseline: Offsets | None = None
+    """The spec sheet's offsets on the final walls (the fair 'before' of the final model)."""
 
     @property
     def final(self) -> Step:
@@ -544,15 +549,29 @@ def compare(
         value = next(s.value for s in ladder[-1].suggestions if s.effect == name)
         model = {**model, name: value}
         model = _refit(log, walls, model, inputs)
+        # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
+        again = find_walls(log, inputs, model)
+        if _bins(again) > _bins(walls):
+            walls = again
+            model = _refit(log, walls, model, inputs, all_params=True)
         step_offsets = offsets(log, walls, model, inputs)
         ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs))))
-    return Comparison(log, inputs, walls, tuple(ladder), outside_stats(log, inputs, base.sample_noise))
+    baseline = offsets(log, walls, {}, inputs)
+    return Comparison(
+        log, inputs, walls, tuple(ladder), outside_stats(log, inputs, base.sample_noise), baseline=baseline
+    )
 
 
-def _refit(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> dict[str, float]:
+def _bins(walls: Walls) -> int:
+    return sum(w.size > 0 for w in walls.upper) + sum(w.size > 0 for w in walls.lower)
+
+
+def _refit(
+    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs, all_params: bool = False
+) -> dict[str, float]:
     """One coordinate-descent sweep over the model's parameters, each refitted with the others fixed."""
     fitted = dict(model)
-    if len(fitted) > 1:
+    if len(fitted) > 1 or all_params:
         for name in list(fitted):
             others = {k: v for k, v in fitted.items() if k != name}
             fitted[name] = _fit_one(log, walls, others, name, inputs)[0]
@@ -633,6 +652,7 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
 def comparison_json(c: Comparison) -> dict[str, Any]:
     """The ``hound-id/mor-compare/1`` JSON."""
     first, last = c.ladder[0], c.final
+    before = c.baseline if c.baseline is not None else first.offsets
     return {
         "schema": SCHEMA,
         "source": c.log.source,
@@ -641,17 +661,17 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "samples": c.log.n,
         "rows_dropped": c.log.dropped,
         "limit_method": c.walls.method,
-        "bins_at_limit": int(first.offsets.offset.size),
+        "bins_at_limit": int(last.offsets.offset.size),
         "outside_fraction": c.outside["fraction"],
         "outside": c.outside,
-        "envelope_rmse": {"model": first.offsets.rmse, "with_added": last.offsets.rmse},
+        "envelope_rmse": {"model": before.rmse, "with_added": last.offsets.rmse},
         # explained: the error at the noise level, and (against the spec sheet) no share of samples past its edges
         "explained": bool(
             last.offsets.rmse <= EXPLAINED * max(last.offsets.noise, 1e-12)
             and (bool(last.model) or c.outside["fraction"] <= OUTSIDE_OK)
         ),
         "coverage": coverage(last.offsets),
-        "noise_level": first.offsets.noise,
+        "noise_level": last.offsets.noise,
         "sample_noise": first.offsets.sample_noise,
         "model": last.model,
         "added": [s.added for s in c.ladder[1:]],
@@ -666,10 +686,10 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
                 "offset_with_added": float(o1),
             }
             for w, side, o0, se, o1 in zip(
-                first.offsets.speeds,
-                first.offsets.side,
-                first.offsets.offset,
-                first.offsets.se,
+                before.speeds,
+                before.side,
+                before.offset,
+                before.se,
                 last.offsets.offset,
                 strict=True,
             )

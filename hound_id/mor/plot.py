@@ -184,7 +184,8 @@ def plot_compare(comparison: Any) -> Figure:
         ax.plot(lo2, w, color="tab:orange", lw=1.5, ls="--")
     _style_panel(ax, f"{inputs.spec.name}: {log.source} ({log.side})", "motor")
     ax.legend(fontsize=7, loc="upper right")
-    first, last = c.ladder[0].offsets, c.final.offsets
+    first = c.baseline if c.baseline is not None else c.ladder[0].offsets
+    last = c.final.offsets
     series = [(first, "k", "spec sheet")] + ([(last, "tab:orange", "with added")] if c.final.model else [])
     for offsets_, colour, name in series:
         for side, marker in ((1, "^"), (-1, "v")):

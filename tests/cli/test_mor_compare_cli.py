@@ -18,7 +18,9 @@ def test_sample_sag_is_named_and_explained(tmp_path):
     truth = json.loads((SAMPLES / "envelope" / "ilm85_sag_truth.json").read_text())
     assert data["schema"] == "hound-id/mor-compare/1" and data["added"] == ["bus_sag"]
     assert data["model"]["bus_sag"] == pytest.approx(truth["effects"]["bus_sag"], rel=0.1)
-    assert data["envelope_rmse"]["with_added"] < data["noise_level"] < data["envelope_rmse"]["model"] / 5
+    assert data["envelope_rmse"]["with_added"] < 2 * data["noise_level"] and data["explained"]
+    assert data["envelope_rmse"]["model"] > 100 * data["noise_level"]  # the spec misses the sag by up to ~5 N m
+    assert data["coverage"]["upper"][1] > 0.9 * 81 * 60 * 2 * 3.14159 / 60  # the evidence reaches 90 % of no-load
     assert data["ladder"][1]["why"]["significant"] and "logged bus voltage" in data["ladder"][1]["why"]["reason"]
     assert not any(s["significant"] for s in data["suggestions"])
     assert plot.read_bytes().startswith(PNG_MAGIC)
@@ -27,8 +29,8 @@ def test_sample_sag_is_named_and_explained(tmp_path):
 def test_table_output_and_add(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "inductance")
     assert proc.returncode == 0, proc.stderr
-    # inductance also shortens the edge at speed, but the logged bus voltage still points at the supply
-    assert "+ inductance" in proc.stdout and "suggested: --add bus_sag" in proc.stdout
+    # inductance also shortens the edge at speed but cannot take the sag's shape: the tool says it does not fit
+    assert "+ inductance" in proc.stdout and "does not explain the log" in proc.stdout
 
 
 @pytest.mark.parametrize(
