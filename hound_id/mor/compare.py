@@ -21,7 +21,8 @@ the model; above +3 SE the log spills over it.
 the model (bounded scalar search of its parameter) and ranked by the share of the envelope
 error's sum of squares it explains. It is significant when the partial F statistic
 (SSE0 - SSE1) / (SSE1 / (bins - 1)) beats F(1, bins - 1) at 1 % divided by the number of
-candidates (Bonferroni). ``--add`` and ``--auto`` grow the model as in ``fit-current``.
+candidates (Bonferroni), and when the envelope error falls by at least the noise level (an effect
+too small to matter is not suggested). ``--add`` and ``--auto`` grow the model as in ``fit-current``.
 """
 
 from __future__ import annotations
@@ -388,7 +389,10 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 rmse=math.sqrt(sse1 / n),
                 f_statistic=float(f_stat),
                 p_value=p,
-                significant=bool(p < ALPHA / max(len(names), 1)) and not at_bound,
+                # statistically and practically: the F-test, and an error that falls by at least the noise level
+                significant=bool(p < ALPHA / max(len(names), 1))
+                and not at_bound
+                and base.rmse - math.sqrt(sse1 / n) >= base.noise,
                 reason=(
                     f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
                     f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
