@@ -214,6 +214,15 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         )
     verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
     console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
+    if spec.envelope:
+        env = spec.envelope
+        effects = ", ".join(f"{k} = {v:.4g}" for k, v in (env.get("effects") or {}).items()) or "none"
+        console.print(
+            f"this spec carries a measured envelope ({effects}; {len(env['speeds'])}-point polyline, "
+            f"{env.get('source', 'mor --compare')}): the saturation, the bundle and the runtime clip to it; the table, "
+            "vertices and plot above are the spec sheet's straight lines",
+            highlight=False,
+        )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
 

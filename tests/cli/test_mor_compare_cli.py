@@ -26,6 +26,17 @@ def test_sample_sag_is_named_and_explained(tmp_path):
     assert plot.read_bytes().startswith(PNG_MAGIC)
 
 
+def test_out_spec_is_a_motor_spec_that_says_it_has_an_envelope(tmp_path):
+    out = tmp_path / "ilm85_envelope.yaml"
+    proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "bus_sag",
+                   "--out", str(out))  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    shown = run_cli("mor", "--spec", str(out))
+    assert shown.returncode == 0 and "carries a measured envelope (bus_sag = 0.1" in shown.stdout
+    data = json.loads(run_cli("mor", "--spec", str(out), "--json").stdout)
+    assert data["spec"]["envelope"]["effects"]["bus_sag"] == pytest.approx(0.15, rel=0.05)
+
+
 def test_table_output_and_add(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "inductance")
     assert proc.returncode == 0, proc.stderr
