@@ -303,10 +303,10 @@ def offsets(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
     idx = np.concatenate([i for _, i in groups])
     lo, hi = envelope(log.velocity[idx], model, _inputs_for(log, inputs, idx))
-    margin = np.concatenate([(log.torque[idx] - hi), (lo - log.torque[idx])])
+    margins = {1: log.torque[idx] - hi, -1: lo - log.torque[idx]}  # positive past the model's edge
     speeds, side, off, se, spread, start = [], [], [], [], [], 0
     for s, i in groups:
-        m = margin[start : start + i.size] if s == 1 else margin[idx.size + start : idx.size + start + i.size]
+        m = margins[s][start : start + i.size]
         start += i.size
         speeds.append(float(np.mean(log.velocity[i])))
         side.append(s)
@@ -492,12 +492,17 @@ class Comparison:
         return self.ladder[-1]
 
 
-def outside_mask(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> NDArray[np.bool_]:
-    """Samples past the spec sheet's region by more than the threshold of :func:`outside_stats`."""
+def _excess(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> tuple[Array, float, NDArray[np.bool_]]:
+    """(how far each sample passes the spec sheet's edges [N m], the threshold, the samples past it)."""
     lo, hi = envelope(log.velocity, {}, _inputs_for(log, inputs, np.arange(log.n)))
     thr = max(4 * noise, 0.005 * inputs.spec.torque_limit)
     excess = np.maximum(log.torque - hi, lo - log.torque)
-    return np.asarray(np.isfinite(excess) & (excess > thr))
+    return excess, thr, np.asarray(np.isfinite(excess) & (excess > thr))
+
+
+def outside_mask(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> NDArray[np.bool_]:
+    """Samples past the spec sheet's region by more than the threshold of :func:`outside_stats`."""
+    return _excess(log, inputs, noise)[2]
 
 
 def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dict[str, Any]:
@@ -507,10 +512,7 @@ def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dic
     the limit (and 0.5 % of the torque limit). Quadrants: I motoring forward (tau > 0, omega > 0), II braking (tau > 0,
     omega < 0), III motoring backward, IV braking (tau < 0, omega > 0).
     """
-    lo, hi = envelope(log.velocity, {}, _inputs_for(log, inputs, np.arange(log.n)))
-    thr = max(4 * noise, 0.005 * inputs.spec.torque_limit)
-    excess = np.maximum(log.torque - hi, lo - log.torque)
-    out = outside_mask(log, inputs, noise)
+    excess, thr, out = _excess(log, inputs, noise)
     t, w = log.torque[out], log.velocity[out]
     quadrant = np.where(t >= 0, np.where(w >= 0, "I", "II"), np.where(w < 0, "III", "IV"))
     return {
@@ -595,21 +597,20 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
     ref = EnvelopeInputs(spec, compensation=inputs.compensation)
     top = spec.bus_voltage * spec.kv
     speeds = np.linspace(-top, top, 17)
-    err = np.zeros(0)
     for _ in range(14):  # split every segment whose interpolation misses the model at 1/4, 1/2 or 3/4 of it
         lo, hi = envelope(speeds, plain, ref)
-        worst = np.zeros(speeds.size - 1)
+        err = np.zeros(speeds.size - 1)
         for f in (0.25, 0.5, 0.75):
             probe = speeds[:-1] + f * np.diff(speeds)
             plo, phi = envelope(probe, plain, ref)
             miss = np.maximum(np.abs(hi[:-1] + f * np.diff(hi) - phi), np.abs(lo[:-1] + f * np.diff(lo) - plo))
-            worst = np.maximum(worst, np.nan_to_num(miss, nan=0.0))
-        err = worst
-        bad = worst > tol
+            err = np.maximum(err, np.nan_to_num(miss, nan=0.0))
+        bad = err > tol
         if not bad.any():
             break
         speeds = np.sort(np.concatenate([speeds, (speeds[:-1] + 0.5 * np.diff(speeds))[bad]]))
-    lo, hi = envelope(speeds, plain, ref)
+    else:  # refined to the limit: the edges of the last speeds
+        lo, hi = envelope(speeds, plain, ref)
     return {
         "speeds": speeds.tolist(),
         "upper": hi.tolist(),

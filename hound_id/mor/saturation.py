@@ -171,8 +171,35 @@ class Saturation:
         lo, hi = self._line_bounds(qd, consts)
         if self.polylines:
             omega = qd @ consts[1].T
-            lo, hi = _polyline_bounds(self.polylines, omega, lo, hi)
+            lo, hi = _polyline_bounds(self._polylines_like(qd), omega, lo, hi)
         return lo, hi
+
+    def _polylines_like(self, like: Any) -> tuple[Any, ...]:
+        """The polylines' finite points in the array library, dtype and device of ``like`` (cached: the clip
+        runs every simulation step)."""
+        key: Any = ("polylines", type(like), like.dtype, getattr(like, "device", None))
+        hit = self._cache.get(key)
+        if hit is None:
+            convert: Any = np.asarray
+            if _is_torch(like):
+                import torch
+
+                def convert(a: Any) -> Any:
+                    return torch.tensor(np.array(a), dtype=like.dtype, device=like.device)
+
+            lines: list[Any] = []
+            for line in self.polylines:
+                if line is None:
+                    lines.append(None)
+                    continue
+                speeds, lower, upper = line
+                ok = np.isfinite(lower) & np.isfinite(upper)
+                lines.append((float(speeds[0]), float(speeds[-1]), *(convert(a[ok]) for a in (speeds, lower, upper))))
+            hit = tuple(lines)
+            if len(self._cache) >= _CACHE_SIZE:
+                self._cache.pop(next(iter(self._cache)))
+            self._cache[key] = hit
+        return hit
 
     def _line_bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
         _, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
@@ -299,22 +326,25 @@ def polyline_of(envelope: Any) -> tuple[NDArray[np.float64], NDArray[np.float64]
     )
 
 
-def _interp(x: Any, xp: NDArray[np.float64], fp: NDArray[np.float64]) -> Any:
-    """Piecewise-linear interpolation of (xp, fp) at x, numpy or torch (x outside xp: the end values)."""
+def _interp(x: Any, xp: Any, fp: Any) -> Any:
+    """Piecewise-linear interpolation of (xp, fp) at x, numpy or torch (x outside xp: the end values);
+    xp and fp are already in x's array type."""
     if not _is_torch(x):
         return np.interp(x, xp, fp)
     import torch
 
-    xp_t = torch.tensor(np.array(xp), dtype=x.dtype, device=x.device)
-    fp_t = torch.tensor(np.array(fp), dtype=x.dtype, device=x.device)
-    k = torch.clamp(torch.searchsorted(xp_t, x.contiguous()), 1, xp_t.numel() - 1)
-    x0, x1, f0, f1 = xp_t[k - 1], xp_t[k], fp_t[k - 1], fp_t[k]
+    k = torch.clamp(torch.searchsorted(xp, x.contiguous()), 1, xp.numel() - 1)
+    x0, x1, f0, f1 = xp[k - 1], xp[k], fp[k - 1], fp[k]
     t = torch.clamp((x - x0) / (x1 - x0), 0.0, 1.0)
     return f0 + t * (f1 - f0)
 
 
-def _polyline_bounds(polylines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
-    """Replace the straight-line bounds of motors with a polyline, at speeds inside its range."""
+def _polyline_bounds(lines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
+    """Replace the straight-line bounds of motors with a polyline, at speeds inside its range.
+
+    ``lines`` per motor: None, or (first speed, last speed, speeds, lower, upper) with the finite
+    points only, in omega's array type (see :meth:`Saturation._polylines_like`).
+    """
     where: Any
     if _is_torch(omega):
         import torch
@@ -324,15 +354,14 @@ def _polyline_bounds(polylines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any,
     else:
         lo, hi = lo.copy(), hi.copy()
         where = np.where
-    for m, line in enumerate(polylines):
+    for m, line in enumerate(lines):
         if line is None:
             continue
-        speeds, lower, upper = line
+        first, last, speeds, lower, upper = line
         w = omega[..., m]
-        inside = (w >= float(speeds[0])) & (w <= float(speeds[-1]))
-        ok = np.isfinite(lower) & np.isfinite(upper)
-        lo[..., m] = where(inside, _interp(w, speeds[ok], lower[ok]), lo[..., m])
-        hi[..., m] = where(inside, _interp(w, speeds[ok], upper[ok]), hi[..., m])
+        inside = (w >= first) & (w <= last)
+        lo[..., m] = where(inside, _interp(w, speeds, lower), lo[..., m])
+        hi[..., m] = where(inside, _interp(w, speeds, upper), hi[..., m])
     return lo, hi
 
 
