@@ -138,6 +138,9 @@ def _mor_compare(
     )
     significant = [s for s in data["suggestions"] if s["significant"]]
     final = data["envelope_rmse"]["with_added"]
+    for item in data["unneeded"]:
+        name = item["effect"]
+        console.print(f"not needed: {name}: {item['reason']}; leave out --add {name}", highlight=False)
     if significant:
         console.print(f"suggested: --add {significant[0]['effect']}: {significant[0]['reason']}", highlight=False)
     elif data["explained"]:

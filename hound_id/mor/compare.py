@@ -37,7 +37,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.errors import DynoDataError, SpecError
-from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names, envelope
+from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, edge, effect_names, envelope
 from hound_id.mor.spec import MotorSpec
 
 Array = NDArray[np.float64]
@@ -53,6 +53,18 @@ WALL = 0.1
 WALL_WIDTH = 0.03
 #: Speed bins across the logged range, and the fewest samples a bin (and a wall) needs.
 BINS = 32
+MAX_BINS = 96
+#: A wall's level may depart from the line through its neighbours by this share of the torque limit ...
+STEP = 0.05
+#: ... looking this many bins either side for them.
+NEIGHBOURS = 3
+#: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall.
+ISOLATED = 5.0
+#: Rows of a log apart beyond which two samples of a wall belong to different passes through its speed bin.
+PASS_GAP = 25
+#: Speeds [share of the spec's corner / no-load speed] past which a motoring / braking edge may fall steeply.
+STEEP_MOTORING = 0.6
+STEEP_BRAKING = 0.9
 MIN_SAMPLES = 40
 MIN_WALL = 8
 #: Family-wise false-alarm rate of the significance tests.
@@ -189,6 +201,9 @@ class Walls:
     lower: tuple[NDArray[np.int64], ...]
     method: str
     """``command`` or ``wall``."""
+    rho: float = 0.0
+    """Lag-1 autocorrelation of the torque noise between consecutive samples at the limit (0 for shuffled logs),
+    from the walls' residuals about a straight line in speed; it widens the offsets' standard errors."""
 
 
 def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int64]:
@@ -200,11 +215,18 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
     return np.array([], dtype=np.int64)
 
 
+def bin_count(n: int) -> int:
+    """Speed bins for a log of ``n`` samples: :data:`BINS`, more for long logs (about 250 samples a bin, at most
+    :data:`MAX_BINS`), so an edge that falls steeply with speed stays nearly straight across one bin."""
+    return int(np.clip(n // 250, BINS, MAX_BINS))
+
+
 def find_walls(
-    log: EnvelopeLog, inputs: EnvelopeInputs, model: Mapping[str, float] | None = None, bins: int = BINS
+    log: EnvelopeLog, inputs: EnvelopeInputs, model: Mapping[str, float] | None = None, bins: int | None = None
 ) -> Walls:
     """The samples at the limit in each speed bin, against ``model``'s edges (module docstring)."""
     w = log.velocity
+    bins = bins or bin_count(log.n)
     edges = np.linspace(float(w.min()), float(w.max()), bins + 1)
     index = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bins - 1)
     lo, hi = envelope(w, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
@@ -228,20 +250,117 @@ def find_walls(
                     continue
                 cand, m = members[finite], m[finite]
                 at = _wall(cand, m, width)
-                if at.size == 0:
-                    # The true edge may drift against the model's across the bin (steep past the no-load speed):
-                    # take out the linear drift of the top fifth of the margins and look again.
+                if at.size == 0 and _steep(float(np.mean(w[cand])), cmd_side, inputs):
+                    # The true edge may drift against the model's across the bin where edges are steep (the motoring
+                    # edge past the corner, the braking one past the no-load speed): take out the linear drift of
+                    # the top fifth of the margins and look again.
                     top = m >= np.quantile(m, 0.8)
                     if top.sum() >= 5 and np.ptp(w[cand[top]]) > 0:
                         slope = np.polyfit(w[cand[top]], m[top], 1)[0]
                         at = _wall(cand, m - slope * (w[cand] - np.mean(w[cand])), width)
+                        if at.size and not _passes_agree(at, margin_of(at), w[at]):
+                            at = np.array([], dtype=np.int64)
             found.append(at if at.size >= MIN_WALL else np.array([], dtype=np.int64))
         upper.append(found[0])
         lower.append(found[1])
     centres = 0.5 * (edges[:-1] + edges[1:])
-    if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls are chance
-        upper, lower = _contiguous(upper), _contiguous(lower)
-    return Walls(centres, tuple(upper), tuple(lower), "command" if log.torque_cmd is not None else "wall")
+    if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls and walls off the edge are chance
+        tol = STEP * inputs.spec.torque_limit
+        upper = _contiguous(_continuous(upper, log.torque - hi, w, tol))
+        lower = _contiguous(_continuous(lower, lo - log.torque, w, tol))
+    method = "command" if log.torque_cmd is not None else "wall"
+    return Walls(centres, tuple(upper), tuple(lower), method, _autocorrelation(log, upper + lower))
+
+
+def _autocorrelation(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]], fewest: int = 30) -> float:
+    """Pooled lag-1 autocorrelation of the torque about a straight line in speed, over pairs of consecutive samples
+    within a wall (clipped to [0, 0.95]; 0 with fewer than ``fewest`` pairs, as in a shuffled log)."""
+    num = den = 0.0
+    pairs = 0
+    for idx in groups:
+        if idx.size < 3:
+            continue
+        w, tau = log.velocity[idx], log.torque[idx]
+        d = tau - np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else tau - tau.mean()
+        next_ = np.flatnonzero(np.diff(idx) == 1)
+        num += float(np.sum(d[next_] * d[next_ + 1]))
+        den += float(np.sum(d[next_] ** 2 + d[next_ + 1] ** 2)) / 2
+        pairs += next_.size
+    if pairs < fewest or den <= 0:
+        return 0.0
+    return float(np.clip(num / den, 0.0, 0.95))
+
+
+def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = 5) -> bool:
+    """Whether a wall found with its drift removed is one: in a time-ordered log any single pass through a narrow
+    bin is nearly straight, so it lines up with itself whatever the command did. Such a wall needs at least two
+    passes of ``run`` samples or more (rows ``idx`` at most :data:`PASS_GAP` apart) whose margins ``m`` drift
+    with speed ``w`` alike (slopes within 4 standard errors, or 20 %). Shuffled logs (no passes) pass."""
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
+    starts, ends = np.concatenate([[0], breaks + 1]), np.concatenate([breaks + 1, [idx.size]])
+    fits = []
+    for a, e in zip(starts, ends, strict=True):
+        if e - a >= run and np.ptp(w[a:e]) > 0:
+            coef, res, *_ = np.polyfit(w[a:e], m[a:e], 1, full=True)
+            sigma = math.sqrt(float(res[0]) / max(e - a - 2, 1)) if res.size else 0.0
+            fits.append((float(coef[0]), sigma / (float(np.std(w[a:e])) * math.sqrt(e - a))))
+    if not fits:
+        return True
+    if len(fits) < 2:
+        return False
+    slopes = np.array([f[0] for f in fits])
+    se = np.array([f[1] for f in fits])
+    ref = float(np.average(slopes, weights=1 / np.maximum(se, 1e-12) ** 2))
+    return bool(np.all(np.abs(slopes - ref) <= np.maximum(4 * se, 0.2 * abs(ref))))
+
+
+def _steep(speed: float, side: float, inputs: EnvelopeInputs) -> bool:
+    """Whether an edge (``side`` +1 upper, -1 lower) may fall steeply at motor ``speed`` [rad/s]: the motoring edge
+    past :data:`STEEP_MOTORING` of the spec's corner speed (a sagging or hot motor turns its corner sooner), the
+    braking edge past :data:`STEEP_BRAKING` of the no-load speed. Elsewhere every effect keeps the edge flat, and a
+    drift across a bin is passes of the command lining up, not a wall."""
+    spec = inputs.spec
+    motoring = side * speed > 0
+    corner = max(spec.kv * (spec.bus_voltage - spec.resistance * spec.torque_limit / spec.kt), 0.0)
+    return abs(speed) >= (STEEP_MOTORING * corner if motoring else STEEP_BRAKING * spec.no_load_speed)
+
+
+def _continuous(walls: list[NDArray[np.int64]], margin: Array, w: Array, tol: float) -> list[NDArray[np.int64]]:
+    """Drop the walls that are likely a command's peak: a smooth command topping out while the speed passes one bin
+    (or dwells at a turning point) piles samples up like a wall, at an arbitrary torque. Such a wall is made of one
+    pass (most of its samples at most :data:`PASS_GAP` rows apart). A one-pass wall counts only if its offset (mean
+    margin against the model) is within ``tol`` [N m] of the model, or of the straight line through the nearest two
+    walls seen in several passes within :data:`NEIGHBOURS` bins (on both sides, or two on one side)."""
+    walled = [b for b, i in enumerate(walls) if i.size]
+    single = {b for b in walled if _one_pass(walls[b])}
+    level = {b: float(np.mean(margin[walls[b]])) for b in walled}
+    speed = {b: float(np.mean(w[walls[b]])) for b in walled}
+    solid = [b for b in walled if b not in single]
+
+    def agrees(b: int) -> bool:
+        if abs(level[b]) <= tol:
+            return True
+        left = [k for k in solid if b - NEIGHBOURS <= k < b][-2:]
+        right = [k for k in solid if b < k <= b + NEIGHBOURS][:2]
+        if left and right:
+            pair = [left[-1], right[0]]
+        else:
+            pair = left if len(left) == 2 else right
+        if len(pair) < 2:
+            return False
+        k1, k2 = pair
+        line = level[k1] + (level[k2] - level[k1]) * (speed[b] - speed[k1]) / (speed[k2] - speed[k1])
+        return abs(level[b] - line) <= tol
+
+    empty = np.array([], dtype=np.int64)
+    return [i if i.size and (b not in single or agrees(b)) else empty for b, i in enumerate(walls)]
+
+
+def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
+    """Whether ``share`` of the samples (row indices, ascending) form one pass (rows at most :data:`PASS_GAP` apart)."""
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
+    runs = np.diff(np.concatenate([[0], breaks + 1, [idx.size]]))
+    return bool(runs.max() >= share * idx.size)
 
 
 def _contiguous(walls: list[NDArray[np.int64]], run: int = 3) -> list[NDArray[np.int64]]:
@@ -301,19 +420,26 @@ def offsets(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     groups = [(s, i) for s, side in ((1, walls.upper), (-1, walls.lower)) for i in side if i.size]
     if not groups:
         return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
-    idx = np.concatenate([i for _, i in groups])
-    lo, hi = envelope(log.velocity[idx], model, _inputs_for(log, inputs, idx))
-    margins = {1: log.torque[idx] - hi, -1: lo - log.torque[idx]}  # positive past the model's edge
-    speeds, side, off, se, spread, start = [], [], [], [], [], 0
-    for s, i in groups:
-        m = margins[s][start : start + i.size]
-        start += i.size
-        speeds.append(float(np.mean(log.velocity[i])))
-        side.append(s)
-        off.append(float(np.mean(m)) if np.all(np.isfinite(m)) else -inputs.spec.torque_limit)
-        se.append(float(np.std(m) / math.sqrt(i.size)))
-        spread.append(float(np.std(m)))
-    return Offsets(np.array(speeds), np.array(side, dtype=np.int8), np.array(off), np.array(se), np.array(spread))
+    margin = []
+    for s in (1, -1):  # each edge only where it is needed: positive margins lie past the model's edge
+        idx = np.concatenate([i for side, i in groups if side == s] or [np.array([], dtype=np.int64)])
+        if idx.size:
+            limit = edge(log.velocity[idx], s, model, _inputs_for(log, inputs, idx))
+            margin.append(s * (log.torque[idx] - limit))
+    m = np.concatenate(margin)
+    ordered = [g for s in (1, -1) for g in groups if g[0] == s]
+    sizes = np.array([i.size for _, i in ordered])
+    gid = np.repeat(np.arange(sizes.size), sizes)
+    bad = np.bincount(gid, weights=~np.isfinite(m), minlength=sizes.size) > 0
+    m = np.where(np.isfinite(m), m, 0.0)
+    mean = np.bincount(gid, weights=m) / sizes
+    spread = np.sqrt(np.maximum(np.bincount(gid, weights=(m - mean[gid]) ** 2) / sizes, 0.0))
+    speeds = np.bincount(gid, weights=log.velocity[np.concatenate([i for _, i in ordered])]) / sizes
+    side = np.array([s for s, _ in ordered], dtype=np.int8)
+    off = np.where(bad, -inputs.spec.torque_limit, mean)
+    # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
+    se = spread / np.sqrt(sizes) * math.sqrt((1 + walls.rho) / (1 - walls.rho))
+    return Offsets(speeds, side, off, se, spread)
 
 
 @dataclass(frozen=True)
@@ -334,35 +460,50 @@ class Suggestion:
     reason: str
     supported: bool = False
     """A logged channel confirms it (the bus voltage for ``bus_sag``); such a suggestion ranks first."""
+    refit: Mapping[str, float] = field(default_factory=dict)
+    """The model's own parameters refitted together with this effect (a wrong earlier effect falls back here)."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
+        out = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        out["refit"] = dict(self.refit)
+        return out
+
+
+def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
+    """The search interval of an effect's parameter (a current limit: up to the spec's own)."""
+    lo_b, hi_b = EFFECTS[name].bounds
+    if not math.isfinite(hi_b):
+        hi_b = (inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt) * 1.0001
+        lo_b = 0.05 * hi_b
+    return lo_b, hi_b
+
+
+def _at_bound(name: str, value: float, inputs: EnvelopeInputs) -> bool:
+    """Whether a fitted parameter sits at a bound of its search (not identified), other than its neutral value."""
+    lo_b, hi_b = _bounds(name, inputs)
+    near = min(abs(value - lo_b), abs(hi_b - value)) < 1e-3 * (hi_b - lo_b)
+    return bool(near and value != EFFECTS[name].neutral)
 
 
 def _fit_one(
     log: EnvelopeLog, walls: Walls, model: Mapping[str, float], name: str, inputs: EnvelopeInputs
 ) -> tuple[float, float, bool]:
-    """(fitted parameter, sum of squares, whether it sits at a bound of the search)."""
+    """(fitted parameter, sum of squares, whether it sits at a bound of the search), the others held."""
     from scipy.optimize import minimize_scalar
 
-    effect = EFFECTS[name]
-    lo_b, hi_b = effect.bounds
-    if not math.isfinite(hi_b):  # a current limit: search up to the spec's own
-        hi_b = (inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt) * 1.0001
-        lo_b = 0.05 * hi_b
+    lo_b, hi_b = _bounds(name, inputs)
     res = minimize_scalar(
         lambda v: offsets(log, walls, {**model, name: float(v)}, inputs).sse,
         bounds=(lo_b, hi_b),
         method="bounded",
         options={"xatol": (hi_b - lo_b) * 1e-5},
     )
-    at_bound = min(abs(float(res.x) - lo_b), abs(hi_b - float(res.x))) < 1e-3 * (hi_b - lo_b)
-    return float(res.x), float(res.fun), bool(at_bound and float(res.x) != effect.neutral)
+    return float(res.x), float(res.fun), _at_bound(name, float(res.x), inputs)
 
 
 def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> list[Suggestion]:
     """Every candidate effect fitted on top of ``model``, best first (module docstring)."""
-    from scipy.stats import f as f_dist
+    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
 
     base = offsets(log, walls, model, inputs)
     n = base.offset.size
@@ -376,10 +517,28 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     out = []
     for name in names:
         value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
+        refit = dict(model)
+        if model:
+            # Refit the model's own parameters with the candidate in, from two starts: the candidate on top of the
+            # model, and the candidate alone (the model's effects then refitted): an effect added wrongly must not
+            # hide the right one.
+            alone = _fit_one(log, walls, {}, name, inputs)[0]
+            for start in ({**model, name: value}, {**model, name: alone}):
+                joint = _refit(log, walls, start, inputs, all_params=True, lead=name)
+                sse_joint = offsets(log, walls, joint, inputs).sse
+                if sse_joint < sse1:
+                    value, sse1 = joint.pop(name), sse_joint
+                    refit = joint
+                    at_bound = _at_bound(name, value, inputs)
         dof = max(n - 1, 1)
         f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
-        p = float(f_dist.sf(f_stat, 1, dof))
+        p = float(fdtrc(1, dof, f_stat))
         effect = EFFECTS[name]
+        moved = ", ".join(
+            f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
+            for k, v in refit.items()
+            if abs(v - model[k]) > 1e-3 * max(abs(model[k]), 1e-12)
+        )
         out.append(
             Suggestion(
                 effect=name,
@@ -396,8 +555,10 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 reason=(
                     f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
                     f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
+                    + (f" ({moved})" if moved else "")
                     + (" (at the bound of its search: not identified)" if at_bound else "")
                 ),
+                refit=refit,
             )
         )
     # Logged channels settle what the envelope alone cannot: a sagging bus, inductance and a saturating core all
@@ -486,6 +647,10 @@ class Comparison:
     outside: dict[str, Any] = field(default_factory=dict)
     baseline: Offsets | None = None
     """The spec sheet's offsets on the final walls (the fair 'before' of the final model)."""
+    unneeded: tuple[dict[str, Any], ...] = ()
+    """Effects of the final model the log does not need once the others are in (:func:`unneeded`)."""
+    isolated: tuple[dict[str, Any], ...] = ()
+    """Single bins left out as chance walls (:func:`_isolated`): speed, edge, offset, se."""
 
     @property
     def final(self) -> Step:
@@ -552,20 +717,95 @@ def compare(
             if not best or len(ladder) > max_steps:
                 break
             name = best[0].effect
-        value = next(s.value for s in ladder[-1].suggestions if s.effect == name)
-        model = {**model, name: value}
-        model = _refit(log, walls, model, inputs)
+        chosen = next(s for s in ladder[-1].suggestions if s.effect == name)
+        model = {**model, **chosen.refit, name: chosen.value}
         # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
         again = find_walls(log, inputs, model)
-        if _bins(again) > _bins(walls):
+        if _bins(again) >= _bins(walls):
             walls = again
             model = _refit(log, walls, model, inputs, all_params=True)
         step_offsets = offsets(log, walls, model, inputs)
         ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs))))
+    walls, isolated = _isolated(walls, offsets(log, walls, model, inputs))
+    if isolated:  # the last rung on the walls that are left
+        last = ladder[-1]
+        ladder[-1] = replace(last, offsets=offsets(log, walls, model, inputs))
     baseline = offsets(log, walls, {}, inputs)
     return Comparison(
-        log, inputs, walls, tuple(ladder), outside_stats(log, inputs, base.sample_noise), baseline=baseline
+        log,
+        inputs,
+        walls,
+        tuple(ladder),
+        outside_stats(log, inputs, base.sample_noise),
+        baseline=baseline,
+        unneeded=tuple(unneeded(log, walls, model, inputs)),
+        isolated=tuple(isolated),
     )
+
+
+def _isolated(walls: Walls, off: Offsets) -> tuple[Walls, list[dict[str, Any]]]:
+    """Without a command channel, leave out single bins far off the final model whose neighbours agree with it:
+    passes that happened to line up into a wall (a real departure spans a range of speeds). A bin is isolated when
+    its offset exceeds :data:`ISOLATED` x the torque noise of one sample at the limit and the nearest bin on each
+    side of the same edge lies within 3 standard errors of the model (the last bins of an edge are never isolated:
+    effects show at the ends of the speed range)."""
+    if walls.method != "wall" or off.offset.size < 3:
+        return walls, []
+    noise = off.sample_noise
+    sides = {1: list(walls.upper), -1: list(walls.lower)}
+    bins = {s: [b for b, i in enumerate(sides[s]) if i.size] for s in sides}  # offsets run over these, by edge
+    position = {s: 0 for s in sides}
+    found, drop = [], []
+    for k in range(off.offset.size):  # offsets run over upper bins, then lower ones, each by speed
+        s = int(off.side[k])
+        b = bins[s][position[s]]
+        position[s] += 1
+        if abs(off.offset[k]) <= ISOLATED * noise:
+            continue
+        near = [j for j in range(off.offset.size) if off.side[j] == s and j != k]
+        left, right = [j for j in near if j < k], [j for j in near if j > k]
+        if left and right and all(abs(off.offset[j]) <= 3 * off.se[j] for j in (left[-1], right[0])):
+            drop.append((s, b))
+            found.append({"speed": float(off.speeds[k]), "edge": "upper" if s == 1 else "lower",
+                          "offset": float(off.offset[k]), "se": float(off.se[k])})  # fmt: skip
+    empty = np.array([], dtype=np.int64)
+    for s, b in drop:
+        sides[s][b] = empty
+    return replace(walls, upper=tuple(sides[1]), lower=tuple(sides[-1])), found
+
+
+def unneeded(
+    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs
+) -> list[dict[str, Any]]:
+    """The model's effects the log does not need once the others are in: each dropped in turn, the rest refitted;
+    needed only if the drop is significant (partial F-test at :data:`ALPHA` / effects) and raises the envelope
+    error by at least the noise level, as for adding one. Empty for models of fewer than two effects."""
+    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
+
+    if len(model) < 2:
+        return []
+    full = offsets(log, walls, model, inputs)
+    n, dof = full.offset.size, max(full.offset.size - len(model), 1)
+    out = []
+    for name in model:
+        rest = _refit(log, walls, {k: v for k, v in model.items() if k != name}, inputs, all_params=True)
+        without = offsets(log, walls, rest, inputs)
+        f_stat = max(without.sse - full.sse, 0.0) / max(full.sse / dof, 1e-30)
+        p = float(fdtrc(1, dof, f_stat))
+        if p < ALPHA / len(model) and without.rmse - full.rmse >= full.noise:
+            continue
+        others = ", ".join(f"{k} = {v:.4g} {EFFECTS[k].unit}" for k, v in rest.items())
+        out.append(
+            {
+                "effect": name,
+                "value": model[name],
+                "rmse_without": without.rmse,
+                "p_value": p,
+                "reason": f"without it (and {others} refitted) the envelope error is {without.rmse:.3g} N m against "
+                f"{full.rmse:.3g} N m with it over {n} bins (p = {p:.2g}): the log does not need it",
+            }
+        )
+    return out
 
 
 def _bins(walls: Walls) -> int:
@@ -573,12 +813,19 @@ def _bins(walls: Walls) -> int:
 
 
 def _refit(
-    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs, all_params: bool = False
+    log: EnvelopeLog,
+    walls: Walls,
+    model: Mapping[str, float],
+    inputs: EnvelopeInputs,
+    all_params: bool = False,
+    lead: str | None = None,
 ) -> dict[str, float]:
-    """One coordinate-descent sweep over the model's parameters, each refitted with the others fixed."""
+    """One coordinate-descent sweep over the model's parameters, each refitted with the others fixed (``lead``,
+    if given, is held first and refitted last)."""
     fitted = dict(model)
     if len(fitted) > 1 or all_params:
-        for name in list(fitted):
+        order = [k for k in fitted if k != lead] + ([lead] if lead in fitted else [])
+        for name in order:
             others = {k: v for k, v in fitted.items() if k != name}
             fitted[name] = _fit_one(log, walls, others, name, inputs)[0]
     return fitted
@@ -681,6 +928,8 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "model": last.model,
         "added": [s.added for s in c.ladder[1:]],
         "suggestions": [s.to_dict() for s in last.suggestions],
+        "unneeded": list(c.unneeded),
+        "isolated_bins": list(c.isolated),
         "ladder": [_rung(c, k) for k in range(len(c.ladder))],
         "bins": [
             {

@@ -27,6 +27,7 @@ speed is an interval around the zero-voltage torque), vectorised over speeds.
 
 from __future__ import annotations
 
+import math
 from collections.abc import Mapping
 from dataclasses import dataclass
 
@@ -40,8 +41,11 @@ from hound_id.mor.spec import MotorSpec
 T_SPEC = 25.0
 #: Temperature coefficient of copper resistivity [1/K].
 COPPER_ALPHA = 0.0039
-#: Bisection steps: 60 halvings of the torque interval, far below any sensor's resolution.
-BISECTION_STEPS = 60
+#: Bisection steps: 44 halvings of the torque interval (under 1e-12 of it), far below any sensor's resolution.
+BISECTION_STEPS = 44
+#: The edge's root search stops when its bracket is this share of the torque limit (or after so many steps).
+EDGE_TOLERANCE = 1e-12
+EDGE_ITERATIONS = 100
 
 Array = NDArray[np.float64]
 
@@ -197,30 +201,97 @@ def envelope(omega: ArrayLike, params: Mapping[str, float], inputs: EnvelopeInpu
     and current limits, and bisects outwards on :func:`feasible`. Past the rated speed only
     braking torque is feasible, as in :func:`hound_id.mor.region.torque_interval`.
     """
+    return edge(omega, -1, params, inputs), edge(omega, 1, params, inputs)
+
+
+def edge(omega: ArrayLike, side: int, params: Mapping[str, float], inputs: EnvelopeInputs) -> Array:
+    """One edge of :func:`envelope`: the highest (``side`` = +1) or lowest (-1) feasible torque [N m] at each
+    motor speed [rad/s], NaN where none is. Half the work of both when only one is needed.
+
+    Between the zero-voltage torque and the torque and current limits only the voltage condition can bind, and
+    its margin V_avail - |V_req| is continuous in the torque: its root is found by the Illinois method (regula
+    falsi that halves a stale end), until the bracket is :data:`EDGE_TOLERANCE` of the torque limit or the
+    feasible end's margin that share of the bus voltage.
+    """
     spec = inputs.spec
+    p = _checked(params, inputs)
     w = np.asarray(omega, dtype=float)
     cap = spec.torque_limit
-    i_limit = min(spec.max_current or np.inf, float(params.get("current_limit", np.inf)))
+    i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
     start = min(cap, 0.999 * spec.kt * i_limit)  # inside the current limit too (linear curve)
     tau0 = np.clip(-spec.kt * w / (spec.resistance * spec.kv), -start, start)
-    ok0 = feasible(tau0, w, params, inputs)
+    ok0 = feasible(tau0, w, p, inputs)
     for _ in range(40):  # a curved current-torque line may need a smaller start: move towards zero torque
         if ok0.all():
             break
         tau0 = np.where(ok0, tau0, 0.8 * tau0)
-        ok0 = feasible(tau0, w, params, inputs)
-    bounds = []
-    for edge in (-cap, cap):
-        inside, outside = tau0.copy(), np.full_like(w, edge)
-        done = feasible(outside, w, params, inputs)
-        inside = np.where(done, outside, inside)
-        for _ in range(BISECTION_STEPS):
-            mid = 0.5 * (inside + outside)
-            good = feasible(mid, w, params, inputs)
-            inside = np.where(good & ~done, mid, inside)
-            outside = np.where(~good & ~done, mid, outside)
-        bounds.append(np.where(ok0, inside, np.nan))
-    return bounds[0], bounds[1]
+        ok0 = feasible(tau0, w, p, inputs)
+    reach = np.full_like(w, side * _current_reach(p, inputs))  # torque and current limits on this side
+    if spec.max_speed is not None:  # past the rated speed this edge passes no motoring torque
+        reach = np.where((np.abs(w) > spec.max_speed) & (side * w > 0), 0.0, reach)
+    margin = _voltage_margin(w, p, inputs)
+    out = reach.copy()
+    live = np.flatnonzero(ok0 & (margin(reach, None) < 0.0))  # the voltage line binds before the limits
+    if live.size:
+        a, b = tau0[live], reach[live]
+        ga, gb = margin(a, live), margin(b, live)
+        stale = np.zeros(live.size, dtype=np.int8)  # +1: a kept twice in a row, -1: b kept twice
+        for _ in range(EDGE_ITERATIONS):
+            # a (the feasible end, returned) is on the root when its bracket is tiny or its margin nil
+            if np.all((b - a) * side <= EDGE_TOLERANCE * cap) or np.all(ga <= EDGE_TOLERANCE * spec.bus_voltage):
+                break
+            c = b - gb * (b - a) / (gb - ga)
+            c = np.where(np.isfinite(c) & ((c - a) * (c - b) < 0), c, 0.5 * (a + b))
+            gc = margin(c, live)
+            inside = gc >= 0.0
+            gb = np.where(inside & (stale > 0), 0.5 * gb, gb)  # a moved twice: halve b's margin (Illinois)
+            ga = np.where(~inside & (stale < 0), 0.5 * ga, ga)
+            a, ga = np.where(inside, c, a), np.where(inside, gc, ga)
+            b, gb = np.where(inside, b, c), np.where(inside, gb, gc)
+            stale = np.where(inside, 1, -1).astype(np.int8)
+        out[live] = a
+    return np.where(ok0, out, np.nan)
+
+
+def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
+    """Largest torque magnitude [N m] within the torque limit and the current limit (the current-torque curve is
+    odd and monotonic)."""
+    spec = inputs.spec
+    i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
+    scale = p.get("kt_saturation", 0.0)
+    cap = np.array([spec.torque_limit])
+    if abs(_current(cap, inputs, scale)[0]) <= i_limit:
+        return spec.torque_limit
+    lo, hi = np.array([0.0]), cap
+    for _ in range(BISECTION_STEPS):
+        mid = 0.5 * (lo + hi)
+        below = abs(_current(mid, inputs, scale)[0]) <= i_limit
+        lo, hi = (mid, hi) if below else (lo, mid)
+    return float(lo[0])
+
+
+def _voltage_margin(w: Array, p: Mapping[str, float], inputs: EnvelopeInputs):  # type: ignore[no-untyped-def]
+    """g(tau, idx) = V_avail - |V_req| [V] at the speeds ``w[idx]`` (all if idx is None): feasible where >= 0."""
+    spec = inputs.spec
+    resistance = spec.resistance * np.ones_like(w)
+    if "thermal_resistance" in p and inputs.temperature is not None:
+        temperature = np.broadcast_to(inputs.temperature, w.shape)
+        resistance = resistance * (1.0 + p["thermal_resistance"] * (temperature - T_SPEC))
+    back_emf = w / spec.kv
+    quadrature = (spec.pole_pairs or 0) * w * p.get("inductance", 0.0)
+    scale, sag, rise = p.get("kt_saturation", 0.0), p.get("bus_sag", 0.0), p.get("regen_rise", 0.0)
+
+    def margin(tau: Array, idx: NDArray[np.int64] | None) -> Array:
+        parts = (resistance, back_emf, quadrature)
+        r, e, q = parts if idx is None else (x[idx] for x in parts)
+        i = _current(tau, inputs, scale)
+        v_q = r * i + e
+        power = v_q * i
+        v_avail = spec.bus_voltage - np.where(power > 0.0, sag, rise) * power / spec.bus_voltage
+        v_req = np.hypot(v_q, q * i) if p.get("inductance", 0.0) > 0.0 else np.abs(v_q)
+        return np.asarray(v_avail - v_req)
+
+    return margin
 
 
 def simulate_log(
@@ -241,20 +312,69 @@ def simulate_log(
     """
     rng = np.random.default_rng(seed)
     spec = inputs.spec
-    no_load = spec.bus_voltage * spec.kv
-    omega = rng.uniform(-speed_fraction, speed_fraction, n) * no_load
+    omega = rng.uniform(-speed_fraction, speed_fraction, n) * spec.bus_voltage * spec.kv
+    command = rng.uniform(-1.5, 1.5, n) * spec.torque_limit
+    return _realise(inputs, params, omega, command, noise * rng.standard_normal(n), temperature_range)
+
+
+def simulate_trajectory(
+    inputs: EnvelopeInputs,
+    params: Mapping[str, float],
+    n: int = 20000,
+    rate: float = 1000.0,
+    noise: float = 0.03,
+    correlation: float = 0.0,
+    speed_fraction: float = 0.95,
+    amplitude: float = 3.0,
+    period: float = 5.0,
+    seed: int = 0,
+    temperature_range: tuple[float, float] = (30.0, 90.0),
+) -> dict[str, Array]:
+    """A seeded time-ordered log, as a robot or a dyno sweep records it: the speed sweeps a triangle of ``period``
+    [s] to ``speed_fraction`` of the no-load speed, the torque command is a smooth random signal (40 sines of 0.05-3
+    Hz) reaching ``amplitude`` x the torque limit, sampled at ``rate`` [Hz]. The realised torque is the command
+    clipped to the true envelope plus AR(1) sensor noise of standard deviation ``noise`` [N m] and lag-1
+    ``correlation`` (a filtered torque sensor). Columns as :func:`simulate_log`, plus time [s] and torque_cmd [N m].
+    """
+    rng = np.random.default_rng(seed)
+    spec = inputs.spec
+    t = np.arange(n) / rate
+    omega = speed_fraction * spec.bus_voltage * spec.kv * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t / period))
+    command = np.zeros(n)
+    for _ in range(40):
+        command += np.sin(2 * np.pi * rng.uniform(0.05, 3.0) * t + rng.uniform(0, 2 * np.pi))
+    command *= amplitude * spec.torque_limit / np.max(np.abs(command))
+    white = rng.standard_normal(n) * math.sqrt(1 - correlation**2)
+    e = np.empty(n)
+    e[0] = rng.standard_normal()
+    for k in range(1, n):  # AR(1): unit variance, lag-1 correlation as given
+        e[k] = correlation * e[k - 1] + white[k]
+    out = _realise(inputs, params, omega, command, noise * e, temperature_range)
+    return {"time": t, **out, "torque_cmd": command}
+
+
+def _realise(
+    inputs: EnvelopeInputs,
+    params: Mapping[str, float],
+    omega: Array,
+    command: Array,
+    sensor_noise: Array,
+    temperature_range: tuple[float, float],
+) -> dict[str, Array]:
+    """The log a motor with the hidden ``params`` records for commands at speeds (see :func:`simulate_log`)."""
+    spec = inputs.spec
+    n = omega.size
     t_lo, t_hi = temperature_range
     temperature = t_lo + (t_hi - t_lo) * 0.5 * (1 - np.cos(np.linspace(0, 2 * np.pi, n)))
     truth = EnvelopeInputs(spec, temperature=temperature, compensation=inputs.compensation)
     lo, hi = envelope(omega, params, truth)
-    command = rng.uniform(-1.5, 1.5, n) * spec.torque_limit
     tau = np.clip(command, lo, hi)
     i = _current(tau, truth, params.get("kt_saturation", 0.0))
     power = (spec.resistance * i + omega / spec.kv) * i
     r_x = np.where(power > 0, params.get("bus_sag", 0.0), params.get("regen_rise", 0.0))
     return {
         "velocity": omega,
-        "torque": tau + noise * rng.standard_normal(n),
+        "torque": tau + sensor_noise,
         "current": i,
         "temperature": temperature,
         "bus_voltage": spec.bus_voltage - r_x * power / spec.bus_voltage,

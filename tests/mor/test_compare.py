@@ -14,7 +14,7 @@ from hound_id.mor.compare import (
     load_envelope_log,
     polyline,
 )
-from hound_id.mor.envelope import EnvelopeInputs, envelope, simulate_log
+from hound_id.mor.envelope import EnvelopeInputs, envelope, simulate_log, simulate_trajectory
 from hound_id.mor.robot import load_robot
 from hound_id.mor.spec import load_motor_spec
 from tests.conftest import MOTOR, ROBOT
@@ -66,6 +66,58 @@ def test_the_hidden_effect_is_named_and_explains_the_envelope(name, truth, spec,
     assert not any(s.significant for s in result.final.suggestions)  # nothing significant left
     fitted = result.final.model[name]
     assert fitted == pytest.approx(truth[name], rel=0.15)
+
+
+TRAJECTORIES = [
+    ({}, 0.0),
+    ({"bus_sag": 0.15}, 0.0),
+    ({"bus_sag": 0.15}, 0.9),
+    ({"current_limit": 50.0}, 0.9),
+    ({"inductance": 1.2e-4}, 0.0),
+]
+
+
+@pytest.mark.parametrize(("truth", "rho"), TRAJECTORIES, ids=[f"{list(t) or 'none'}-rho{r}" for t, r in TRAJECTORIES])
+def test_time_ordered_logs_without_a_command(truth, rho):
+    """A speed sweep with a smooth random command and no torque_cmd channel: single passes through a speed bin,
+    command peaks and dwells pile samples up like walls; the hidden effect must still be named and nothing else."""
+    d = simulate_trajectory(EnvelopeInputs(SPEC), truth, n=20000, correlation=rho, seed=1)
+    log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"], bus_voltage=d["bus_voltage"])
+    result = compare(log, EnvelopeInputs(SPEC), auto=True)
+    data = comparison_json(result)
+    assert data["limit_method"] == "wall" and data["bins_at_limit"] > 60
+    assert data["added"] == list(truth)
+    for name, value in truth.items():
+        assert data["model"][name] == pytest.approx(value, rel=0.03)
+    assert data["explained"] and data["envelope_rmse"]["with_added"] < 2 * data["noise_level"]
+    assert not any(s["significant"] for s in data["suggestions"])
+    assert len(data["isolated_bins"]) <= 3
+
+
+def test_the_noise_level_allows_for_correlated_sensor_noise():
+    """AR(1) noise with lag-1 correlation 0.9 (a filtered torque sensor): consecutive samples are not independent,
+    so std/sqrt(n) would understate how well each bin's offset is known by sqrt(19) = 4.4x."""
+    d = simulate_trajectory(EnvelopeInputs(SPEC), {}, n=20000, correlation=0.9, seed=2)
+    log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"])
+    result = compare(log, EnvelopeInputs(SPEC))
+    assert result.walls.rho == pytest.approx(0.9, abs=0.08)
+    off = result.final.offsets  # the spec sheet is the truth here: the offsets' scatter is the noise level
+    assert 0.5 < off.rmse / off.noise < 2.0
+    naive = off.noise / np.sqrt((1 + result.walls.rho) / (1 - result.walls.rho))
+    assert off.rmse > 3 * naive
+
+
+def test_a_wrong_add_does_not_hide_the_right_effect():
+    log, inputs = log_of(SPEC, {"bus_sag": 0.15})
+    wrong = compare(log, inputs, add=["inductance"])
+    top = wrong.final.suggestions[0]
+    assert top.effect == "bus_sag" and top.significant and top.value == pytest.approx(0.15, rel=0.05)
+    assert top.refit["inductance"] < 0.1 * wrong.final.model["inductance"]  # the wrong effect falls back
+    both = compare(log, inputs, add=["inductance", "bus_sag"])
+    assert [u["effect"] for u in both.unneeded] == ["inductance"]
+    assert both.final.model["bus_sag"] == pytest.approx(0.15, rel=0.05)
+    right = compare(log, inputs, add=["bus_sag"])
+    assert right.unneeded == ()
 
 
 def test_data_that_match_the_model_flag_nothing():
