@@ -164,48 +164,72 @@ def _mor_compare(
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
+    from hound_id.mor.joint_space import motor_region
     from hound_id.mor.region import motor_report, operating_region
     from hound_id.mor.spec import load_motor_spec, spec_warnings
 
     check_output(plot, (".png",), "plot")
     spec = load_motor_spec(path)
-    region = operating_region(spec)
+    sheet = operating_region(spec)
+    region = motor_region(spec)  # the measured envelope, if the spec carries one
+    measured = bool(spec.envelope)
     warnings = spec_warnings(spec)
     for w in warnings:
         warn(w)
     if plot is not None:
         from hound_id.mor.plot import plot_region
 
-        save_figure(plot_region(region), plot)
+        save_figure(plot_region(region, sheet if measured else None), plot)
     if json_out:
         data = motor_report(spec, region)
+        data["spec_sheet"] = sheet.to_dict() if measured else None
         data["plot"] = str(plot) if plot else None
         print_json(data)
         return
-    table = Table(title=f"Operating region of {spec.name} (motor side)", title_justify="left")
+    title = f"Operating region of {spec.name} (motor side" + (", measured envelope)" if measured else ")")
+    table = Table(title=title, title_justify="left")
     table.add_column("quantity")
     table.add_column("SI", justify="right")
     table.add_column("also", justify="right")
+    if measured:
+        table.add_column("spec sheet", justify="right")
+
+    def row(name: str, value: str, also: str, sheet_value: str = "") -> tuple[str, ...]:
+        return (name, value, also, sheet_value) if measured else (name, value, also)
+
     rows = [
-        ("torque constant Kt", f"{spec.kt:.4g} N m/A", ""),
-        ("speed constant Kv", f"{spec.kv:.4g} rad/s/V", f"{spec.kv * RPM_PER_RAD_S:.4g} rpm/V"),
-        ("resistance R (model)", f"{spec.resistance:.4g} ohm", ""),
-        ("bus voltage", f"{spec.bus_voltage:.4g} V", ""),
-        (
+        row("torque constant Kt", f"{spec.kt:.4g} N m/A", ""),
+        row("speed constant Kv", f"{spec.kv:.4g} rad/s/V", f"{spec.kv * RPM_PER_RAD_S:.4g} rpm/V"),
+        row("resistance R (model)", f"{spec.resistance:.4g} ohm", ""),
+        row("bus voltage", f"{spec.bus_voltage:.4g} V", ""),
+        row(
             "torque limit",
             f"{region.torque_limit:.4g} N m",
             "driver-limited" if region.torque_limit < spec.peak_torque else "peak torque",
         ),
-        ("stall torque Kt V/R", f"{region.stall_torque:.4g} N m", ""),
-        ("no-load speed Kv V", f"{region.no_load_speed:.4g} rad/s", f"{region.no_load_speed * RPM_PER_RAD_S:.0f} rpm"),
-        ("corner speed", f"{region.corner_speed:.4g} rad/s", f"{region.corner_speed * RPM_PER_RAD_S:.0f} rpm"),
-        ("overspeed", f"{region.overspeed:.4g} rad/s", f"{region.overspeed * RPM_PER_RAD_S:.0f} rpm"),
-        ("back-EMF damping Kt/(R Kv)", f"{region.back_emf_damping:.4g} N m s/rad", ""),
+        row("stall torque Kt V/R", f"{region.stall_torque:.4g} N m", ""),
     ]
+    for name, a, b in (
+        ("no-load speed", region.no_load_speed, sheet.no_load_speed),
+        ("corner speed", region.corner_speed, sheet.corner_speed),
+        ("overspeed", region.overspeed, sheet.overspeed),
+    ):
+        rows.append(row(name, f"{a:.4g} rad/s", f"{a * RPM_PER_RAD_S:.0f} rpm", f"{b:.4g} rad/s"))
+    rows.append(
+        row(
+            "inner box",
+            f"{region.inner_box[0]:.4g} N m, {region.inner_box[1]:.4g} rad/s",
+            "",
+            f"{sheet.inner_box[0]:.4g} N m, {sheet.inner_box[1]:.4g} rad/s",
+        )
+    )
+    rows.append(row("back-EMF damping Kt/(R Kv)", f"{region.back_emf_damping:.4g} N m s/rad", ""))
     if region.max_speed is not None:
-        rows.append(("rated max speed", f"{region.max_speed:.4g} rad/s", f"{region.max_speed * RPM_PER_RAD_S:.0f} rpm"))
-    for row in rows:
-        table.add_row(*row)
+        rows.append(
+            row("rated max speed", f"{region.max_speed:.4g} rad/s", f"{region.max_speed * RPM_PER_RAD_S:.0f} rpm")
+        )
+    for r in rows:
+        table.add_row(*r)
     console.print(table)
     if spec.fit is not None:
         model = "+".join(spec.fit.get("model", []))
@@ -217,13 +241,14 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         )
     verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
     console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
-    if spec.envelope:
+    if measured and spec.envelope:
         env = spec.envelope
         effects = ", ".join(f"{k} = {v:.4g}" for k, v in (env.get("effects") or {}).items()) or "none"
         console.print(
-            f"this spec carries a measured envelope ({effects}; {len(env['speeds'])}-point polyline, "
-            f"{env.get('source', 'mor --compare')}): the saturation, the bundle and the runtime clip to it; the table, "
-            "vertices and plot above are the spec sheet's straight lines",
+            f"the region is the measured envelope ({effects}; {len(env['speeds'])}-point polyline from "
+            f"{env.get('source', 'mor --compare')}), the spec sheet's beyond its speeds; the saturation, the "
+            f"bundle, the runtime and mor --robot use it. Its half-spaces are a convex cut inside the polyline, "
+            f"short of it by up to {region.convexity_loss:.3g} N m",
             highlight=False,
         )
     if plot is not None:
@@ -269,6 +294,13 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
         "outer box: bounds of what is reachable at all.",
         highlight=False,
     )
+    measured = sorted({s.name for s in robot.motor_specs.values() if s.envelope})
+    if measured:
+        console.print(
+            f"{', '.join(measured)}: the measured envelope in the spec bounds these limits, not the spec sheet "
+            "(coupled groups: a convex cut inside it)",
+            highlight=False,
+        )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
 

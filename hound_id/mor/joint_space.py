@@ -31,7 +31,14 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import RobotError
-from hound_id.mor.region import OperatingRegion, halfspace_polygon, motor_report, operating_region
+from hound_id.mor.region import (
+    OperatingRegion,
+    halfspace_polygon,
+    largest_box,
+    measured_region,
+    motor_report,
+    operating_region,
+)
 from hound_id.mor.robot import Robot
 from hound_id.mor.spec import MotorSpec
 from hound_id.mor.transmission import Transmission
@@ -157,53 +164,40 @@ def _projection(tx: Transmission, regions: list[OperatingRegion], i: int) -> np.
 
 
 def _inner_boxes(tx: Transmission, regions: list[OperatingRegion]) -> list[Box]:
-    """Largest-volume symmetric box per joint contained in the group's feasible set."""
-    from scipy.optimize import minimize
-
+    """Largest-volume symmetric box per joint contained in the group's feasible set: every row a of every motor's
+    region holds at the box's worst corner, |a_tau| sum_i |P_mi| T_i + |a_omega| sum_i |Q_mi| W_i <= b (for a
+    measured envelope the rows are a convex cut inside it). An uncoupled joint takes its motor's box."""
     k = len(tx.joints)
     P, Q = np.abs(tx.A.T), np.abs(tx.A_inv)
+    if not tx.coupled:  # one motor: its own box through the gear (exact for a measured, non-convex envelope too)
+        T, W = regions[0].inner_box
+        return [Box(effort=float(T / P[0, 0]), velocity=float(W / Q[0, 0]))]
     rows, rhs = [], []
     for m, r in enumerate(regions):
-        a_tau, a_omega = r.A[0]  # voltage+ row: (R/Kt, 1/Kv)
-        rows.append(np.concatenate([P[m], np.zeros(k)]))
-        rhs.append(r.torque_limit)
-        rows.append(np.concatenate([a_tau * P[m], a_omega * Q[m]]))
-        rhs.append(r.b[0])
-        if r.max_speed is not None:
-            rows.append(np.concatenate([np.zeros(k), Q[m]]))
-            rhs.append(r.max_speed)
-    M, c = np.array(rows), np.array(rhs)
-    # Work in y = log of each half-width, scaled so every constraint reads M' exp(y) <= 1.
-    Mn = M / c[:, None]
-    # Start inside: every variable at a small share of what its tightest row allows.
-    start = np.log(0.1 / (2 * k) / Mn.max(axis=0))
-
-    def cons(y: np.ndarray) -> np.ndarray:
-        return 1.0 - Mn @ np.exp(y)
-
-    def cons_jac(y: np.ndarray) -> np.ndarray:
-        return -Mn * np.exp(y)[None, :]
-
-    res = minimize(
-        lambda y: -float(np.sum(y)),
-        start,
-        jac=lambda y: -np.ones_like(y),
-        constraints=[{"type": "ineq", "fun": cons, "jac": cons_jac}],
-        method="SLSQP",
-        options={"maxiter": 500, "ftol": 1e-12},
-    )
-    y = res.x
-    # Guard against a hair of infeasibility from the solver: shrink uniformly onto the boundary.
-    worst = float(np.max(Mn @ np.exp(y)))
-    if not res.success or not np.isfinite(worst):
-        raise RobotError(f"inner box of {', '.join(tx.joints)}: optimiser failed ({res.message})")
-    x = np.exp(y) / max(worst, 1.0)
+        for (a_tau, a_omega), b in zip(np.abs(r.A), r.b, strict=True):
+            rows.append(np.concatenate([a_tau * P[m], a_omega * Q[m]]))
+            rhs.append(b)
+    try:
+        x = largest_box(np.array(rows), np.array(rhs))
+    except RobotError as err:
+        raise RobotError(f"inner box of {', '.join(tx.joints)}: {err}") from err
     return [Box(effort=float(x[i]), velocity=float(x[k + i])) for i in range(k)]
+
+
+def motor_region(spec: MotorSpec) -> OperatingRegion:
+    """The region a motor's limits come from: its measured envelope if the spec carries one, else the spec sheet."""
+    return measured_region(spec) if spec.envelope else operating_region(spec)
 
 
 def robot_regions(robot: Robot) -> RobotRegions:
     """Joint-space regions and URDF boxes for every joint of ``robot``."""
-    motor_regions = {m: operating_region(robot.motor_specs[m]) for m in robot.motors}
+    by_spec: dict[int, OperatingRegion] = {}  # motors sharing a spec share its region
+    motor_regions = {}
+    for m in robot.motors:
+        spec = robot.motor_specs[m]
+        if id(spec) not in by_spec:
+            by_spec[id(spec)] = motor_region(spec)
+        motor_regions[m] = by_spec[id(spec)]
     per_joint: dict[str, JointRegion] = {}
     for tx in robot.transmissions:
         regions = [motor_regions[m] for m in tx.motors]

@@ -55,18 +55,22 @@ def _box(ax, effort: float, velocity: float, **kw) -> None:  # type: ignore[no-u
     ax.plot(xs, ys, **kw)
 
 
-def plot_region(region: OperatingRegion) -> Figure:
+def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -> Figure:
     """The motor's region in (torque, speed) with quadrants labelled, against the URDF box.
 
     The URDF box is what a rectangular joint limit would claim: the torque limit at
     every speed up to the no-load (or rated maximum) speed. Its corners in the
-    motoring quadrants (1 and 3) lie outside the region.
+    motoring quadrants (1 and 3) lie outside the region. With ``sheet`` (the region is a
+    measured envelope) the spec sheet's region is drawn dashed.
     """
     fig = _figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
     v = region.vertices
-    ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label="operating region (MOR)")
+    label = "measured envelope (MOR)" if sheet is not None else "operating region (MOR)"
+    ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label=label)
     ax.plot(*_closed(v).T, color="tab:blue", lw=1.8)
+    if sheet is not None:
+        ax.plot(*_closed(sheet.vertices).T, color="0.3", lw=1.2, ls="--", label="spec sheet region")
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
     _box(
         ax,

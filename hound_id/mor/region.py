@@ -19,7 +19,7 @@ returns there).
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -66,6 +66,10 @@ class OperatingRegion:
     """Slope of the voltage lines, Kt / (R Kv) [N m s/rad]."""
     inner_box: tuple[float, float]
     """Largest-area symmetric box (torque [N m], speed [rad/s]) inside the region."""
+    source: str = "spec sheet"
+    """What bounds the region: ``spec sheet``, or the measured envelope (:func:`measured_region`)."""
+    convexity_loss: float = 0.0
+    """For a measured envelope: the most the convex region falls inside the polyline edges [N m]."""
 
     def contains(self, tau: ArrayLike, omega: ArrayLike, rtol: float = 1e-9) -> NDArray[np.bool_]:
         """Whether each (tau [N m], omega [rad/s]) pair lies in the region (with a relative tolerance)."""
@@ -88,6 +92,8 @@ class OperatingRegion:
             "max_speed": self.max_speed,
             "back_emf_damping": self.back_emf_damping,
             "inner_box": {"torque": self.inner_box[0], "speed": self.inner_box[1]},
+            "source": self.source,
+            "convexity_loss": self.convexity_loss,
             "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V"},
         }
 
@@ -166,6 +172,165 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
         back_emf_damping=spec.back_emf_damping,
         inner_box=_inner_box(spec.stall_torque, spec.no_load_speed, tau_lim, spec.max_speed),
     )
+
+
+def measured_region(spec: MotorSpec) -> OperatingRegion:
+    """The region a measured envelope (``mor --compare --out``) leaves: the spec sheet's region cut by one
+    half-space under each segment of the envelope's polyline edges (over each edge's line extended).
+
+    Where the polyline is convex this is exactly the region between its edges; where it is not (a sagging bus
+    bends the motoring edge back towards the spec sheet's line near the no-load speed) the cut is conservative: no
+    state outside the polyline is inside, and ``convexity_loss`` says by how much the cut falls short of it.
+    Characteristic speeds are read off the polygon; the back-EMF damping stays the spec sheet's.
+    """
+    from hound_id.mor.saturation import polyline_of
+
+    sheet = operating_region(spec)
+    line = polyline_of(spec.envelope)
+    if line is None:
+        raise ValueError(f"{spec.name}: the spec carries no measured envelope")
+    speeds, lower, upper = line
+    rows, rhs, labels = [list(r) for r in sheet.A], list(sheet.b), list(sheet.labels)
+    for side, edge in ((1, upper), (-1, lower)):
+        for k in range(speeds.size - 1):
+            w0, w1, t0, t1 = speeds[k], speeds[k + 1], edge[k], edge[k + 1]
+            if not (np.isfinite(t0) and np.isfinite(t1)):
+                continue
+            slope = (t1 - t0) / (w1 - w0)
+            offset = side * (t0 - slope * w0)  # side * tau - side * slope * omega <= offset
+            if offset <= 1e-9 * spec.torque_limit:  # a segment through the origin: the speed rows bound it
+                continue
+            rows.append([float(side), float(-side * slope)])
+            rhs.append(float(offset))
+            labels.append(f"envelope{'+' if side > 0 else '-'}{k}")
+    A, b = np.array(rows), np.array(rhs)
+    region = replace(
+        sheet,
+        A=frozen(A),
+        b=frozen(b),
+        labels=tuple(labels),
+        vertices=frozen(_traced(speeds, lower, upper, sheet)),
+        no_load_speed=_crossing(speeds, upper, 0.0, sheet.no_load_speed),
+        corner_speed=_crossing(speeds, upper, float(np.nanmax(upper[speeds >= 0])) * (1 - 1e-9), 0.0),
+        source=f"measured envelope ({spec.envelope.get('source', 'mor --compare')})" if spec.envelope else "",
+    )
+    grid = np.linspace(speeds[0], speeds[-1], 4001)
+    lo_cut, hi_cut = _slice(grid, region)
+    loss = max(
+        float(np.nanmax(np.interp(grid, speeds, upper) - hi_cut)),
+        float(np.nanmax(lo_cut - np.interp(grid, speeds, lower))),
+    )
+    return replace(region, convexity_loss=max(loss, 0.0), inner_box=_traced_box(region.vertices))
+
+
+def _traced_box(vertices: NDArray[np.float64], points: int = 20001) -> tuple[float, float]:
+    """Largest-area symmetric box (torque [N m], speed [rad/s]) inside a region traced by ``vertices`` (convex or
+    not): at half-width W the torque half-width is the least of hi(w) and -lo(w) over |w| <= W."""
+    ring = np.vstack([vertices, vertices[:1]])
+    top = float(np.abs(vertices[:, 1]).max())
+    W = np.unique(np.concatenate([np.linspace(0.0, top, points), np.abs(vertices[:, 1])]))
+    both = np.concatenate([-W[::-1], W])
+    hi = np.full(both.size, np.inf)
+    lo = np.full(both.size, -np.inf)
+    for (t0, w0), (t1, w1) in zip(ring[:-1], ring[1:], strict=True):  # each edge bounds the torque at its speeds
+        if w0 == w1:
+            continue
+        on = (both >= min(w0, w1)) & (both <= max(w0, w1))
+        t = t0 + (both[on] - w0) * (t1 - t0) / (w1 - w0)
+        if w1 > w0:  # counter-clockwise: rising speed is the right (upper torque) side
+            hi[on] = np.minimum(hi[on], t)
+        else:
+            lo[on] = np.maximum(lo[on], t)
+    half = np.minimum(hi, -lo)
+    T = np.minimum(np.minimum.accumulate(half[W.size :]), np.minimum.accumulate(half[: W.size][::-1]))
+    T = np.maximum(T, 0.0)
+    k = int(np.argmax(T * W))
+    return float(T[k]), float(W[k])
+
+
+def _traced(
+    speeds: NDArray[np.float64], lower: NDArray[np.float64], upper: NDArray[np.float64], sheet: OperatingRegion
+) -> NDArray[np.float64]:
+    """Vertices (tau, omega), counter-clockwise from the largest torque, of the region between the polyline's edges
+    within its speeds and the spec sheet's region beyond them."""
+    beyond = sheet.vertices[(sheet.vertices[:, 1] < speeds[0]) | (sheet.vertices[:, 1] > speeds[-1]), 1]
+    w = np.unique(np.concatenate([speeds, beyond, [min(speeds[0], sheet.vertices[:, 1].min())]]))
+    lo, hi = torque_interval(w, sheet)
+    inside = (w >= speeds[0]) & (w <= speeds[-1])
+    lo = np.where(inside, np.interp(w, speeds, lower), lo)
+    hi = np.where(inside, np.interp(w, speeds, upper), hi)
+    ok = np.isfinite(lo) & np.isfinite(hi) & (lo <= hi + 1e-12)
+    w, lo, hi = w[ok], lo[ok], hi[ok]
+    ring = np.vstack([np.column_stack([hi, w]), np.column_stack([lo, w])[::-1]])
+    scale = np.abs(ring).max(axis=0)
+    unit = ring / scale
+    # drop repeated points and points on the straight line through their neighbours (flat torque limits)
+    keep = np.any(np.abs(unit - np.roll(unit, 1, axis=0)) > 1e-9, axis=1)
+    unit = unit[keep]
+    before, after = np.roll(unit, 1, axis=0), np.roll(unit, -1, axis=0)
+    cross = (unit[:, 0] - before[:, 0]) * (after[:, 1] - before[:, 1]) - (unit[:, 1] - before[:, 1]) * (
+        after[:, 0] - before[:, 0]
+    )
+    ring = unit[np.abs(cross) > 1e-9] * scale
+    start = int(np.lexsort((-ring[:, 1], -ring[:, 0]))[0])  # max torque, then max speed
+    return np.roll(ring, -start, axis=0)
+
+
+def _crossing(speeds: NDArray[np.float64], edge: NDArray[np.float64], level: float, default: float) -> float:
+    """The first speed >= 0 [rad/s] at which ``edge`` falls to ``level`` (linear between points), or ``default``."""
+    ok = np.isfinite(edge) & (speeds >= 0)
+    w, t = speeds[ok], edge[ok]
+    below = np.flatnonzero(t <= level)
+    if below.size == 0 or w.size < 2:
+        return default
+    k = int(below[0])
+    if k == 0:
+        return float(w[0])
+    return float(w[k - 1] + (level - t[k - 1]) * (w[k] - w[k - 1]) / (t[k] - t[k - 1]))
+
+
+def _slice(omega: NDArray[np.float64], region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """Torque interval [N m] of a region's half-spaces at each speed [rad/s] (NaN where empty)."""
+    a_tau, a_w = region.A[:, 0], region.A[:, 1]
+    room = region.b[None, :] - a_w[None, :] * omega[:, None]  # a_tau tau <= room
+    with np.errstate(divide="ignore", invalid="ignore"):
+        hi = np.min(np.where(a_tau > 0, room / a_tau, np.inf), axis=1)
+        lo = np.max(np.where(a_tau < 0, room / a_tau, -np.inf), axis=1)
+        free = np.all(np.where(a_tau == 0, room >= 0, True), axis=1)
+    empty = (lo > hi) | ~free
+    return np.where(empty, np.nan, lo), np.where(empty, np.nan, hi)
+
+
+def box_in(A: ArrayLike, b: ArrayLike) -> tuple[float, float]:
+    """Largest-area symmetric box (torque [N m], speed [rad/s]) inside {x : A x <= b}: every row must hold at the
+    box's worst corner, |a_tau| T + |a_omega| W <= b."""
+    T, W = largest_box(np.abs(np.asarray(A, float)), np.asarray(b, float))
+    return float(T), float(W)
+
+
+def largest_box(M: ArrayLike, c: ArrayLike) -> NDArray[np.float64]:
+    """The positive x of largest product (max sum of log x, which no choice of units changes) with M x <= c,
+    M >= 0 elementwise, c > 0: the half-widths of the largest box whose every corner meets the rows."""
+    from scipy.optimize import minimize
+
+    from hound_id.errors import RobotError
+
+    Mn = np.asarray(M, float) / np.asarray(c, float)[:, None]  # every row reads Mn exp(y) <= 1
+    start = np.log(0.1 / (2 * Mn.shape[1]) / Mn.max(axis=0))  # inside: a small share of what each row allows
+    res = minimize(
+        lambda y: -float(np.sum(y)),
+        start,
+        jac=lambda y: -np.ones_like(y),
+        constraints=[
+            {"type": "ineq", "fun": lambda y: 1.0 - Mn @ np.exp(y), "jac": lambda y: -Mn * np.exp(y)[None, :]}
+        ],
+        method="SLSQP",
+        options={"maxiter": 500, "ftol": 1e-12},
+    )
+    worst = float(np.max(Mn @ np.exp(res.x)))
+    if not res.success or not np.isfinite(worst):
+        raise RobotError(f"largest box: optimiser failed ({res.message})")
+    return np.exp(res.x) / max(worst, 1.0)  # a hair of infeasibility from the solver: shrink onto the boundary
 
 
 def _inner_box(stall: float, no_load: float, tau_lim: float, max_speed: float | None) -> tuple[float, float]:

@@ -31,10 +31,19 @@ def test_out_spec_is_a_motor_spec_that_says_it_has_an_envelope(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(LOG), "--columns", COLUMNS, "--add", "bus_sag",
                    "--out", str(out))  # fmt: skip
     assert proc.returncode == 0, proc.stderr
-    shown = run_cli("mor", "--spec", str(out))
-    assert shown.returncode == 0 and "carries a measured envelope (bus_sag = 0.1" in shown.stdout
+    plot = tmp_path / "region.png"
+    shown = run_cli("mor", "--spec", str(out), "--plot", str(plot))
+    assert shown.returncode == 0
+    assert "the region is the measured envelope (bus_sag = 0.1" in " ".join(shown.stdout.split())
+    assert "spec sheet" in shown.stdout and plot.read_bytes().startswith(PNG_MAGIC)
     data = json.loads(run_cli("mor", "--spec", str(out), "--json").stdout)
     assert data["spec"]["envelope"]["effects"]["bus_sag"] == pytest.approx(0.15, rel=0.05)
+    assert data["source"].startswith("measured envelope") and data["spec_sheet"]["source"] == "spec sheet"
+    # the sagging pack turns the corner sooner: the table, vertices and boxes say so
+    assert data["corner_speed"] < 0.9 * data["spec_sheet"]["corner_speed"]
+    assert data["inner_box"]["speed"] == pytest.approx(data["corner_speed"], rel=0.01)
+    plain = json.loads(run_cli("mor", "--spec", str(MOTOR), "--json").stdout)
+    assert plain["source"] == "spec sheet" and plain["spec_sheet"] is None
 
 
 def test_a_wrong_add_names_the_right_effect_and_then_says_it_is_not_needed():

@@ -9,6 +9,7 @@ from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
 from tests.conftest import ROBOT, SMALL_MOTOR
+from tests.mor.test_region import write_envelope_spec
 
 MIXED = f"""
 name: mixed
@@ -27,6 +28,18 @@ def sample():
     return robot, robot_regions(robot), saturation_for(robot)
 
 
+@pytest.fixture(scope="module")
+def measured(tmp_path_factory):
+    """The sample robot with its motor's measured envelope (a 0.15 ohm pack: non-convex near no-load)."""
+    folder = tmp_path_factory.mktemp("measured")
+    write_envelope_spec(folder / "ilm85_envelope.yaml", {"bus_sag": 0.15})
+    text = ROBOT.read_text().replace("../motors/hound_ilm85.yaml", "ilm85_envelope.yaml")
+    text = text.replace("urdf: hound_like.urdf\n", "")
+    (folder / "robot.yaml").write_text(text)
+    robot = load_robot(folder / "robot.yaml")
+    return robot, robot_regions(robot), saturation_for(robot)
+
+
 @pytest.fixture
 def mixed(write_yaml):
     robot = load_robot(write_yaml("mixed.yaml", MIXED))
@@ -42,7 +55,7 @@ def test_uncoupled_inner_box_is_torque_limit_to_corner_speed(sample):
     assert jr.outer_box.velocity == pytest.approx(motor.overspeed / 9.0, rel=1e-9)
 
 
-@pytest.mark.parametrize("which", ["sample", "mixed"])
+@pytest.mark.parametrize("which", ["sample", "mixed", "measured"])
 def test_every_corner_of_the_inner_boxes_is_feasible_and_the_boxes_are_tight(which, request):
     robot, regions, sat = request.getfixturevalue(which)
     T = np.array([j.inner_box.effort for j in regions.joints])
@@ -125,3 +138,15 @@ transmissions:
     assert a.outer_box.effort == pytest.approx(2.4e9, rel=1e-9)
     assert b.outer_box.effort == pytest.approx(2.4e3, rel=1e-9)
     assert len(a.section) >= 4
+
+
+def test_a_measured_envelope_shrinks_the_joint_boxes_to_its_corner(sample, measured):
+    robot, regions, _ = measured
+    motor = regions.motors[0]
+    assert motor.source.startswith("measured envelope")
+    haa = robot.joints.index("FL_HAA")
+    assert regions.joints[haa].inner_box.velocity == pytest.approx(motor.corner_speed / 9.0, rel=1e-6)
+    assert motor.corner_speed < 0.9 * sample[1].motors[0].corner_speed  # the sagging pack turns the corner sooner
+    for mine, sheet in zip(regions.joints, sample[1].joints, strict=True):
+        assert mine.inner_box.velocity < sheet.inner_box.velocity
+        assert mine.inner_box.effort <= sheet.inner_box.effort * (1 + 1e-9)

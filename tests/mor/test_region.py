@@ -130,3 +130,62 @@ def test_inner_box_is_inside_and_largest(spec):
             ww = min(ww, r.max_speed)
         best = max(best, tt * max(ww, 0.0))
     assert t * w >= best * (1 - 1e-3)
+
+
+def write_envelope_spec(path, effects, motor=MOTOR):
+    """A motor spec with a measured envelope (as ``mor --compare --out`` writes it) for hidden ``effects``."""
+    import yaml
+
+    from hound_id.mor.compare import polyline
+    from hound_id.mor.envelope import EnvelopeInputs
+
+    line = polyline(effects, EnvelopeInputs(load_motor_spec(motor)))
+    envelope = {k: line[k] for k in ("speeds", "lower", "upper", "tolerance")}
+    data = {"schema": "hound-id/motor/1", "base": str(motor), "envelope": {"effects": effects, **envelope}}
+    path.write_text(yaml.safe_dump(data))
+    return path
+
+
+@pytest.mark.parametrize(
+    "effects", [{}, {"bus_sag": 0.15}, {"bus_sag": 0.15, "inductance": 1e-4}, {"current_limit": 50.0}]
+)
+def test_measured_region_traces_the_polyline_and_cuts_inside_it(tmp_path, effects):
+    from hound_id.mor.region import _slice, measured_region
+    from hound_id.mor.saturation import polyline_of
+
+    spec = load_motor_spec(write_envelope_spec(tmp_path / "env.yaml", effects))
+    region, sheet = measured_region(spec), operating_region(spec)
+    w, lower, upper = polyline_of(spec.envelope)
+    # the traced vertices follow the edges: every polyline point on the boundary, just past it outside
+    ring = np.vstack([region.vertices, region.vertices[:1]])
+    from matplotlib.path import Path
+
+    boundary = Path(ring[:, ::-1])  # (omega, tau): speeds on x
+    inside = np.column_stack([w, 0.5 * (lower + upper)])
+    assert boundary.contains_points(inside).all()
+    assert not boundary.contains_points(np.column_stack([w[1:-1], upper[1:-1] + 0.02])).any()
+    # the half-spaces are a convex cut inside the polyline, short of it by convexity_loss at most
+    grid = np.linspace(w[0], w[-1], 3001)
+    lo_cut, hi_cut = _slice(grid, region)
+    assert np.all(hi_cut <= np.interp(grid, w, upper) + 1e-9) and np.all(lo_cut >= np.interp(grid, w, lower) - 1e-9)
+    assert np.max(np.interp(grid, w, upper) - hi_cut) == pytest.approx(region.convexity_loss, abs=1e-3)
+    # the inner box is inside the traced region and reaches the corner of the measured edge (where the full torque
+    # the envelope allows ends; a kink between polyline points is read to within a segment)
+    T, W = region.inner_box
+    assert T <= float(np.min(np.interp(np.linspace(-W, W, 1001), w, upper))) + 1e-9
+    assert W == pytest.approx(region.corner_speed, rel=0.01)
+    assert T == pytest.approx(float(np.max(upper)), rel=0.01)
+    if not effects:  # no effect: the spec sheet's region
+        assert region.convexity_loss < 1e-9
+        assert T * W == pytest.approx(sheet.inner_box[0] * sheet.inner_box[1], rel=2e-3)
+        assert region.corner_speed == pytest.approx(sheet.corner_speed, rel=0.01)
+
+
+@given(spec=specs())
+@settings(max_examples=40, deadline=None)
+def test_the_traced_box_of_a_spec_sheet_region_is_its_closed_form(spec):
+    from hound_id.mor.region import _traced_box
+
+    region = operating_region(spec)
+    T, W = _traced_box(region.vertices)
+    assert T * W == pytest.approx(region.inner_box[0] * region.inner_box[1], rel=2e-3)
