@@ -3,26 +3,30 @@
 **Samples at the limit.** A log shows the envelope only where the motor was pushed to it. With a
 commanded-torque channel (``torque_cmd``) a sample is at its upper limit when the command
 exceeds the measured torque by more than :data:`CMD_GAP` of the torque limit (and at its lower
-limit the other way round). Without one, hound-id looks for a *wall* in each speed bin: the
-margins r = tau - edge(omega) of samples driven into a limit pile up, so the top of the
-margin distribution is narrow, (q98 - q90) < :data:`WALL` x (q98 - q50) and below
-:data:`WALL_WIDTH` of the torque limit. Where the true edge drifts against the model's across a
-bin (steep past the no-load speed), the linear drift of the top fifth of the margins is taken
-out first. Walls in fewer than three neighbouring bins are taken for chance: a limit spans a range of speeds. The
-samples of a wall (margins above q90 - 2 (q98 - q90)) form the bin's cluster.
+limit the other way round). Without one, hound-id looks for a *wall* in each speed bin
+(:func:`bin_count` bins): the margins r = tau - edge(omega) of samples driven into a limit pile up,
+so the top of the margin distribution is narrow, (q98 - q90) < :data:`WALL` x (q98 - q50) and
+below :data:`WALL_WIDTH` of the torque limit. Where an edge can fall steeply (:func:`_steep`) the
+linear drift of the top fifth of the margins is taken out first; such a wall needs two passes
+that drift alike (:func:`_passes_agree`). A wall of one pass must agree with the model or with
+walls seen in several passes nearby (:func:`_continuous`), and walls in fewer than three
+neighbouring bins are chance. The samples of a wall (margins above q90 - 2 (q98 - q90)) form the
+bin's cluster.
 
 **Edge offsets.** For a model (the spec sheet plus effects with parameters), a bin's edge
-offset is the mean margin of its cluster against that model [N m], with its standard error.
+offset is the mean margin of its cluster against that model [N m], with its standard error
+(widened by sqrt((1 + rho)/(1 - rho)) for the lag-1 autocorrelation rho of consecutive samples).
 The *envelope error* is the RMS of the offsets over all wall bins, upper and lower; the *noise
 level* is the RMS of their standard errors. A bin whose offset is below -3 SE falls short of
 the model; above +3 SE the log spills over it.
 
 **What is missing.** Each candidate effect of :mod:`hound_id.mor.envelope` is fitted on top of
-the model (bounded scalar search of its parameter) and ranked by the share of the envelope
-error's sum of squares it explains. It is significant when the partial F statistic
-(SSE0 - SSE1) / (SSE1 / (bins - 1)) beats F(1, bins - 1) at 1 % divided by the number of
-candidates (Bonferroni), and when the envelope error falls by at least the noise level (an effect
-too small to matter is not suggested). ``--add`` and ``--auto`` grow the model as in ``fit-current``.
+the model (bounded scalar search of its parameter, the model's parameters refitted with it) and
+ranked by the share of the envelope error's sum of squares it explains. It is significant when
+the partial F statistic (SSE0 - SSE1) / (SSE1 / (bins - 1)) beats F(1, bins - 1) at 1 % divided
+by the number of candidates (Bonferroni), and when the envelope error falls by at least the
+noise level (an effect too small to matter is not suggested). ``--add`` and ``--auto`` grow the
+model as in ``fit-current``; :func:`unneeded` names the effects the final model can drop.
 """
 
 from __future__ import annotations

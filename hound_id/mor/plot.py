@@ -203,7 +203,7 @@ def plot_compare(comparison: Any) -> Figure:
     off.set_xlabel("motor speed [rad/s]", fontsize=8)
     off.set_ylabel("edge offset: measured - model [N m] (+-3 SE)", fontsize=8)
     off.set_title(
-        f"envelope error {first.rmse:.3g} -> {last.rmse:.3g} N m (noise level {first.noise:.2g} N m)", fontsize=8
+        f"envelope error {first.rmse:.3g} -> {last.rmse:.3g} N m (noise level {last.noise:.2g} N m)", fontsize=8
     )
     off.tick_params(labelsize=7)
     off.grid(alpha=0.3)
