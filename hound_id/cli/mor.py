@@ -122,6 +122,11 @@ def _mor_compare(
         console.print(f"+ {step['added']}: envelope error {step['envelope_rmse']:.3g} N m ({params})", highlight=False)
         if step["why"]:
             console.print(f"  why: {step['why']['reason']} (p = {step['why']['p_value']:.1e})", highlight=False)
+        if step["walls_found_again"]:
+            console.print(
+                f"  with it in, the walls were found again ({step['bins']} bins) and every parameter refitted",
+                highlight=False,
+            )
     table = Table(title="Candidate effects on top of the model", title_justify="left")
     for col in ("effect", "parameter", "explained", "error after", "significant"):
         table.add_column(col, justify="left" if col == "effect" else "right")

@@ -637,6 +637,8 @@ class Step:
     added: str | None
     offsets: Offsets
     suggestions: tuple[Suggestion, ...]
+    refound: bool = False
+    """Whether the walls were found again against this model (and every parameter refitted on them)."""
 
 
 @dataclass(frozen=True)
@@ -725,11 +727,12 @@ def compare(
         model = {**model, **chosen.refit, name: chosen.value}
         # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
         again = find_walls(log, inputs, model)
-        if _bins(again) >= _bins(walls):
+        refound = _bins(again) >= _bins(walls)
+        if refound:
             walls = again
             model = _refit(log, walls, model, inputs, all_params=True)
         step_offsets = offsets(log, walls, model, inputs)
-        ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs))))
+        ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs)), refound))
     walls, isolated = _isolated(walls, offsets(log, walls, model, inputs))
     if isolated:  # the last rung on the walls that are left
         last = ladder[-1]
@@ -901,6 +904,8 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
         "model": step.model,
         "envelope_rmse": step.offsets.rmse,
         "noise_level": step.offsets.noise,
+        "bins": int(step.offsets.offset.size),
+        "walls_found_again": step.refound,
         "why": why,
     }
 

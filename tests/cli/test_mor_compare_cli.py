@@ -22,6 +22,7 @@ def test_sample_sag_is_named_and_explained(tmp_path):
     assert data["envelope_rmse"]["model"] > 100 * data["noise_level"]  # the spec misses the sag by up to ~5 N m
     assert data["coverage"]["upper"][1] > 0.9 * 81 * 60 * 2 * 3.14159 / 60  # the evidence reaches 90 % of no-load
     assert data["ladder"][1]["why"]["significant"] and "logged bus voltage" in data["ladder"][1]["why"]["reason"]
+    assert data["ladder"][1]["walls_found_again"] and data["ladder"][1]["bins"] == data["bins_at_limit"]
     assert not any(s["significant"] for s in data["suggestions"])
     assert plot.read_bytes().startswith(PNG_MAGIC)
 
