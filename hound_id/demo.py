@@ -211,6 +211,7 @@ def step_compare(out: Path) -> StepResult:
     from hound_id.mor.compare import compare, comparison_json, envelope_spec, load_envelope_log
     from hound_id.mor.envelope import EnvelopeInputs
     from hound_id.mor.plot import plot_compare
+    from hound_id.mor.region import measured_region, operating_region
     from hound_id.mor.spec import load_motor_spec
 
     spec_path = samples_dir() / "motors" / "hound_ilm85.yaml"
@@ -225,16 +226,21 @@ def step_compare(out: Path) -> StepResult:
         yaml.safe_dump(envelope_spec(spec_path, out / "hound_ilm85_envelope.yaml", result), sort_keys=False),
     )
     added = ", ".join(f"{k} = {v:.4g}" for k, v in data["model"].items()) or "nothing"
+    measured = load_motor_spec(out / "hound_ilm85_envelope.yaml")  # the region the envelope leaves
+    corner, sheet_corner = measured_region(measured).corner_speed, operating_region(measured).corner_speed
     return StepResult(
         "compare a log with the region",
         f"{data['outside_fraction']:.1%} of the samples outside the region; added {added}; envelope error "
         f"{data['envelope_rmse']['model']:.3g} -> {data['envelope_rmse']['with_added']:.3g} N m "
-        f"(noise level {data['noise_level']:.2g} N m)",
+        f"(noise level {data['noise_level']:.2g} N m); measured corner speed {corner:.4g} rad/s "
+        f"(spec sheet {sheet_corner:.4g})",
         ("compare_ilm85_sag.json", "compare_ilm85_sag.png", "hound_ilm85_envelope.yaml"),
         {
             "envelope_rmse_model": data["envelope_rmse"]["model"],
             "envelope_rmse_with_added": data["envelope_rmse"]["with_added"],
             "noise_level": data["noise_level"],
+            "corner_speed_measured": corner,
+            "corner_speed_spec_sheet": sheet_corner,
         },
     )
 

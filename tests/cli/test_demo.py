@@ -42,6 +42,8 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert data["steps"][5]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
     compare = json.loads((tmp_path / "out" / "compare_ilm85_sag.json").read_text())
     assert compare["schema"] == "hound-id/mor-compare/1" and compare["added"] == ["bus_sag"]
+    sag = data["steps"][4]["figures"]  # the sagging pack turns the corner sooner than the spec sheet says
+    assert sag["corner_speed_measured"] < 0.9 * sag["corner_speed_spec_sheet"]
     export = json.loads((tmp_path / "out" / "export" / "export.json").read_text())
     assert export["schema"] == "hound-id/export/1" and export["fitted_motors"] == ["hound_ilm85"] and export["foot"]
     assert export["mujoco_check"]["max_outside"] == 0.0 and export["mujoco_check"]["max_difference"] < 1e-5
