@@ -64,6 +64,13 @@ STEP = 0.05
 NEIGHBOURS = 3
 #: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall.
 ISOLATED = 5.0
+#: Passes of a wall whose levels differ at this significance are not one wall, unless they differ by less than
+#: this share of the torque limit.
+LEVEL_ALPHA = 1e-4
+LEVEL_FLOOR = 0.005
+#: A wall's samples spread at most this many times the typical noise at a limit (a pass of a moving command spreads
+#: more).
+FLAT = 3.0
 #: Rows of a log apart beyond which two samples of a wall belong to different passes through its speed bin.
 PASS_GAP = 25
 #: Speeds [share of the spec's corner / no-load speed] past which a motoring / braking edge may fall steeply.
@@ -235,6 +242,7 @@ def find_walls(
     index = np.clip(np.searchsorted(edges, w, side="right") - 1, 0, bins - 1)
     lo, hi = envelope(w, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
     upper, lower = [], []
+    drifting: set[tuple[int, int]] = set()  # (side, bin) of walls found with their drift taken out
     gap = CMD_GAP * inputs.spec.torque_limit
     width = WALL_WIDTH * inputs.spec.torque_limit
     for b in range(bins):
@@ -264,35 +272,121 @@ def find_walls(
                         at = _wall(cand, m - slope * (w[cand] - np.mean(w[cand])), width)
                         if at.size and not _passes_agree(at, margin_of(at), w[at]):
                             at = np.array([], dtype=np.int64)
+                        drifting.add((int(cmd_side), b))
             found.append(at if at.size >= MIN_WALL else np.array([], dtype=np.int64))
         upper.append(found[0])
         lower.append(found[1])
     centres = 0.5 * (edges[:-1] + edges[1:])
+    rho = _autocorrelation(log, upper + lower, pooled=log.torque_cmd is not None)
     if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls and walls off the edge are chance
         tol = STEP * inputs.spec.torque_limit
-        upper = _contiguous(_continuous(upper, log.torque - hi, w, tol))
-        lower = _contiguous(_continuous(lower, lo - log.torque, w, tol))
+        floor = LEVEL_FLOOR * inputs.spec.torque_limit
+        empty = np.array([], dtype=np.int64)
+        margins = {1: log.torque - hi, -1: lo - log.torque}
+        noise = _noise_scale(log, upper + lower)
+        for side, walls_ in ((1, upper), (-1, lower)):
+            margin = margins[side]
+            for b, i in enumerate(walls_):
+                if not i.size:
+                    continue
+                m = margin[i]
+                # one pass of a moving command spreads more than the noise; passes of a limit sit on one curve in
+                # speed (drifting against a model that is wrong there), passes of commands at several levels
+                line = m - np.polyval(np.polyfit(w[i], m, 2), w[i]) if np.ptp(w[i]) > 0 else m
+                i = _agreeing_passes(i, line, rho, floor)
+                drifts = (side, b) in drifting  # its passes were checked to drift alike (_passes_agree)
+                if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
+                    i = empty
+                walls_[b] = i
+            walls_[:] = _contiguous(_continuous(walls_, margin, w, tol))
+        rho = _autocorrelation(log, upper + lower)
     method = "command" if log.torque_cmd is not None else "wall"
-    return Walls(centres, tuple(upper), tuple(lower), method, _autocorrelation(log, upper + lower))
+    return Walls(centres, tuple(upper), tuple(lower), method, rho)
 
 
-def _autocorrelation(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]], fewest: int = 30) -> float:
-    """Pooled lag-1 autocorrelation of the torque about a straight line in speed, over pairs of consecutive samples
-    within a wall (clipped to [0, 0.95]; 0 with fewer than ``fewest`` pairs, as in a shuffled log)."""
-    num = den = 0.0
-    pairs = 0
+def _passes(idx: NDArray[np.int64], run: int = 5) -> list[NDArray[np.int64]]:
+    """The passes of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) of ``run`` samples or more,
+    as positions into ``idx``."""
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
+    starts, ends = np.concatenate([[0], breaks + 1]), np.concatenate([breaks + 1, [idx.size]])
+    return [np.arange(a, e) for a, e in zip(starts, ends, strict=True) if e - a >= run]
+
+
+def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[NDArray[np.int64], Array]]:
+    """Each pass of a wall (rows ``idx``) with the torque about its own straight line in time: the noise."""
+    out = []
+    for p in _passes(idx):
+        rows, tau = idx[p].astype(float), log.torque[idx[p]]
+        out.append((idx[p], tau - np.polyval(np.polyfit(rows, tau, 1), rows)))
+    return out
+
+
+def _autocorrelation(
+    log: EnvelopeLog, groups: Sequence[NDArray[np.int64]], fewest: int = 10, pooled: bool = True
+) -> float:
+    """Lag-1 autocorrelation of the torque noise between consecutive samples within a wall, about the wall's
+    straight line in speed, clipped to [0, 0.95]; 0 without walls of ``fewest`` consecutive pairs, as in a shuffled
+    log. ``pooled``: over all pairs of all walls (walls already checked); else the median of the walls' own
+    estimates, which a few walls that are passes of a slow command do not move (short walls bias it low)."""
+    nums, dens = [], []
     for idx in groups:
         if idx.size < 3:
             continue
         w, tau = log.velocity[idx], log.torque[idx]
         d = tau - np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else tau - tau.mean()
         next_ = np.flatnonzero(np.diff(idx) == 1)
-        num += float(np.sum(d[next_] * d[next_ + 1]))
-        den += float(np.sum(d[next_] ** 2 + d[next_ + 1] ** 2)) / 2
-        pairs += next_.size
-    if pairs < fewest or den <= 0:
+        den = float(np.sum(d[next_] ** 2 + d[next_ + 1] ** 2)) / 2
+        if next_.size >= fewest and den > 0:
+            nums.append(float(np.sum(d[next_] * d[next_ + 1])))
+            dens.append(den)
+    if not nums:
         return 0.0
-    return float(np.clip(num / den, 0.0, 0.95))
+    rho = sum(nums) / sum(dens) if pooled else float(np.median(np.array(nums) / np.array(dens)))
+    return float(np.clip(rho, 0.0, 0.95))
+
+
+def _noise_scale(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]]) -> float:
+    """Typical torque noise at a limit [N m]: the median over walls of the spread of their samples, each pass about
+    its own line in time (a shuffled log: the spread of the wall's torque about a line in speed)."""
+    spreads = []
+    for idx in groups:
+        if idx.size < MIN_WALL:
+            continue
+        parts = _detrended_passes(log, idx)
+        if parts:
+            spreads.append(float(np.sqrt(np.mean(np.concatenate([d for _, d in parts]) ** 2))))
+        else:
+            w, tau = log.velocity[idx], log.torque[idx]
+            fit = np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else np.mean(tau)
+            spreads.append(float(np.std(tau - fit)))
+    return float(np.median(spreads)) if spreads else math.inf
+
+
+def _agreeing_passes(idx: NDArray[np.int64], m: Array, rho: float, floor: float) -> NDArray[np.int64]:
+    """The samples of a wall whose passes sit at one level: samples of a limit do, whichever pass brought the motor
+    there; passes of a slow command that happen to top out close together do not. While a chi-square test of the
+    passes' mean margins ``m`` against their common mean fails at :data:`LEVEL_ALPHA` (each mean's variance the
+    within-pass variance / n x (1 + rho) / (1 - rho), AR(1) noise), the pass furthest off is dropped; differences
+    under ``floor`` [N m] always agree. Returns the rows kept."""
+    from scipy.special import chdtrc  # chi-square survival function
+
+    parts = _passes(idx)
+    keep = np.ones(idx.size, dtype=bool)
+    while len(parts) >= 2:
+        means = np.array([float(np.mean(m[p])) for p in parts])
+        sizes = np.array([p.size for p in parts], dtype=float)
+        within = np.concatenate([m[p] - np.mean(m[p]) for p in parts])
+        var = max(float(np.sum(within**2)) / max(within.size - len(parts), 1), 1e-30) * (1 + rho) / (1 - rho)
+        centre = float(np.sum(means * sizes) / np.sum(sizes))
+        if np.max(np.abs(means - centre)) <= floor:
+            break
+        chi2 = float(np.sum((means - centre) ** 2 * sizes / var))
+        if chdtrc(len(parts) - 1, chi2) >= LEVEL_ALPHA:
+            break
+        worst = int(np.argmax(np.abs(means - centre) * np.sqrt(sizes)))
+        keep[parts[worst]] = False
+        parts.pop(worst)
+    return idx[keep]
 
 
 def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = 5) -> bool:
