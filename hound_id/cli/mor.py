@@ -9,7 +9,7 @@ import typer
 from rich.table import Table
 
 from hound_id.cli._render import console, print_json, save_figure, warn
-from hound_id.errors import HoundIdError
+from hound_id.errors import HoundIdError, SpecError
 from hound_id.io import check_output
 from hound_id.units import RPM_PER_RAD_S
 
@@ -84,11 +84,18 @@ def _mor_compare(
     )
     with console.status("comparing the log with the operating region"):
         result = compare(log, EnvelopeInputs(spec, compensation=compensation_of(spec)), add=add, auto=auto)
+    data = comparison_json(result)
+    if out is not None and not data["explained"]:
+        final, noise = data["envelope_rmse"]["with_added"], data["noise_level"]
+        raise SpecError(
+            f"--out {out}: the model does not explain {log.source} (envelope error {final:.3g} N m, "
+            f"{final / max(noise, 1e-12):.0f}x the noise level); a measured envelope is written only when it explains "
+            "the log: run without --out to see what is missing"
+        )
     if plot is not None:
         from hound_id.mor.plot import plot_compare
 
         save_figure(plot_compare(result), plot)
-    data = comparison_json(result)
     data["plot"] = str(plot) if plot else None
     data["out"] = str(out) if out else None
     if out is not None:
@@ -112,6 +119,8 @@ def _mor_compare(
         ),
         highlight=False,
     )
+    if log.ignored:
+        warn(f"{log.source}: column(s) {', '.join(log.ignored)} hold no finite value and were left out")
     console.print(
         f"{data['bins_at_limit']} speed bins show the motor at its limit ({data['limit_method']}); envelope error "
         f"{data['envelope_rmse']['model']:.3g} N m against the spec sheet, noise level {data['noise_level']:.2g} N m",
@@ -141,6 +150,16 @@ def _mor_compare(
         + (f"; {data['rows_dropped']} rows with NaN or inf dropped" if data["rows_dropped"] else ""),
         highlight=False,
     )
+    no_load = spec.no_load_speed
+    forward = max((cov["upper"] or [0.0, 0.0])[1], 0.0)  # the motoring edges: upper forward, lower backward
+    backward = max(-(cov["lower"] or [0.0, 0.0])[0], 0.0)
+    if min(forward, backward) < 0.9 * no_load:
+        console.print(
+            f"note: the log shows the motoring edges to {forward:.4g} rad/s forward and {backward:.4g} rad/s backward "
+            f"(no-load speed {no_load:.4g} rad/s): effects that act at speed (bus_sag, inductance, "
+            "thermal_resistance) show little or nothing below that, so the verdict holds only there",
+            highlight=False,
+        )
     significant = [s for s in data["suggestions"] if s["significant"]]
     final = data["envelope_rmse"]["with_added"]
     for item in data["unneeded"]:

@@ -126,6 +126,14 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                     "armature": (m["rotor_inertia"] or 0.0) * gear**2,
                     "friction": float(coulomb[i]),
                 }
+                if m.get("envelope"):  # DCMotor holds straight lines; the measured edge is a polyline
+                    entry["use"] = "hound_id.runtime"
+                    entry["reason"] = (
+                        f"motor {m['name']} has a measured envelope (mor --compare --out); DCMotor's straight lines "
+                        f"allow up to {_over_promise(m) * gear:.4g} N m more than it at the joint. The dcmotor "
+                        "fields hold the spec sheet; apply hound_id.runtime.load(bundle, joint_names).saturate(tau, "
+                        "qd) for the measured edge"
+                    )
             joints[joint] = entry
     return {
         "schema": ISAACLAB_SCHEMA,
@@ -146,6 +154,20 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
     }
 
 
+def _over_promise(motor: dict[str, Any]) -> float:
+    """The most the spec sheet's straight edges pass a motor's measured polyline edges [N m, motor side]."""
+    env = motor["envelope"]
+    w = np.asarray(env["speeds"], dtype=float)
+    stall, tl = motor["stall_torque"], motor["torque_limit"]
+    damping = stall / motor["no_load_speed"]
+    worst = 0.0
+    for key, sign in (("upper", 1.0), ("lower", -1.0)):
+        edge = np.array([np.nan if v is None else v for v in env[key]], dtype=float)
+        straight = np.clip(sign * stall - damping * w, -tl, tl)
+        worst = max(worst, float(np.nanmax(sign * (straight - edge))))
+    return worst
+
+
 def write_isaaclab(ex: Export, out: Path) -> Written:
     """``<robot>_isaaclab.yaml``: :func:`isaaclab_fields`."""
     import yaml
@@ -154,7 +176,13 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
     path = out / f"{_stem(ex)}_isaaclab.yaml"
     io.write_text(path, yaml.safe_dump(data, sort_keys=False))
     coupled = [j for j, v in data["joints"].items() if v["coupled"]]
-    notes = (f"{len(coupled)} coupled joints point to hound_id.runtime",) if coupled else ()
+    measured = [j for j, v in data["joints"].items() if not v["coupled"] and v.get("use")]
+    notes: tuple[str, ...] = (f"{len(coupled)} coupled joints point to hound_id.runtime",) if coupled else ()
+    if measured:
+        notes += (
+            f"{len(measured)} uncoupled joints ({', '.join(measured)}) have motors with a measured envelope: their "
+            "dcmotor fields hold the spec sheet's straight lines; they point to hound_id.runtime",
+        )
     return Written((str(path),), notes)
 
 

@@ -84,6 +84,10 @@ ALPHA = 0.01
 EXPLAINED = 3.0
 #: ... and (for the spec sheet itself) at most this share of the samples lies past its edges.
 OUTSIDE_OK = 0.005
+#: A candidate is refuted when more than OUTSIDE_OK of the samples pass its edges by this share of the torque limit.
+REFUTE = 0.05
+#: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
+IMPLAUSIBLE = 2.0
 #: Accuracy of the polyline boundary, as a share of the torque limit.
 POLYLINE_TOLERANCE = 0.002
 
@@ -104,6 +108,8 @@ class EnvelopeLog:
     """``motor``, or how joint-side data was mapped (joint, transmission)."""
     dropped: int = 0
     """Rows dropped for a non-finite value in any channel used."""
+    ignored: tuple[str, ...] = ()
+    """Optional channels left out because they hold no finite value."""
 
     @property
     def n(self) -> int:
@@ -188,17 +194,22 @@ def load_envelope_log(
             rest["torque_cmd"] = None
         else:
             rest["torque_cmd"] = rest["torque_cmd"] * float(tx.A[0, 0])
+    ignored = tuple(k for k, v in rest.items() if v is not None and not np.isfinite(v).any())
+    rest = {k: (None if k in ignored else v) for k, v in rest.items()}  # an empty optional channel is no channel
     data = {"torque": torque, "velocity": velocity, **rest}
     good = np.ones(torque.size, dtype=bool)
     for values in data.values():
         if values is not None:
             good &= np.isfinite(values)
     if good.sum() < 10 * MIN_SAMPLES:
+        gaps = {k: int((~np.isfinite(v)).sum()) for k, v in data.items() if v is not None}
+        worst = max(gaps, key=lambda k: gaps[k])
         raise DynoDataError(
-            f"{source}: {int(good.sum())} usable rows; an envelope comparison needs at least {10 * MIN_SAMPLES}"
+            f"{source}: {int(good.sum())} usable rows; an envelope comparison needs at least {10 * MIN_SAMPLES} "
+            f"(rows with NaN or inf are dropped; most in {worst}: {gaps[worst]})"
         )
     picked = {k: (v[good] if v is not None else None) for k, v in data.items()}
-    return EnvelopeLog(source=source, side=side, dropped=int((~good).sum()), **picked)  # type: ignore[arg-type]
+    return EnvelopeLog(source=source, side=side, dropped=int((~good).sum()), ignored=ignored, **picked)  # type: ignore[arg-type]
 
 
 @dataclass(frozen=True)
@@ -612,6 +623,8 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
             "add a torque_cmd column"
         )
     names = [c for c in effect_names(_inputs_for(log, inputs, np.arange(log.n))) if c not in model]
+    excess0 = np.nan_to_num(_excess(log, inputs, base.sample_noise, model)[0], nan=0.0)
+    spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.torque_limit))
     out = []
     for name in names:
         value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
@@ -632,6 +645,11 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
         p = float(fdtrc(1, dof, f_stat))
         effect = EFFECTS[name]
+        # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
+        # compromises between two effects passes its samples by a little)
+        excess = _excess(log, inputs, base.sample_noise, {**refit, name: value})[0]
+        spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.torque_limit))
+        refuted = spill > max(OUTSIDE_OK, 2 * spill0)
         moved = ", ".join(
             f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
             for k, v in refit.items()
@@ -649,11 +667,18 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 # statistically and practically: the F-test, and an error that falls by at least the noise level
                 significant=bool(p < ALPHA / max(len(names), 1))
                 and not at_bound
+                and not refuted
                 and base.rmse - math.sqrt(sse1 / n) >= base.noise,
                 reason=(
                     f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
                     f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
                     + (f" ({moved})" if moved else "")
+                    + (
+                        f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
+                        "its edges; the log makes torque it forbids)"
+                        if refuted
+                        else ""
+                    )
                     + (" (at the bound of its search: not identified)" if at_bound else "")
                 ),
                 refit=refit,
@@ -751,15 +776,20 @@ class Comparison:
     """Effects of the final model the log does not need once the others are in (:func:`unneeded`)."""
     isolated: tuple[dict[str, Any], ...] = ()
     """Single bins left out as chance walls (:func:`_isolated`): speed, edge, offset, se."""
+    outside_final: float = 0.0
+    """Share of the samples past the final model's edges (as :func:`outside_stats` counts them)."""
 
     @property
     def final(self) -> Step:
         return self.ladder[-1]
 
 
-def _excess(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> tuple[Array, float, NDArray[np.bool_]]:
-    """(how far each sample passes the spec sheet's edges [N m], the threshold, the samples past it)."""
-    lo, hi = envelope(log.velocity, {}, _inputs_for(log, inputs, np.arange(log.n)))
+def _excess(
+    log: EnvelopeLog, inputs: EnvelopeInputs, noise: float, model: Mapping[str, float] | None = None
+) -> tuple[Array, float, NDArray[np.bool_]]:
+    """(how far each sample passes the edges of ``model`` (default the spec sheet) [N m], the threshold, the
+    samples past it)."""
+    lo, hi = envelope(log.velocity, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
     thr = max(4 * noise, 0.005 * inputs.spec.torque_limit)
     excess = np.maximum(log.torque - hi, lo - log.torque)
     return excess, thr, np.asarray(np.isfinite(excess) & (excess > thr))
@@ -799,6 +829,7 @@ def compare(
     for name in add:
         if name not in EFFECTS:
             raise SpecError(f"--add: unknown effect {name!r}; effects are {', '.join(EFFECTS)}")
+    _plausible(log, inputs)
     walls = find_walls(log, inputs)
     model: dict[str, float] = {}
     base = offsets(log, walls, model, inputs)
@@ -841,6 +872,7 @@ def compare(
         baseline=baseline,
         unneeded=tuple(unneeded(log, walls, model, inputs)),
         isolated=tuple(isolated),
+        outside_final=float(_excess(log, inputs, base.sample_noise, model)[2].mean()),
     )
 
 
@@ -907,6 +939,23 @@ def unneeded(
             }
         )
     return out
+
+
+def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
+    """Refuse a log whose torque or speed the motor cannot have made: most samples of a log lie inside the region,
+    so a 99th percentile past :data:`IMPLAUSIBLE` x the torque limit or the overspeed is a unit mistake."""
+    spec = inputs.spec
+    overspeed = spec.kv * (spec.bus_voltage + spec.resistance * spec.torque_limit / spec.kt)
+    for name, values, limit, unit, hint in (
+        ("torque", log.torque, spec.torque_limit, "N m", "torque=mN*m"),
+        ("velocity", log.velocity, overspeed, "rad/s", "velocity=rpm"),
+    ):
+        p99 = float(np.quantile(np.abs(values), 0.99))
+        if p99 > IMPLAUSIBLE * limit:
+            raise DynoDataError(
+                f"{log.source}: {name} reaches {p99:.4g} {unit} (99th percentile), over {IMPLAUSIBLE:g}x what "
+                f"{spec.name} can ({limit:.4g} {unit}); check its unit: a [unit] in the header or --units {hint}"
+            )
 
 
 def _bins(walls: Walls) -> int:
@@ -993,12 +1042,14 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
     why = None
     if k > 0:
         why = next((x.to_dict() for x in c.ladder[k - 1].suggestions if x.effect == step.added), None)
+    # the spec sheet's rung on the final walls, as the headline "before" (its suggestions' texts are on the first)
+    off = c.baseline if k == 0 and c.baseline is not None else step.offsets
     return {
         "added": step.added,
         "model": step.model,
-        "envelope_rmse": step.offsets.rmse,
-        "noise_level": step.offsets.noise,
-        "bins": int(step.offsets.offset.size),
+        "envelope_rmse": off.rmse,
+        "noise_level": off.noise,
+        "bins": int(off.offset.size),
         "walls_found_again": step.refound,
         "why": why,
     }
@@ -1024,7 +1075,9 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "explained": bool(
             last.offsets.rmse <= EXPLAINED * max(last.offsets.noise, 1e-12)
             and (bool(last.model) or c.outside["fraction"] <= OUTSIDE_OK)
+            and c.outside_final <= OUTSIDE_OK
         ),
+        "outside_final": c.outside_final,
         "coverage": coverage(last.offsets),
         "noise_level": last.offsets.noise,
         "sample_noise": first.offsets.sample_noise,

@@ -327,12 +327,13 @@ def simulate_trajectory(
     speed_fraction: float = 0.95,
     amplitude: float = 3.0,
     period: float = 5.0,
+    band: float = 3.0,
     seed: int = 0,
     temperature_range: tuple[float, float] = (30.0, 90.0),
 ) -> dict[str, Array]:
     """A seeded time-ordered log, as a robot or a dyno sweep records it: the speed sweeps a triangle of ``period``
-    [s] to ``speed_fraction`` of the no-load speed, the torque command is a smooth random signal (40 sines of 0.05-3
-    Hz) reaching ``amplitude`` x the torque limit, sampled at ``rate`` [Hz]. The realised torque is the command
+    [s] to ``speed_fraction`` of the no-load speed, the torque command is a smooth random signal (40 sines of 0.05 to
+    ``band`` Hz) reaching ``amplitude`` x the torque limit, sampled at ``rate`` [Hz]. The realised torque is the command
     clipped to the true envelope plus AR(1) sensor noise of standard deviation ``noise`` [N m] and lag-1
     ``correlation`` (a filtered torque sensor). Columns as :func:`simulate_log`, plus time [s] and torque_cmd [N m].
     """
@@ -342,7 +343,7 @@ def simulate_trajectory(
     omega = speed_fraction * spec.bus_voltage * spec.kv * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t / period))
     command = np.zeros(n)
     for _ in range(40):
-        command += np.sin(2 * np.pi * rng.uniform(0.05, 3.0) * t + rng.uniform(0, 2 * np.pi))
+        command += np.sin(2 * np.pi * rng.uniform(0.05, band) * t + rng.uniform(0, 2 * np.pi))
     command *= amplitude * spec.torque_limit / np.max(np.abs(command))
     white = rng.standard_normal(n) * math.sqrt(1 - correlation**2)
     e = np.empty(n)

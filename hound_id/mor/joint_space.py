@@ -145,6 +145,13 @@ def _section(tx: Transmission, G: np.ndarray, h: np.ndarray, i: int) -> np.ndarr
     return halfspace_polygon(G[:, [i, k + i]], h)
 
 
+def _scaled(tx: Transmission, region: OperatingRegion) -> np.ndarray:
+    """An uncoupled joint's region: its motor's vertices (traced, for a measured envelope) through the gear."""
+    verts = region.vertices / np.array([tx.A.T[0, 0], tx.A_inv[0, 0]])[None, :]  # tau_j = tau_m / P, qd = w_m / Q
+    start = int(np.lexsort((-verts[:, 1], -verts[:, 0]))[0])
+    return np.roll(verts, -start, axis=0)
+
+
 def _projection(tx: Transmission, regions: list[OperatingRegion], i: int) -> np.ndarray:
     """Image of the product of the motor polygons, projected on joint i's (tau, qd)."""
     from scipy.spatial import ConvexHull
@@ -210,7 +217,7 @@ def robot_regions(robot: Robot) -> RobotRegions:
                 motors=tx.motors,
                 transmission=tx.kind,
                 coupled=tx.coupled,
-                section=frozen(_section(tx, G, h, i)),
+                section=frozen(_section(tx, G, h, i) if tx.coupled else _scaled(tx, regions[0])),
                 projection=frozen(proj),
                 inner_box=boxes[i],
                 outer_box=Box(effort=float(np.max(np.abs(proj[:, 0]))), velocity=float(np.max(np.abs(proj[:, 1])))),

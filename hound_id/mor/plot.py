@@ -187,7 +187,7 @@ def plot_compare(comparison: Any) -> Figure:
         ax.plot(hi2, w, color="tab:orange", lw=1.5, ls="--", label=label)
         ax.plot(lo2, w, color="tab:orange", lw=1.5, ls="--")
     _style_panel(ax, f"{inputs.spec.name}: {log.source} ({log.side})", "motor")
-    ax.legend(fontsize=7, loc="upper right")
+    ax.legend(fontsize=7, loc="center")  # the edges, where the region is wrong, stay clear
     first = c.baseline if c.baseline is not None else c.ladder[0].offsets
     last = c.final.offsets
     series = [(first, "k", "spec sheet")] + ([(last, "tab:orange", "with added")] if c.final.model else [])

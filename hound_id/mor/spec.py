@@ -246,7 +246,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
         raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
-    return MotorSpec(
+    spec = MotorSpec(
         name=name.strip(),
         pole_pairs=pole_pairs,
         source=src,
@@ -255,6 +255,15 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         envelope=_envelope(data.get("envelope"), source),
         **values,
     )
+    if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
+        edges = [abs(v) for key in ("lower", "upper") for v in spec.envelope[key] if v is not None]
+        slack = float(spec.envelope.get("tolerance", 0.0)) + 1e-9 * spec.torque_limit
+        if edges and max(edges) > spec.torque_limit + slack:
+            raise SpecError(
+                f"{where(source, 'envelope')}: an edge reaches {max(edges):.4g} N m, past the torque limit "
+                f"{spec.torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
+            )
+    return spec
 
 
 def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
@@ -267,6 +276,25 @@ def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
         upper = [float("nan") if v is None else float(v) for v in data["upper"]]
     except (KeyError, TypeError, ValueError) as err:
         raise SpecError(f"{where(source, 'envelope')}: expected speeds, lower and upper lists ({err})") from err
+    effects, tolerance = data.get("effects", {}), data.get("tolerance", 0.0)
+    if not isinstance(effects, Mapping):
+        raise SpecError(f"{where(source, 'envelope.effects')}: found {effects!r}, expected a mapping effect: value")
+    if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not tolerance >= 0:
+        raise SpecError(f"{where(source, 'envelope.tolerance')}: found {tolerance!r}, expected a number >= 0 [N m]")
+    from hound_id.mor.envelope import EFFECTS  # envelope.py imports this module
+
+    for key, value in effects.items():
+        effect = EFFECTS.get(str(key))
+        if effect is None:
+            raise SpecError(
+                f"{where(source, 'envelope.effects')}: unknown effect {key!r}; effects are {', '.join(EFFECTS)}"
+            )
+        lo, hi = effect.bounds
+        if isinstance(value, bool) or not isinstance(value, int | float) or not lo <= value <= hi:
+            raise SpecError(
+                f"{where(source, f'envelope.effects.{key}')}: found {value!r}, expected {effect.parameter} in "
+                f"[{lo:g}, {hi:g}] {effect.unit}"
+            )
     ok = len(speeds) == len(lower) == len(upper) >= 2 and all(np.diff(speeds) > 0)
     if not ok or any(lo > hi for lo, hi in zip(lower, upper, strict=True) if lo == lo and hi == hi):
         raise SpecError(

@@ -84,3 +84,25 @@ def test_sample_log_regenerates_byte_for_byte(tmp_path):
     module = load_script(SAMPLES / "envelope" / "make_envelope_log.py")
     module.main(tmp_path)
     assert (tmp_path / "ilm85_sag_log.csv").read_bytes() == LOG.read_bytes()
+
+
+def test_out_is_refused_when_the_model_does_not_explain_the_log(tmp_path):
+    """A supply stronger than the spec says: no effect adds voltage, so the log stays unexplained and no measured
+    envelope may be written from it (it would bound the saturation and the export)."""
+    import dataclasses
+
+    import numpy as np
+
+    from hound_id.mor.envelope import EnvelopeInputs, simulate_log
+    from hound_id.mor.spec import load_motor_spec
+
+    spec = load_motor_spec(MOTOR)
+    strong = dataclasses.replace(spec, bus_voltage=spec.bus_voltage * 1.08)
+    d = simulate_log(EnvelopeInputs(strong), {}, n=8000, noise=0.02, seed=5, speed_fraction=0.99)
+    log = tmp_path / "strong.csv"
+    np.savetxt(log, np.column_stack([d["velocity"], d["torque"]]), delimiter=",", header="velocity,torque",
+               comments="")  # fmt: skip
+    out = tmp_path / "env.yaml"
+    proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(log), "--auto", "--out", str(out))
+    assert_one_line_error(proc, "--out", "does not explain", "run without --out")
+    assert not out.exists()

@@ -256,3 +256,63 @@ def test_measured_envelope_reaches_the_saturation_the_bundle_and_the_runtime(tmp
     assert np.allclose(out_t.detach().numpy(), sat(tau, qd), atol=1e-9) and t.grad is not None
     runtime = hound_id.runtime.from_bundle(build_bundle(robot))
     assert np.allclose(runtime.saturate(tau, qd), sat(tau, qd), atol=1e-12)
+
+
+@pytest.mark.parametrize(("amplitude", "seed"), [(0.8, 0), (0.8, 1), (0.8, 3), (1.5, 3), (2.0, 1), (2.0, 3)])
+def test_a_slow_command_is_not_taken_for_a_limit(amplitude, seed):
+    """A motor that matches its spec, driven by a slow command (sines under 1 Hz) with AR(1) noise: passes of the
+    command that plateau across bins pile up like walls. No effect may be added (a 'current limit' at the plateau
+    would be refuted by the samples above it elsewhere), and a log that never reaches its limits is refused or
+    not explained."""
+    d = simulate_trajectory(EnvelopeInputs(SPEC), {}, n=20000, correlation=0.9, amplitude=amplitude, band=1.0,
+                            seed=seed, noise=0.02)  # fmt: skip
+    log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"])
+    try:
+        data = comparison_json(compare(log, EnvelopeInputs(SPEC), auto=True))
+    except SpecError as err:
+        assert amplitude < 1 and "does not push the motor to its envelope" in str(err)
+        return
+    assert data["added"] == []
+    if amplitude < 1:
+        assert not data["explained"]
+
+
+def test_a_candidate_the_log_passes_is_refuted():
+    """Walls from a slow command at 1.4 N m would fit a 10 A current limit; the log's samples above it elsewhere
+    refute it."""
+    d = simulate_trajectory(EnvelopeInputs(SPEC), {}, n=20000, correlation=0.9, amplitude=0.8, band=1.0, seed=3,
+                            noise=0.02)  # fmt: skip
+    log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"])
+    first = compare(log, EnvelopeInputs(SPEC)).ladder[0].suggestions
+    limit = next(s for s in first if s.effect == "current_limit")
+    assert not limit.significant and "refuted" in limit.reason
+
+
+def test_an_empty_optional_column_is_left_out_and_implausible_units_are_refused(tmp_path):
+    log, _ = log_of(SPEC, {"bus_sag": 0.15}, n=2000)
+    path = tmp_path / "log.csv"
+    pd.DataFrame({"velocity": log.velocity, "torque": log.torque, "bus_voltage": np.nan}).to_csv(path, index=False)
+    got = load_envelope_log(path)
+    assert got.bus_voltage is None and got.ignored == ("bus_voltage",) and got.n == 2000
+    pd.DataFrame({"velocity": log.velocity, "torque": log.torque * 1e3}).to_csv(path, index=False)  # mN m, unlabeled
+    with pytest.raises(DynoDataError, match=r"torque reaches .* check its unit.*--units torque=mN\*m"):
+        compare(load_envelope_log(path), EnvelopeInputs(SPEC))
+    pd.DataFrame({"velocity": log.velocity * 60 / (2 * np.pi), "torque": log.torque}).to_csv(path, index=False)
+    with pytest.raises(DynoDataError, match="velocity reaches .* check its unit"):
+        compare(load_envelope_log(path), EnvelopeInputs(SPEC))
+
+
+def test_a_measured_envelope_sends_isaac_lab_joints_to_the_runtime(tmp_path):
+    """DCMotor holds straight lines: joints whose motor has a measured envelope point to the runtime, saying by how
+    much the straight lines over-promise."""
+    from hound_id.export.bundle import build_bundle
+    from hound_id.export.formats import Export, isaaclab_fields
+    from tests.mor.test_region import write_envelope_spec
+
+    spec = load_motor_spec(write_envelope_spec(tmp_path / "env.yaml", {"bus_sag": 0.15}))
+    robot = load_robot(ROBOT)
+    robot = replace(robot, motor_specs={m: spec for m in robot.motor_specs})
+    fields = isaaclab_fields(Export(robot=robot, bundle=build_bundle(robot)))
+    haa = fields["joints"]["FL_HAA"]
+    assert haa["use"] == "hound_id.runtime" and "measured envelope" in haa["reason"]
+    assert float(haa["reason"].split("allow up to ")[1].split(" N m")[0]) > 9 * 3.0  # > 3 N m at the motor

@@ -140,3 +140,28 @@ def test_fitted_spec_on_a_base_sheet(write_yaml, tmp_path):
         load_motor_spec(write_yaml("orphan.yaml", "base: nope.yaml\nkt: 0.1\n"))
     with pytest.raises(SpecError, match="a fitted motor without a spec sheet lacks kv, bus_voltage.*--spec"):
         load_motor_spec(write_yaml("bare.yaml", "name: m\nkt: 0.1\npeak_torque: 2\nfit: {schema: hound-id/fit/1}\n"))
+
+
+@pytest.mark.parametrize(
+    ("change", "match"),
+    [
+        ({"effects": "bus_sag"}, r"envelope.effects': found 'bus_sag', expected a mapping"),
+        ({"effects": {"warp_drive": 1}}, "unknown effect 'warp_drive'"),
+        ({"effects": {"bus_sag": -3}}, r"envelope.effects.bus_sag': found -3, expected r_pack in \[0, 5\] ohm"),
+        ({"tolerance": "x"}, "envelope.tolerance': found 'x', expected a number"),
+        ({"upper": [50.0, 50.0]}, "an edge reaches 50 N m, past the torque limit 9.66 N m"),
+        ({"speeds": [1.0, 0.0]}, "needs at least two increasing speeds"),
+    ],
+)
+def test_a_measured_envelope_block_is_checked(write_yaml, change, match):
+    """The envelope of mor --compare --out bounds the saturation and the export: a damaged one is refused."""
+    import yaml
+
+    from tests.conftest import MOTOR
+
+    envelope = {"effects": {"bus_sag": 0.15}, "speeds": [-500.0, 500.0], "lower": [-9.0, -9.0],
+                "upper": [9.0, 9.0], "tolerance": 0.02, **change}  # fmt: skip
+    path = write_yaml("env.yaml", yaml.safe_dump({"schema": "hound-id/motor/1", "base": str(MOTOR),
+                                                  "envelope": envelope}))  # fmt: skip
+    with pytest.raises(SpecError, match=match):
+        load_motor_spec(path)
