@@ -157,12 +157,15 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
 def _over_promise(motor: dict[str, Any]) -> float:
     """The most the spec sheet's straight edges pass a motor's measured polyline edges [N m, motor side]."""
     env = motor["envelope"]
-    w = np.asarray(env["speeds"], dtype=float)
+    points = np.asarray(env["speeds"], dtype=float)
     stall, tl = motor["stall_torque"], motor["torque_limit"]
     damping = stall / motor["no_load_speed"]
+    corner = (stall - tl) / damping  # where the straight motoring line leaves the torque limit: the largest gap
+    w = np.unique(np.concatenate([points, np.linspace(points[0], points[-1], 4001), [corner, -corner]]))
+    w = w[(w >= points[0]) & (w <= points[-1])]
     worst = 0.0
     for key, sign in (("upper", 1.0), ("lower", -1.0)):
-        edge = np.array([np.nan if v is None else v for v in env[key]], dtype=float)
+        edge = np.interp(w, points, np.array([np.nan if v is None else v for v in env[key]], dtype=float))
         straight = np.clip(sign * stall - damping * w, -tl, tl)
         worst = max(worst, float(np.nanmax(sign * (straight - edge))))
     return worst

@@ -858,7 +858,7 @@ def compare(
             model = _refit(log, walls, model, inputs, all_params=True)
         step_offsets = offsets(log, walls, model, inputs)
         ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs)), refound))
-    walls, isolated = _isolated(walls, offsets(log, walls, model, inputs))
+    walls, isolated = _isolated(walls, offsets(log, walls, model, inputs), inputs.spec.back_emf_damping)
     if isolated:  # the last rung on the walls that are left
         last = ladder[-1]
         ladder[-1] = replace(last, offsets=offsets(log, walls, model, inputs))
@@ -876,12 +876,13 @@ def compare(
     )
 
 
-def _isolated(walls: Walls, off: Offsets) -> tuple[Walls, list[dict[str, Any]]]:
+def _isolated(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list[dict[str, Any]]]:
     """Without a command channel, leave out single bins far off the final model whose neighbours agree with it:
     passes that happened to line up into a wall (a real departure spans a range of speeds). A bin is isolated when
     its offset exceeds :data:`ISOLATED` x the torque noise of one sample at the limit and the nearest bin on each
-    side of the same edge lies within 3 standard errors of the model (the last bins of an edge are never isolated:
-    effects show at the ends of the speed range)."""
+    side of the same edge lies within 3 standard errors of the model. The last bin of an edge (effects show at the
+    ends of the speed range) is isolated only if it also jumps from its neighbour by more than an edge can change
+    between their speeds, twice the back-EMF slope ``slope`` [N m s/rad] (plus 5 standard errors)."""
     if walls.method != "wall" or off.offset.size < 3:
         return walls, []
     noise = off.sample_noise
@@ -897,7 +898,16 @@ def _isolated(walls: Walls, off: Offsets) -> tuple[Walls, list[dict[str, Any]]]:
             continue
         near = [j for j in range(off.offset.size) if off.side[j] == s and j != k]
         left, right = [j for j in near if j < k], [j for j in near if j > k]
-        if left and right and all(abs(off.offset[j]) <= 3 * off.se[j] for j in (left[-1], right[0])):
+        if left and right:
+            isolated = all(abs(off.offset[j]) <= 3 * off.se[j] for j in (left[-1], right[0]))
+        elif left or right:  # an end bin: only a jump no edge can make between neighbouring speeds
+            j = left[-1] if left else right[0]
+            jump = abs(off.offset[k] - off.offset[j])
+            bound = 2 * slope * abs(off.speeds[k] - off.speeds[j]) + 5 * math.hypot(off.se[k], off.se[j])
+            isolated = abs(off.offset[j]) <= 3 * off.se[j] and jump > bound
+        else:
+            isolated = False
+        if isolated:
             drop.append((s, b))
             found.append({"speed": float(off.speeds[k]), "edge": "upper" if s == 1 else "lower",
                           "offset": float(off.offset[k]), "se": float(off.se[k])})  # fmt: skip
@@ -946,15 +956,17 @@ def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
     so a 99th percentile past :data:`IMPLAUSIBLE` x the torque limit or the overspeed is a unit mistake."""
     spec = inputs.spec
     overspeed = spec.kv * (spec.bus_voltage + spec.resistance * spec.torque_limit / spec.kt)
-    for name, values, limit, unit, hint in (
-        ("torque", log.torque, spec.torque_limit, "N m", "torque=mN*m"),
-        ("velocity", log.velocity, overspeed, "rad/s", "velocity=rpm"),
+    for name, values, limit, unit, units in (
+        ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", 100.0), ("mN*m", 1000.0))),
+        ("velocity", log.velocity, overspeed, "rad/s", (("rpm", 30.0 / math.pi), ("deg/s", 180.0 / math.pi))),
     ):
         p99 = float(np.quantile(np.abs(values), 0.99))
         if p99 > IMPLAUSIBLE * limit:
+            fits = [u for u, factor in units if p99 / factor <= 1.2 * limit]  # the smallest unit that makes sense
+            hint = f"--units {name}={fits[0]}" if fits else "--units " + " or ".join(f"{name}={u}" for u, _ in units)
             raise DynoDataError(
                 f"{log.source}: {name} reaches {p99:.4g} {unit} (99th percentile), over {IMPLAUSIBLE:g}x what "
-                f"{spec.name} can ({limit:.4g} {unit}); check its unit: a [unit] in the header or --units {hint}"
+                f"{spec.name} can ({limit:.4g} {unit}); check its unit: a [unit] in the header or {hint}"
             )
 
 

@@ -270,6 +270,11 @@ def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
     """A spec's ``envelope`` block, checked: increasing speeds, lower <= upper, equal lengths."""
     if data is None:
         return None
+    if not isinstance(data, Mapping):
+        raise SpecError(
+            f"{where(source, 'envelope')}: found {type(data).__name__}, expected a mapping with speeds, lower and "
+            "upper; write it with hound-id mor --compare --out"
+        )
     try:
         speeds = [float(v) for v in data["speeds"]]
         lower = [float("nan") if v is None else float(v) for v in data["lower"]]

@@ -315,4 +315,27 @@ def test_a_measured_envelope_sends_isaac_lab_joints_to_the_runtime(tmp_path):
     fields = isaaclab_fields(Export(robot=robot, bundle=build_bundle(robot)))
     haa = fields["joints"]["FL_HAA"]
     assert haa["use"] == "hound_id.runtime" and "measured envelope" in haa["reason"]
-    assert float(haa["reason"].split("allow up to ")[1].split(" N m")[0]) > 9 * 3.0  # > 3 N m at the motor
+    # the largest gap is at the straight line's corner, where it leaves the torque limit (not a polyline point)
+    corner = (SPEC.stall_torque - SPEC.torque_limit) / SPEC.back_emf_damping
+    gap = 9.0 * (SPEC.torque_limit - np.interp(corner, spec.envelope["speeds"], spec.envelope["upper"]))
+    assert float(haa["reason"].split("allow up to ")[1].split(" N m")[0]) == pytest.approx(gap, rel=0.01)
+
+
+def test_a_jump_at_the_end_of_an_edge_is_isolated_but_a_departure_is_not():
+    """The last bin of an edge jumps 12 N m from a neighbour that fits: no edge changes that fast between
+    neighbouring speeds. A last bin that departs by what the back-EMF slope allows stays (effects show there)."""
+    from hound_id.mor.compare import Offsets, Walls, _isolated
+
+    slope = SPEC.back_emf_damping
+    speeds = np.array([400.0, 412.0, 424.0, 436.0])
+    walls = Walls(centres=speeds, upper=tuple(np.arange(10) + 10 * k for k in range(4)), lower=(), method="wall")
+
+    def offsets_with(last):
+        n = speeds.size
+        return Offsets(speeds, np.ones(n, dtype=np.int8), np.array([0.0, 0.001, -0.001, last]), np.full(n, 0.005),
+                       np.full(n, 0.03))  # fmt: skip
+
+    kept, found = _isolated(walls, offsets_with(-12.2), slope)
+    assert len(found) == 1 and found[0]["speed"] == 436.0 and kept.upper[3].size == 0
+    kept, found = _isolated(walls, offsets_with(-1.5), slope)  # 1.5 N m < 2 x 0.22 x 12 N m: a real departure
+    assert found == [] and kept.upper[3].size == 10
