@@ -318,9 +318,8 @@ def find_walls(
 def _passes(idx: NDArray[np.int64], run: int = 5) -> list[NDArray[np.int64]]:
     """The passes of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) of ``run`` samples or more,
     as positions into ``idx``."""
-    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
-    starts, ends = np.concatenate([[0], breaks + 1]), np.concatenate([breaks + 1, [idx.size]])
-    return [np.arange(a, e) for a, e in zip(starts, ends, strict=True) if e - a >= run]
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
+    return [p for p in np.split(np.arange(idx.size), breaks) if p.size >= run]
 
 
 def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[NDArray[np.int64], Array]]:
@@ -405,14 +404,12 @@ def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = 5) -> b
     bin is nearly straight, so it lines up with itself whatever the command did. Such a wall needs at least two
     passes of ``run`` samples or more (rows ``idx`` at most :data:`PASS_GAP` apart) whose margins ``m`` drift
     with speed ``w`` alike (slopes within 4 standard errors, or 20 %). Shuffled logs (no passes) pass."""
-    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
-    starts, ends = np.concatenate([[0], breaks + 1]), np.concatenate([breaks + 1, [idx.size]])
     fits = []
-    for a, e in zip(starts, ends, strict=True):
-        if e - a >= run and np.ptp(w[a:e]) > 0:
-            coef, res, *_ = np.polyfit(w[a:e], m[a:e], 1, full=True)
-            sigma = math.sqrt(float(res[0]) / max(e - a - 2, 1)) if res.size else 0.0
-            fits.append((float(coef[0]), sigma / (float(np.std(w[a:e])) * math.sqrt(e - a))))
+    for p in _passes(idx, run):
+        if np.ptp(w[p]) > 0:
+            coef, res, *_ = np.polyfit(w[p], m[p], 1, full=True)
+            sigma = math.sqrt(float(res[0]) / max(p.size - 2, 1)) if res.size else 0.0
+            fits.append((float(coef[0]), sigma / (float(np.std(w[p])) * math.sqrt(p.size))))
     if not fits:
         return True
     if len(fits) < 2:
@@ -467,9 +464,7 @@ def _continuous(walls: list[NDArray[np.int64]], margin: Array, w: Array, tol: fl
 
 def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
     """Whether ``share`` of the samples (row indices, ascending) form one pass (rows at most :data:`PASS_GAP` apart)."""
-    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP)
-    runs = np.diff(np.concatenate([[0], breaks + 1, [idx.size]]))
-    return bool(runs.max() >= share * idx.size)
+    return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
 
 
 def _contiguous(walls: list[NDArray[np.int64]], run: int = 3) -> list[NDArray[np.int64]]:
@@ -702,12 +697,7 @@ def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any]
     if log.current is None:
         return None
     x = log.torque**3
-    y = inputs.spec.kt * log.current - log.torque
-    A = np.column_stack([x, log.torque, np.ones_like(x)])
-    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
-    resid = y - A @ coef
-    cov = np.linalg.pinv(A.T @ A) * float(np.sum(resid**2)) / max(x.size - 3, 1)
-    slope, se = float(coef[0]), math.sqrt(max(float(cov[0, 0]), 0.0))
+    slope, se = _leading(np.column_stack([x, log.torque, np.ones_like(x)]), inputs.spec.kt * log.current - log.torque)
     significant = slope > 5 * se
     return {
         "slope": slope,
@@ -716,6 +706,14 @@ def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any]
         "text": f"the logged current exceeds tau/Kt by {slope:.3g} +- {se:.2g} A/Kt per (N m)^3"
         + ("" if significant else " (not significant)"),
     }
+
+
+def _leading(A: Array, y: Array) -> tuple[float, float]:
+    """Least squares y ~ A c: the first coefficient and its standard error."""
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    cov = np.linalg.pinv(A.T @ A) * float(np.sum(resid**2)) / max(y.size - A.shape[1], 1)
+    return float(coef[0]), math.sqrt(max(float(cov[0, 0]), 0.0))
 
 
 def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
@@ -731,13 +729,7 @@ def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | N
     if motoring.sum() < 20:
         return None
     x = power[motoring] / spec.bus_voltage
-    y = spec.bus_voltage - log.bus_voltage[motoring]
-    A = np.column_stack([x, np.ones_like(x)])
-    coef, res, *_ = np.linalg.lstsq(A, y, rcond=None)
-    dof = max(x.size - 2, 1)
-    sigma2 = float(res[0]) / dof if res.size else float(np.var(y - A @ coef))
-    se = math.sqrt(sigma2 / max(float(np.sum((x - x.mean()) ** 2)), 1e-30))
-    r_pack = float(coef[0])
+    r_pack, se = _leading(np.column_stack([x, np.ones_like(x)]), spec.bus_voltage - log.bus_voltage[motoring])
     significant = r_pack > 5 * se and r_pack > 1e-3
     return {
         "r_pack": r_pack,
@@ -954,8 +946,10 @@ def unneeded(
 def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
     """Refuse a log whose torque or speed the motor cannot have made: most samples of a log lie inside the region,
     so a 99th percentile past :data:`IMPLAUSIBLE` x the torque limit or the overspeed is a unit mistake."""
+    from hound_id.mor.region import operating_region
+
     spec = inputs.spec
-    overspeed = spec.kv * (spec.bus_voltage + spec.resistance * spec.torque_limit / spec.kt)
+    overspeed = operating_region(spec).overspeed
     for name, values, limit, unit, units in (
         ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", 100.0), ("mN*m", 1000.0))),
         ("velocity", log.velocity, overspeed, "rad/s", (("rpm", 30.0 / math.pi), ("deg/s", 180.0 / math.pi))),
