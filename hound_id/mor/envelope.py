@@ -345,11 +345,11 @@ def simulate_trajectory(
     for _ in range(40):
         command += np.sin(2 * np.pi * rng.uniform(0.05, band) * t + rng.uniform(0, 2 * np.pi))
     command *= amplitude * spec.torque_limit / np.max(np.abs(command))
+    from scipy.signal import lfilter
+
     white = rng.standard_normal(n) * math.sqrt(1 - correlation**2)
-    e = np.empty(n)
-    e[0] = rng.standard_normal()
-    for k in range(1, n):  # AR(1): unit variance, lag-1 correlation as given
-        e[k] = correlation * e[k - 1] + white[k]
+    white[0] = rng.standard_normal()  # the stationary start
+    e = lfilter([1.0], [1.0, -correlation], white)  # AR(1): unit variance, lag-1 correlation as given
     out = _realise(inputs, params, omega, command, noise * e, temperature_range)
     return {"time": t, **out, "torque_cmd": command}
 
