@@ -10,6 +10,11 @@ Two datasheet habits get special treatment:
 * ``Nm`` (newton metre) is read as ``N*m``; pint alone would read nanometre.
 * ``Hz`` is refused for angular speeds: it is ambiguous between rev/s and rad/s.
   Write ``rps``, ``rpm`` or ``rad/s``.
+
+Units rows of CSV exports write units in other ways; :func:`normalise` reads them too:
+``N.mm`` (a dot between units is a product), ``Deg C`` / ``deg F`` / ``°C`` (temperatures).
+What a dot means in ``rad.s`` (a speed) is decided where the expected dimension is known
+(:func:`slash_reading`).
 """
 
 from __future__ import annotations
@@ -43,6 +48,8 @@ KINDS: dict[str, tuple[str, str, str]] = {
 }
 
 _NM = re.compile(r"(?<![A-Za-z])([munk]?)Nm(?![A-Za-z])")
+_DOT = re.compile(r"(?<=[A-Za-z0-9])\.(?=[A-Za-z])")
+_DEGREES = re.compile(r"^(?:deg(?:ree)?s?\.?|°)\s*([CFK])$", re.IGNORECASE)
 
 
 @lru_cache(maxsize=1)
@@ -54,8 +61,40 @@ def registry() -> pint.UnitRegistry:
 
 
 def normalise(text: str) -> str:
-    """Unit text as pint should read it (``Nm`` is newton metre, not nanometre)."""
-    return _NM.sub(r"\1N*m", text.strip())
+    """Unit text as pint should read it.
+
+    ``Nm`` is newton metre, not nanometre; a dot between units is a product (``N.mm``);
+    ``Deg C``, ``deg F`` and ``°C`` are degrees Celsius and Fahrenheit.
+    """
+    stripped = text.strip()
+    degrees = _DEGREES.match(stripped)
+    if degrees:
+        letter = degrees.group(1).upper()
+        return "kelvin" if letter == "K" else f"deg{letter}"
+    return _DOT.sub("*", _NM.sub(r"\1N*m", stripped))
+
+
+def slash_reading(text: str) -> str | None:
+    """``rad.s`` -> ``rad/s``: the text with its last unit-separating dot read as a slash, or None without one.
+
+    Some exports write ``rad.s`` for rad/s; the caller tries this reading only when the product reading has
+    the wrong dimension for the column.
+    """
+    stripped = text.strip()
+    dots = [m.start() for m in _DOT.finditer(stripped)]
+    if not dots:
+        return None
+    k = dots[-1]
+    return normalise(stripped[:k]) + "/" + normalise(stripped[k + 1 :])
+
+
+def is_unit(text: str) -> bool:
+    """Whether pint reads ``text`` (normalised) as a unit; a quick test for units rows."""
+    try:
+        registry().Unit(normalise(text))
+    except Exception:  # pint raises many kinds for text that is no unit
+        return False
+    return True
 
 
 def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None = None) -> float:

@@ -4,7 +4,16 @@ Real logs are dirty. This module finds the channels, converts their units and
 cleans the rows, and it reports every change it makes as a :class:`CleaningNote`.
 Nothing is changed silently.
 
+**Reading.** CSV files may have a title or date line above the header, a units row under
+it (``N.mm``, ``rad.s``, ``Deg C``, ``mA``), ``,``/``, ``/``;``/tab separators and a
+trailing separator on every row (:mod:`hound_id.tables`); what the reader did is a
+``format`` note.
+
 **Channels.** :data:`CANONICAL` names the channels; :data:`REQUIRED` must be present.
+Without a time column the table is a steady-state table: each row is an operating point,
+time is the row number (:attr:`DynoLog.timed` is False), and the time-based cleaning steps
+(2, 3 below) are skipped. A time column without a unit whose steps look like milliseconds
+or microseconds is a ``time_unit`` warning that names the likely unit.
 Without a mapping, a channel is the column with its exact name, or its name with a unit
 suffix in square brackets (``velocity[rpm]``, ``torque [mN*m]``). A mapping
 (``--columns torque=adc_torque``) names the file column instead, with or without its
@@ -22,20 +31,25 @@ ambiguous, as in :mod:`hound_id.units`.
    channel itself is dropped.
 2. If time ever goes backwards, the rows are sorted by time (stable). Rows that repeat
    the previous timestamp are dropped; the first one is kept.
-3. Single-sample glitches in current and torque are removed with a Hampel-type test
+3. Wrap-around of the current channel is undone, and clamped replies and driver current
+   limits are found (:mod:`hound_id.dyno.artefacts`): ``wrap``, ``clamp`` and
+   ``current_limit`` notes. Rows whose current is unknown (at the wrap boundary, or clamped
+   while the torque keeps moving) are removed; rows at a driver limit are data and kept.
+4. Single-sample glitches in current and torque are removed with a Hampel-type test
    (Davies & Gather 1993; Pearson 2002): the deviation from the median of a centred
    window of 7 samples, against max(8 sigma, 5 % of the 99th-percentile magnitude).
    sigma = 1.4826 MAD(diff(x)) / sqrt(2) is the noise level. 1.4826 makes the MAD a
    standard deviation for Gaussian noise; the difference of two samples has sqrt(2)
    times the noise of one. Only runs of at most 2 flagged samples count as glitches.
-   A longer run is a real step.
-4. ADC saturation: a channel with measurable noise elsewhere sits exactly at its own extreme, a large magnitude,
-   for 5 or more consecutive samples, and at that extreme in at least 0.1 % of the rows. The
+   A longer run is a real step. A glitch is in one channel only: a transient that the
+   other channel shares (within one sample) is data and kept.
+5. ADC saturation of the torque: a channel with measurable noise elsewhere sits exactly at its own
+   extreme, a large magnitude, for 5 or more consecutive samples, and at that extreme in at least 0.1 % of the rows. The
    channel is noisy elsewhere, so repeating one value exactly for whole runs is not a measured
    signal. A channel without measurable noise (a logged set-point, a simulation) is not tested:
    its flat steps are data.
    Every row at the extreme is removed.
-5. A torque that falls as current rises (least-squares slope < 0, correlation < -0.5)
+6. A torque that falls as current rises (least-squares slope < 0, correlation < -0.5)
    means a reversed sensor. That is an error unless ``flip_torque`` negates the torque.
 
 At least :data:`MIN_ROWS` rows must remain.
@@ -55,15 +69,28 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
+from hound_id.dyno.artefacts import asked_at_boundary, at_boundary, find_plateaus, find_wraps, quantum
 from hound_id.errors import DynoDataError
 
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
 #: Channel names, in the order of :class:`DynoLog`'s fields.
-CANONICAL: tuple[str, ...] = ("time", "current", "torque", "velocity", "position", "temperature", "bus_voltage")
+CANONICAL: tuple[str, ...] = (
+    "time",
+    "current",
+    "torque",
+    "velocity",
+    "position",
+    "temperature",
+    "bus_voltage",
+    "torque_cmd",
+    "current_cmd",
+)
 #: Channels a log must have.
-REQUIRED: tuple[str, ...] = ("time", "current", "torque")
+REQUIRED: tuple[str, ...] = ("current", "torque")
+#: Channels every cleaning step carries (time is the row number in a steady-state table).
+CORE: tuple[str, ...] = ("time", "current", "torque")
 #: Unit of each channel inside hound-id (pint spelling). SI, except temperature in degC (used only as T - 20 degC).
 UNITS: dict[str, str] = {
     "time": "s",
@@ -73,6 +100,8 @@ UNITS: dict[str, str] = {
     "position": "rad",
     "temperature": "degC",
     "bus_voltage": "V",
+    "torque_cmd": "N*m",
+    "current_cmd": "A",
 }
 #: The kinds of :class:`CleaningNote`.
 NOTE_KINDS: tuple[str, ...] = (
@@ -83,13 +112,19 @@ NOTE_KINDS: tuple[str, ...] = (
     "adc_saturation",
     "flipped_torque",
     "unit",
+    "format",
+    "steady_state",
+    "time_unit",
+    "wrap",
+    "clamp",
+    "current_limit",
 )
 
 #: Fewest rows a cleaned log may have.
 MIN_ROWS = 50
 #: An optional channel with non-finite values in at least this share of rows is dropped instead of its rows.
 OPTIONAL_NAN_FRACTION = 0.05
-#: Channels checked for glitches and ADC saturation.
+#: Channels checked for glitches.
 SENSOR_CHANNELS: tuple[str, ...] = ("current", "torque")
 #: Hampel window length [samples], centred.
 GLITCH_WINDOW = 7
@@ -103,6 +138,8 @@ GLITCH_MAX_RUN = 2
 MAD_TO_SIGMA = 1.4826
 #: Shortest run at a channel's extreme that counts as ADC saturation [samples].
 CLIP_MIN_RUN = 5
+#: ADC saturation is looked for only where the noise exceeds this many quanta of the channel.
+CLIP_QUANTA = 3.0
 #: Smallest share of rows at the extreme for ADC saturation.
 CLIP_MIN_FRACTION = 0.001
 #: A clip level is a large magnitude: at least this share of the channel's largest |value|.
@@ -122,6 +159,8 @@ _LABELS: dict[str, tuple[str, str]] = {
     "position": ("an angle", "rad, deg, turn"),
     "temperature": ("a temperature", "degC, degF, K"),
     "bus_voltage": ("a voltage", "V, mV"),
+    "torque_cmd": ("a torque", "N*m, mN*m, Nm"),
+    "current_cmd": ("a current", "A, mA"),
 }
 _EXAMPLES = {"--columns": "torque=adc_torque,current=iq", "--units": "velocity=rpm,position=deg"}
 _HEADER = re.compile(r"^\s*(?P<base>.*?)\s*\[\s*(?P<unit>[^\[\]]*?)\s*\]\s*$")
@@ -153,7 +192,7 @@ class DynoLog:
     """
 
     time: NDArray[np.float64]
-    """Sample times [s], strictly increasing."""
+    """Sample times [s], strictly increasing; the row numbers 0, 1, 2, ... when :attr:`timed` is False."""
     current: NDArray[np.float64]
     """Motor current [A]."""
     torque: NDArray[np.float64]
@@ -166,19 +205,27 @@ class DynoLog:
     """Winding or housing temperature [degC] (not SI: only T - 20 degC is used)."""
     bus_voltage: NDArray[np.float64] | None = None
     """Supply (bus) voltage [V]."""
+    torque_cmd: NDArray[np.float64] | None = None
+    """Commanded torque [N m] (either side of a gearbox: only its trend is used)."""
+    current_cmd: NDArray[np.float64] | None = None
+    """Commanded current [A]."""
     source: str = "log"
     """Where the log came from (file name), for messages."""
     notes: tuple[CleaningNote, ...] = ()
     """Every change made while loading, in order."""
     rows_read: int = 0
     """Rows in the table before cleaning (0 when the log was not read from a table)."""
+    timed: bool = True
+    """False for a steady-state table without a time column: each row is an operating point."""
+    current_limit: float | None = None
+    """The driver's current limit [A] where the log shows the current held at a level while the command rose."""
 
     def __post_init__(self) -> None:
         n = None
         for name in CANONICAL:
             value = getattr(self, name)
             if value is None:
-                if name in REQUIRED:
+                if name in REQUIRED or name == "time":
                     raise DynoDataError(f"{self.source}: the '{name}' channel is required", channel=name)
                 continue
             # Arrays the loader made are sealed already (read-only, owning their data): no second copy of 1M rows.
@@ -201,6 +248,8 @@ class DynoLog:
     @property
     def sample_rate(self) -> float:
         """Median of the per-sample rates 1/dt [Hz]."""
+        if not self.timed:
+            raise DynoDataError(f"{self.source}: a steady-state table (no time column) has no sample rate")
         if self.n < 2:
             raise DynoDataError(f"{self.source}: {self.n} sample(s), expected at least 2 for a sample rate")
         return float(np.median(1.0 / np.diff(self.time)))
@@ -287,10 +336,13 @@ def load_log(
         TableError: The file is missing, of unknown format, unreadable or empty.
         DynoDataError: The log is unusable as given (see :func:`log_from_frame`).
     """
-    from hound_id.tables import read_table
+    from hound_id.tables import read_table_info
 
-    frame = read_table(path)
-    return log_from_frame(frame, source=str(path), columns=columns, units=units, flip_torque=flip_torque)
+    table = read_table_info(path)
+    found = tuple(CleaningNote("format", 0, message) for message in table.notes)
+    return log_from_frame(
+        table.frame, source=str(path), columns=columns, units=units, flip_torque=flip_torque, format_notes=found
+    )
 
 
 def log_from_frame(
@@ -299,6 +351,7 @@ def log_from_frame(
     columns: Mapping[str, str] | None = None,
     units: Mapping[str, str] | None = None,
     flip_torque: bool = False,
+    format_notes: tuple[CleaningNote, ...] = (),
 ) -> DynoLog:
     """Find the channels of a table, convert them to SI and clean the rows.
 
@@ -308,6 +361,7 @@ def log_from_frame(
         columns: Channel name -> file column (``--columns``), for columns not named after the channel.
         units: Channel name -> unit (``--units``), overriding any ``[unit]`` header suffix.
         flip_torque: Negate the torque (a dyno torque sensor mounted reversed).
+        format_notes: Notes made before (by the file reader), kept first.
 
     Returns:
         The clean log; :attr:`DynoLog.notes` lists every change made.
@@ -322,7 +376,7 @@ def log_from_frame(
     rows_read = len(frame)
     found = _resolve_columns(names, dict(columns or {}), source)
     unit_of = _resolve_units(found, dict(units or {}), names, source)
-    notes: list[CleaningNote] = []
+    notes = list(format_notes)
     data: dict[str, NDArray[np.float64]] = {}
     bad_cells: dict[str, tuple[int, str, int]] = {}
     for name, column in found.items():
@@ -338,20 +392,41 @@ def log_from_frame(
                 notes.append(note)
         data[name] = values
 
+    timed = "time" in data
+    if timed:
+        _check_time_unit(data["time"], "time" in unit_of or any(n.channel == "time" for n in notes), notes)
+    else:
+        data["time"] = np.arange(rows_read, dtype=np.float64)
+        notes.append(
+            CleaningNote(
+                "steady_state",
+                rows_read,
+                f"no time column (the file has columns {_listing(names)}): each row is read as an operating point of "
+                "a steady-state table, held-out blocks follow the row order and the delay is not tried; if the file "
+                "has a time column, map it with --columns time=<column>",
+                "time",
+            )
+        )
     good = _finite_rows(data, bad_cells, notes)
-    # The cleaning steps carry only the required channels and the 1-based file row of each sample; the optional
+    # The cleaning steps carry only the core channels and the 1-based file row of each sample; the optional
     # channels are gathered once at the end (copying seven 1M-row arrays at every step is most of the run time).
     rows = np.flatnonzero(good).astype(np.int64) + 1
-    core = {name: data[name] if good.all() else data[name][good] for name in REQUIRED}
+    core = {name: data[name] if good.all() else data[name][good] for name in CORE}
     _check_enough(rows.size, rows_read, notes, source)
-    core, rows = _clean_time(core, rows, notes)
+    if timed:
+        core, rows = _clean_time(core, rows, notes)
+        _check_enough(rows.size, rows_read, notes, source)
+    command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
+    core, rows, current_limit = _current_artefacts(core, rows, command, notes)
     _check_enough(rows.size, rows_read, notes, source)
-    core, rows, noise = _remove_glitches(core, rows, notes)
+    noise: dict[str, float] = {}
+    if timed:  # a glitch is a spike in time; the rows of a steady-state table are separate operating points
+        core, rows, noise = _remove_glitches(core, rows, notes)
     core, rows = _remove_clipping(core, rows, noise, notes)
     _check_enough(rows.size, rows_read, notes, source)
     torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source)
     positions = rows - 1
-    optional = {name: np.take(values, positions) for name, values in data.items() if name not in REQUIRED}
+    optional = {name: np.take(values, positions) for name, values in data.items() if name not in CORE}
     for array, name in ((core["time"], "time"), (core["current"], "current"), (torque, "torque")):
         if array is not data[name]:  # made by the cleaning, so referenced nowhere else (not a view of the frame)
             array.setflags(write=False)
@@ -365,9 +440,13 @@ def log_from_frame(
         position=optional.get("position"),
         temperature=optional.get("temperature"),
         bus_voltage=optional.get("bus_voltage"),
+        torque_cmd=optional.get("torque_cmd"),
+        current_cmd=optional.get("current_cmd"),
         source=source,
         notes=tuple(notes),
         rows_read=rows_read,
+        timed=timed,
+        current_limit=current_limit,
     )
 
 
@@ -545,7 +624,7 @@ def _convert(
     """Convert ``values`` from the unit ``text`` to :data:`UNITS` ``[name]`` with pint."""
     import pint
 
-    from hound_id.units import normalise, registry
+    from hound_id.units import normalise, registry, slash_reading
 
     ureg = registry()
     label, examples = _LABELS[name]
@@ -570,6 +649,16 @@ def _convert(
     # Root units, not just dimensions: pint takes rad as dimensionless, so 'count' or Hz would pass a dimension check.
     root = ureg.get_root_units(unit)[1]
     expected = ureg.get_root_units(target)[1]
+    slash = slash_reading(text)
+    read_as = ""
+    if root != expected and slash is not None:
+        # 'rad.s' in a units row means rad/s: the product reading has the wrong dimension, the quotient the right one
+        try:
+            other = ureg.Unit(slash)
+        except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError):
+            other = None
+        if other is not None and ureg.get_root_units(other)[1] == expected:
+            unit, root, read_as = other, expected, f" (read {text!r} as {slash}: a dot for the slash)"
     if root != expected:
         what = f"dimension {unit.dimensionality}" if unit.dimensionality != target.dimensionality else f"unit {root:~}"
         raise DynoDataError(
@@ -579,8 +668,9 @@ def _convert(
             unit=text,
         )
     if unit == target:
-        if "overriding" in origin:  # say so: the header claimed another unit
-            return values, CleaningNote("unit", int(values.size), f"{name} read as {text} (from {origin})", name)
+        if "overriding" in origin or read_as:  # say so: the header claimed another unit, or a dot was a slash
+            said = f"{name} read as {text} (from {origin}){read_as}"
+            return values, CleaningNote("unit", int(values.size), said, name)
         return values, None
     try:
         converted = np.asarray(ureg.Quantity(values, unit).to(target).magnitude, dtype=np.float64)
@@ -590,7 +680,7 @@ def _convert(
             column=column,
             unit=text,
         ) from err
-    message = f"{name} converted from {text} to {UNITS[name]} (unit from {origin})"
+    message = f"{name} converted from {text} to {UNITS[name]} (unit from {origin}){read_as}"
     return converted, CleaningNote("unit", int(values.size), message, name)
 
 
@@ -643,12 +733,12 @@ def _finite_rows(
         return text
 
     finite = {name: np.isfinite(values) for name, values in data.items()}
-    good = np.logical_and.reduce([finite[name] for name in REQUIRED])
+    good = np.logical_and.reduce([finite[name] for name in CORE])
     lost = int(good.size - np.count_nonzero(good))
     if lost:
         counts = [
             detail(name, int(finite[name].size - np.count_nonzero(finite[name])))
-            for name in REQUIRED
+            for name in CORE
             if not finite[name].all()
         ]
         notes.append(
@@ -660,8 +750,8 @@ def _finite_rows(
             )
         )
     n_left = int(np.count_nonzero(good))
-    for name in CANONICAL[len(REQUIRED) :]:
-        if name not in data:
+    for name in CANONICAL:
+        if name in CORE or name not in data:
             continue
         bad = good & ~finite[name]
         count = int(np.count_nonzero(bad))
@@ -771,6 +861,7 @@ def _glitches(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.floa
     threshold = max(GLITCH_SIGMAS * sigma, floor)
     if not threshold > 0:
         return none
+    none = np.zeros(0, dtype=np.intp), np.zeros(0), threshold, sigma
     # Exact, without a rolling median over all samples: if x[i] is more than the threshold away from its window
     # median, at least half + 1 of its 2 * half neighbours are more than the threshold away from it. So at most
     # half - 1 are not, and among any `half` neighbours one is. Only samples passing that cheap test (few: the
@@ -796,7 +887,9 @@ def _glitches(x: NDArray[np.float64]) -> tuple[NDArray[np.intp], NDArray[np.floa
         picked = _isolate(padded, half, run, threshold)
         found.extend(picked)
         found_medians.extend(float(np.median(padded[i : i + GLITCH_WINDOW])) for i in picked)
-    return np.asarray(found, dtype=np.intp), np.asarray(found_medians), threshold, sigma
+    # neighbouring runs share samples of their windows: each sample once
+    unique, first = np.unique(np.asarray(found, dtype=np.intp), return_index=True)
+    return unique, np.asarray(found_medians)[first], threshold, sigma
 
 
 def _isolate(padded: NDArray[np.float64], half: int, run: NDArray[np.intp], threshold: float) -> list[int]:
@@ -830,15 +923,40 @@ def _isolate(padded: NDArray[np.float64], half: int, run: NDArray[np.intp], thre
         picked.append(worst)
 
 
+def _deviation(x: NDArray[np.float64], index: NDArray[np.intp]) -> NDArray[np.float64]:
+    """|x - its centred window median| at ``index`` (window GLITCH_WINDOW, reflected at the ends)."""
+    half = GLITCH_WINDOW // 2
+    if x.size < GLITCH_WINDOW or index.size == 0:
+        return np.zeros(index.size)
+    padded = np.pad(x, half, mode="reflect")
+    windows = np.lib.stride_tricks.sliding_window_view(padded, GLITCH_WINDOW)[index]
+    return np.abs(x[index] - np.median(windows, axis=1))  # type: ignore[no-any-return]
+
+
 def _remove_glitches(
     data: dict[str, NDArray[np.float64]], rows: NDArray[np.int64], notes: list[CleaningNote]
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], dict[str, float]]:
-    """Remove the glitches of :data:`SENSOR_CHANNELS`; also returns each channel's noise sigma."""
+    """Remove the glitches of :data:`SENSOR_CHANNELS`; also returns each channel's noise sigma.
+
+    A glitch is a spike in one channel. Where the other channel moves too, within one sample
+    either side (a reply read one loop late), the transient is real and kept.
+    """
     keep = np.ones(rows.size, dtype=bool)
     noise: dict[str, float] = {}
+    found = {name: _glitches(data[name]) for name in SENSOR_CHANNELS}
+    for name in SENSOR_CHANNELS:
+        noise[name] = found[name][3]
     for name in SENSOR_CHANNELS:
         x = data[name]
-        index, medians, threshold, noise[name] = _glitches(x)
+        index, medians, threshold, _ = found[name]
+        if index.size == 0:
+            continue
+        (other,) = [c for c in SENSOR_CHANNELS if c != name]
+        partner_threshold = found[other][2] / 2.0
+        if partner_threshold > 0:
+            near = np.clip(index[:, None] + np.arange(-1, 2)[None, :], 0, x.size - 1)
+            moved = _deviation(data[other], near.ravel()).reshape(near.shape).max(axis=1) > partner_threshold
+            index, medians = index[~moved], medians[~moved]
         if index.size == 0:
             continue
         keep[index] = False
@@ -860,17 +978,128 @@ def _remove_glitches(
     return (*_keep(data, rows, keep), noise)
 
 
+def _current_artefacts(
+    data: dict[str, NDArray[np.float64]],
+    rows: NDArray[np.int64],
+    command: NDArray[np.float64] | None,
+    notes: list[CleaningNote],
+) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
+    """Undo wrap-around, remove clamped rows and find a driver current limit (:mod:`hound_id.dyno.artefacts`)."""
+    current, torque, time = data["current"], data["torque"], data["time"]
+    unwrapped, wrap = find_wraps(current, torque)
+    limit: float | None = None
+    if wrap is not None:
+        data = {**data, "current": unwrapped}
+        boundary = at_boundary(unwrapped, wrap)
+        half = wrap.period / 2.0
+        count = int(np.count_nonzero(boundary))
+        asked = asked_at_boundary(unwrapped, None if command is None else command[rows - 1], boundary, half)
+        capped = ""
+        if asked is not None and asked > 1.05 * half:
+            limit = half
+            capped = (
+                f"; there the command asks for {asked:.3g} A (median, from the command-current relation elsewhere), "
+                f"so the current is capped at {half:.4g} A (the driver's limit or the reply's range)"
+            )
+        notes.append(
+            CleaningNote(
+                "wrap",
+                count,
+                f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range of "
+                f"+-{half:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
+                f"(t = {time[wrap.first]:.4g} s); folded back into +-{half:.4g} A, and the {_plural(count, 'row')} at "
+                f"the boundary, where the sign of the current cannot be known, were removed{capped}",
+                "current",
+            )
+        )
+        data, rows = _keep(data, rows, ~boundary)
+        current, torque, time = data["current"], data["torque"], data["time"]
+    cmd = None if command is None else command[rows - 1]
+    keep = np.ones(rows.size, dtype=bool)
+    for plateau in find_plateaus(current, torque, cmd):
+        lo, hi = plateau.torque_span
+        count = int(plateau.rows.size)
+        if plateau.kind == "clamp":
+            keep[plateau.rows] = False
+            notes.append(
+                CleaningNote(
+                    "clamp",
+                    count,
+                    f"the reported current is clamped at {plateau.level:.4g} A in {_plural(count, 'row')} (the reply's "
+                    f"encoding range or a saturated ADC): it stays there while the torque keeps moving ({lo:.3g} to "
+                    f"{hi:.3g} N m), so the true current is unknown and those rows were removed",
+                    "current",
+                )
+            )
+        else:
+            limit = max(limit or 0.0, abs(plateau.level))
+            notes.append(
+                CleaningNote(
+                    "current_limit",
+                    0,
+                    f"driver current limit at {plateau.level:.4g} A: the current holds there in "
+                    f"{_plural(count, 'row')} while the command asks for {plateau.asked:.3g} A (median there, from the "
+                    f"command-current relation elsewhere in the log) and the torque stays at {lo:.3g} to {hi:.3g} N m; "
+                    f"the rows are data and kept, and a peak torque beyond {abs(plateau.level):.3g} A needs a higher "
+                    "driver limit",
+                    "current",
+                )
+            )
+    data, rows = _keep(data, rows, keep)
+    return data, rows, limit
+
+
+#: Sample rates a time column is expected to have [Hz]: a log outside them with no unit may be in ms or us.
+TIME_RATES = (10.0, 10_000.0)
+
+
+def _check_time_unit(time: NDArray[np.float64], stated: bool, notes: list[CleaningNote]) -> None:
+    """Warn when a time column without a unit looks like milliseconds or microseconds."""
+    if stated:
+        return
+    t = time[np.isfinite(time)]
+    if t.size < 20:
+        return
+    steps = np.diff(t)
+    steps = steps[steps > 0]
+    if steps.size == 0:
+        return
+    dt = float(np.median(steps))
+    if dt * TIME_RATES[0] <= 1.0:
+        return  # at least 10 Hz in seconds: plausible
+    for unit, factor in (("ms", 1e-3), ("us", 1e-6), ("ns", 1e-9)):
+        if 1.0 / TIME_RATES[1] <= dt * factor <= 1.0 / TIME_RATES[0]:
+            span = float(t.max() - t.min())
+            notes.append(
+                CleaningNote(
+                    "time_unit",
+                    0,
+                    f"the time column has no unit and steps of {dt:.4g}: read as seconds this is a {1 / dt:.3g} Hz "
+                    f"log lasting {span / 3600:.3g} h; if it is in {unit} ({1 / (dt * factor):.4g} Hz), pass "
+                    f"--units time={unit} or write 'time[{unit}]' in the header",
+                    "time",
+                )
+            )
+            return
+
+
 def _remove_clipping(
     data: dict[str, NDArray[np.float64]], rows: NDArray[np.int64], noise: dict[str, float], notes: list[CleaningNote]
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64]]:
-    """Remove the rows where a channel of :data:`SENSOR_CHANNELS` is stuck at its extreme; ``noise``: sigma of each."""
+    """Remove the rows where the torque is stuck at its extreme (the current: :func:`_current_artefacts`).
+
+    ``noise``: sigma of each channel.
+    """
     keep = np.ones(rows.size, dtype=bool)
-    for name in SENSOR_CHANNELS:
+    for name in ("torque",):
         x = data[name]
         high, low = float(x.max()), float(x.min())
-        if high == low or not noise[name] > 0:
-            # A channel without measurable noise (a logged set-point, a simulation) repeats values exactly
-            # wherever it is flat; only a noisy channel sitting exactly at one value betrays a clipped ADC.
+        if name not in noise:  # a steady-state table skips the glitch step that measures it
+            noise[name] = _noise_sigma(np.diff(x))
+        if high == low or not noise[name] > CLIP_QUANTA * quantum(x):
+            # A channel without measurable noise (a logged set-point, a simulation), or with noise of a few
+            # quanta (a coarse reply), repeats values exactly wherever it is flat; only a finely resolved, noisy
+            # channel sitting exactly at one value betrays a clipped ADC.
             continue
         peak = max(abs(high), abs(low))
         for level in (high, low):

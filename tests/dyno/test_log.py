@@ -18,9 +18,9 @@ from hypothesis import strategies as st
 
 from hound_id.dyno.log import (
     CANONICAL,
+    CORE,
     MIN_ROWS,
     NOTE_KINDS,
-    REQUIRED,
     UNITS,
     CleaningNote,
     DynoLog,
@@ -53,6 +53,8 @@ def truth(n: int = 2000, seed: int = 0, current: np.ndarray | None = None, ampli
             "position": np.cumsum(velocity) / RATE,
             "temperature": 25.0 + 10.0 * time / time[-1] + rng.normal(0.0, 0.05, n),
             "bus_voltage": 48.0 + rng.normal(0.0, 0.1, n),
+            "torque_cmd": KT * current,
+            "current_cmd": current,
         }
     )
 
@@ -100,7 +102,7 @@ def test_the_log_does_not_alias_the_frame():
 
 
 def test_only_the_required_channels_are_needed():
-    log = log_from_frame(truth()[list(REQUIRED)])
+    log = log_from_frame(truth()[list(CORE)])
     assert (log.velocity, log.position, log.temperature, log.bus_voltage) == (None, None, None, None)
     assert not log.has("velocity") and log.has("torque")
     assert UNITS["torque"] == "N*m" and set(UNITS) == set(CANONICAL)
@@ -138,6 +140,8 @@ def test_header_unit_suffixes_are_converted_to_si(tmp_path):
             "position[deg]": np.degrees(frame["position"]),
             "temperature[degF]": frame["temperature"] * 9.0 / 5.0 + 32.0,
             "bus_voltage [mV]": frame["bus_voltage"] * 1e3,
+            "torque_cmd[mN*m]": frame["torque_cmd"] * 1e3,
+            "current_cmd[mA]": frame["current_cmd"] * 1e3,
         }
     )
     log = load_log(write(in_file, tmp_path / "log.csv"))
@@ -160,7 +164,7 @@ def test_temperatures_in_offset_units_become_degrees_celsius(unit, to_file):
 
 
 def test_si_units_in_the_header_are_kept_without_a_note_and_nm_is_newton_metre():
-    frame = truth()[list(REQUIRED)].rename(columns={"time": "time[s]", "torque": "torque[Nm]"})
+    frame = truth()[list(CORE)].rename(columns={"time": "time[s]", "torque": "torque[Nm]"})
     log = log_from_frame(frame)
     assert log.notes == ()
     assert log.torque == pytest.approx(frame["torque[Nm]"].to_numpy())
@@ -389,8 +393,10 @@ def test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_
     frame["current"] = np.minimum(frame["current"], 120.0)  # the current ADC saturates; the torque keeps rising
     log = log_from_frame(frame)
     (note,) = log.notes
-    assert (note.kind, note.channel) == ("adc_saturation", "current")
-    assert note.message.startswith("current channel clipped at 120 A in ")
+    assert (note.kind, note.channel) == ("clamp", "current")
+    assert note.message.startswith("the reported current is clamped at 120 A in ")
+    assert "while the torque keeps moving" in note.message and note.message.endswith("those rows were removed")
+    assert log.current.max() < 120.0
     # A staircase of commanded currents, exactly flat: the top step is held, and the torque with it.
     levels = [0.0, 5.0, 10.0, 15.0, 20.0, 15.0, 10.0, 20.0, 5.0, 0.0]
     commanded = np.repeat(levels, 300)
@@ -487,7 +493,7 @@ def test_missing_required_columns_are_named_with_the_mapping_hint():
     ],
 )
 def test_bad_column_mappings_are_refused(columns, match):
-    frame = truth()[list(REQUIRED)].rename(columns={"torque": "adc_torque"})
+    frame = truth()[list(CORE)].rename(columns={"torque": "adc_torque"})
     with pytest.raises(DynoDataError, match=match):
         log_from_frame(frame, source="dyno.csv", columns=columns)
 
@@ -507,7 +513,7 @@ def test_two_columns_for_one_channel_are_ambiguous():
 )
 def test_bad_unit_options_are_refused(units, match):
     with pytest.raises(DynoDataError, match=match):
-        log_from_frame(truth()[list(REQUIRED)], units=units)
+        log_from_frame(truth()[list(CORE)], units=units)
 
 
 def test_a_text_column_is_refused():
@@ -517,7 +523,7 @@ def test_a_text_column_is_refused():
 
 
 def test_duplicated_column_names_are_refused():
-    frame = truth()[list(REQUIRED)]
+    frame = truth()[list(CORE)]
     frame = pd.concat([frame, frame[["torque"]]], axis=1)
     with pytest.raises(DynoDataError, match=r"more than one column named 'torque'; rename one"):
         log_from_frame(frame)
@@ -532,7 +538,7 @@ def test_too_few_rows_are_refused(n, spoil, match):
 
 
 def test_asking_for_an_absent_or_unknown_channel_says_how_to_supply_it():
-    log = log_from_frame(truth()[list(REQUIRED)], source="dyno.csv")
+    log = log_from_frame(truth()[list(CORE)], source="dyno.csv")
     with pytest.raises(
         DynoDataError, match=r"^dyno\.csv: no 'velocity' channel; .*'velocity\[unit\]'.*--columns velocity="
     ):

@@ -1,0 +1,296 @@
+"""What real rigs do to the current channel: wrap-around, clamped replies and driver current limits.
+
+Seen on public actuator logs (``physics-notes.md``, "What real logs look like"):
+
+* **Wrap-around.** A polled drive encodes the current in a fixed range, say +-12.95 A. A value
+  past the range comes back from the other end (a jump of one whole period P = 25.9 A), and a
+  host that "unwraps" such jumps by guesswork adds or removes whole periods at random. The
+  torque does not jump with it: a real current jump of P would move the torque by Kt P. So
+  jumps of one common size P that the torque does not share are wraps. They are undone
+  (whole periods subtracted), and the rows that then sit at the boundary +-P/2 are removed:
+  there the sign of the current cannot be known.
+* **A clamped reply.** The reported current sits at its extreme (the reply's encoding range
+  or a saturated ADC) while the torque keeps moving: the true current there is unknown, so
+  those rows are removed.
+* **A driver current limit.** The current sits at one level while the command keeps rising,
+  and the torque stays with the current: the motor really is at the limit. Those rows are
+  kept (they are data) and the limit is reported, so the peak-torque advice names the driver
+  rather than "test at higher current".
+
+Without a command channel a flat current with a flat torque is a hold, which is data, and
+nothing is said.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+Array = NDArray[np.float64]
+
+#: A jump must exceed this many noise standard deviations of the channel to be a wrap candidate.
+WRAP_SIGMAS = 40.0
+#: Jumps whose sizes agree within this fraction share one wrap period.
+WRAP_TOLERANCE = 0.015
+#: Fewest jumps of one size that make a wrap-around.
+WRAP_MIN_JUMPS = 2
+#: A jump is a wrap when the torque moves less than this share of Kt times the jump.
+WRAP_SILENT = 0.2
+#: After undoing the wraps, the jumps start within this share of P/2 from the boundary +-P/2 ...
+WRAP_EDGE = 0.1
+#: ... and, with fewer than WRAP_MANY jumps, this share of the samples lies well inside the range (|x| < P/4):
+#: a channel that only sits at the boundary and jumps twice (a spike of just the right size) is no wrap.
+WRAP_INNER = 0.05
+WRAP_MANY = 10
+#: Shortest run at a plateau that counts [samples].
+PLATEAU_MIN_RUN = 5
+#: A plateau is within this many noise sigmas of its level (and at least PLATEAU_FLOOR of the level).
+PLATEAU_SIGMAS = 4.0
+PLATEAU_FLOOR = 0.002
+#: A plateau level is a large magnitude: at least this share of the channel's largest |value| ...
+PLATEAU_LEVEL = 0.5
+#: ... and this many times the channel's noise and its quantum (a current that never leaves zero has no plateau).
+PLATEAU_RESOLUTION = 20.0
+#: The torque "goes past" a plateau when it exceeds what the level makes by this many of its noise sigmas ...
+MOVING_SIGMAS = 10.0
+#: ... and this share of the torque the plateau's current makes (Kt times the level).
+MOVING_SHARE = 0.03
+#: A current stuck exactly at one value is a saturated ADC only where its noise exceeds this many quanta.
+STUCK_QUANTA = 3.0
+#: The command asks for more than a plateau when the current it asks for (from the command-current relation of
+#: the rows off the plateau) exceeds the level by this share, in the median over the plateau's rows.
+COMMAND_EXCESS = 0.05
+#: That relation must explain this share of the current's variance off the plateau.
+COMMAND_R2 = 0.9
+
+
+@dataclass(frozen=True)
+class Wrap:
+    """A wrap-around of the current channel."""
+
+    period: float
+    """Size of the jumps, one whole encoding range [A]."""
+    jumps: int
+    """Jumps undone."""
+    first: int
+    """Index (in the arrays given) of the first sample after the first jump."""
+
+
+@dataclass(frozen=True)
+class Plateau:
+    """Rows where the current sits at one extreme level."""
+
+    kind: str
+    """``clamp`` (the reported value is cut off; rows unusable) or ``driver_limit`` (real; rows kept)."""
+    level: float
+    """The level [A], signed."""
+    rows: NDArray[np.intp]
+    """Indices at the level."""
+    torque_span: tuple[float, float]
+    """Torque range over those rows (5th and 95th percentile) [N m]."""
+    command_span: tuple[float, float] | None
+    """Command range over those rows, if a command channel exists."""
+    longest: int
+    """Longest run [samples]."""
+    asked: float | None = None
+    """For a driver limit, the current the command asked for there (median) [A]."""
+
+
+def noise_sigma(x: Array) -> float:
+    """Noise standard deviation from first differences: 1.4826 MAD / sqrt(2) (steps barely move it)."""
+    d = np.diff(np.asarray(x, float))
+    if d.size == 0:
+        return 0.0
+    return float(1.4826 * np.median(np.abs(d - np.median(d))) / math.sqrt(2.0))
+
+
+def quantum(x: Array) -> float:
+    """The channel's resolution: the smallest step it takes (1st percentile of the non-zero |steps|) [its unit]."""
+    steps = np.abs(np.diff(np.asarray(x, float)))
+    steps = steps[steps > 0]
+    return float(np.percentile(steps, 1)) if steps.size else 0.0
+
+
+def asked_at_boundary(current: Array, command: Array | None, boundary: NDArray[np.bool_], half: float) -> float | None:
+    """The current the command asks for where the current sits at a wrap boundary (median) [A], if it can be told."""
+    if command is None or not boundary.any():
+        return None
+    return _asked_current(np.abs(current), np.abs(command), np.flatnonzero(boundary), half)
+
+
+def torque_per_amp(current: Array, torque: Array) -> float:
+    """torque / current where the current is large (median), a robust signed "Kt" before any fit [N m/A].
+
+    Negative for a torque sensor mounted the other way round.
+    """
+    a = np.abs(current)
+    top = float(np.percentile(a, 95)) if a.size else 0.0
+    big = a > 0.3 * top
+    if top <= 0 or not big.any():
+        return 0.0
+    return float(np.median(torque[big] / current[big]))
+
+
+def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
+    """Undo wrap-around of the current channel (module docstring); returns the current and what was found.
+
+    1. Large jumps of the current (over WRAP_SIGMAS noise sigmas) whose sizes agree within WRAP_TOLERANCE
+       give the period P (at least WRAP_MIN_JUMPS of them).
+    2. The torque per amp is measured where the current lies within +-P/2 (rows no wrap has moved), and a
+       jump is a wrap where the torque does not follow it (it moves less than WRAP_SILENT of Kt P, one
+       sample either side: a reply read one loop late).
+    3. An encoded current always lies within +-P/2, whatever the host added: the channel is folded into
+       +-P/2 (whole periods taken out).
+    4. It is a wrap-around only if the wraps left the range at its boundary, the folded channel spends time
+       well inside the range and follows the torque at least as well as before; otherwise the channel is
+       returned as it was.
+    """
+    x = np.asarray(current, float)
+    y = np.asarray(torque, float)
+    if x.size < 3:
+        return x, None
+    d = np.diff(x)
+    big = np.flatnonzero(np.abs(d) > max(WRAP_SIGMAS * noise_sigma(x), 0.02 * float(np.max(np.abs(x))), 1e-12))
+    if big.size < WRAP_MIN_JUMPS:
+        return x, None
+    sizes = np.abs(d[big])
+    agree = np.abs(sizes[:, None] - sizes[None, :]) <= WRAP_TOLERANCE * sizes[:, None]
+    best = int(np.argmax(agree.sum(axis=1)))
+    if agree[best].sum() < WRAP_MIN_JUMPS:
+        return x, None
+    period = float(np.median(sizes[agree[best]]))
+    half = period / 2.0
+    inside = np.abs(x) <= half * (1.0 + WRAP_EDGE)
+    k = abs(torque_per_amp(x[inside], y[inside]))
+    candidates = big[agree[best]]
+    dy = np.abs(np.diff(y))
+    near = np.maximum.reduce([dy[np.clip(candidates + s, 0, dy.size - 1)] for s in (-1, 0, 1)])
+    jumps = candidates[near < WRAP_SILENT * k * period] if k > 0 else candidates
+    if jumps.size < WRAP_MIN_JUMPS:
+        return x, None
+    folded = x - period * np.round(x / period)
+    edge = np.abs(np.abs(folded[jumps]) - half) <= WRAP_EDGE * half
+    inner = np.abs(folded) < half / 2.0
+    clear = np.abs(folded) < half * (1.0 - WRAP_EDGE)  # rows off the boundary, where the sign is known
+    if edge.mean() < 0.9 or _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
+        return x, None
+    if jumps.size < WRAP_MANY and inner.mean() < WRAP_INNER:  # a few jumps of a channel that never leaves the edge
+        return x, None
+    return folded, Wrap(period, int(jumps.size), int(jumps[0]) + 1)
+
+
+def _follows(x: Array, y: Array) -> float:
+    """Squared correlation of two channels (0 when one is constant)."""
+    sx, sy = float(np.std(x)), float(np.std(y))
+    if sx == 0 or sy == 0:
+        return 0.0
+    return float(np.corrcoef(x, y)[0, 1] ** 2)
+
+
+def at_boundary(current: Array, wrap: Wrap) -> NDArray[np.bool_]:
+    """Rows whose current sits at the wrap boundary +-P/2, where its sign cannot be known."""
+    x = np.asarray(current, float)
+    tol = max(PLATEAU_SIGMAS * noise_sigma(x), 0.005 * wrap.period)
+    return np.abs(x) >= wrap.period / 2.0 - tol  # type: ignore[no-any-return]
+
+
+def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def find_plateaus(current: Array, torque: Array, command: Array | None = None) -> list[Plateau]:
+    """Clamped replies and driver current limits at either extreme of the current (module docstring)."""
+    x = np.asarray(current, float)
+    y = np.asarray(torque, float)
+    if x.size < PLATEAU_MIN_RUN:
+        return []
+    sigma_x, sigma_y = noise_sigma(x), noise_sigma(y)
+    peak = float(np.max(np.abs(x)))
+    k_scale = abs(torque_per_amp(x, y))
+    resolution = PLATEAU_RESOLUTION * max(sigma_x, quantum(x))
+    found = []
+    for level in (float(x.max()), float(x.min())):
+        if peak <= 0 or abs(level) < max(PLATEAU_LEVEL * peak, resolution):
+            continue
+        tol = max(PLATEAU_SIGMAS * sigma_x, PLATEAU_FLOOR * abs(level))
+        at = np.abs(x - level) <= tol
+        runs = [(a, b) for a, b in _runs(at) if b - a >= PLATEAU_MIN_RUN]
+        if not runs:
+            continue
+        rows = np.concatenate([np.arange(a, b) for a, b in runs])
+        if rows.size < max(PLATEAU_MIN_RUN, 0.001 * x.size):
+            continue
+        lo, hi = (float(v) for v in np.percentile(y[rows], [5, 95]))
+        cmd_span = None
+        if command is not None:
+            c = np.asarray(command, float)
+            cmd_span = (float(np.min(c[rows])), float(np.max(c[rows])))
+        longest = max(b - a for a, b in runs)
+        if _torque_goes_past(x, y, rows, level, sigma_y, k_scale):
+            found.append(Plateau("clamp", level, rows, (lo, hi), cmd_span, longest))
+            continue
+        if command is not None and cmd_span is not None:
+            asked = _asked_current(x, np.asarray(command, float), rows, level)
+            if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
+                found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
+                continue
+        stuck = x == level
+        exact = max((b - a for a, b in _runs(stuck)), default=0)
+        if exact >= PLATEAU_MIN_RUN and sigma_x > STUCK_QUANTA * quantum(x):
+            # finely resolved and noisy elsewhere, yet exactly one value for whole runs: a saturated ADC
+            found.append(Plateau("clamp", level, np.flatnonzero(stuck), (lo, hi), cmd_span, exact))
+    return found
+
+
+def _torque_goes_past(
+    current: Array, torque: Array, rows: NDArray[np.intp], level: float, sigma_y: float, k_scale: float
+) -> bool:
+    """Whether the torque on a plateau goes past what the plateau's current makes.
+
+    The torque the level makes comes from a straight line torque = a current + b through the rows on the
+    same side between 30 % and 95 % of the level (spanning 30 % of it at least); the plateau's torque (its
+    90th percentile in the level's direction) must exceed it by MOVING_SIGMAS noise sigmas and MOVING_SHARE
+    of it. Without such rows, the torque's spread over the plateau must exceed the same margin.
+    """
+    sign = 1.0 if level > 0 else -1.0
+    ramp = (sign * current > 0.3 * abs(level)) & (sign * current < 0.95 * abs(level))
+    margin = max(MOVING_SIGMAS * sigma_y, MOVING_SHARE * k_scale * abs(level))
+    if np.count_nonzero(ramp) >= 10 and np.ptp(current[ramp]) > 0.3 * abs(level):
+        a, b = np.polyfit(current[ramp], torque[ramp], 1)
+        beyond = sign * (1.0 if a >= 0 else -1.0)  # the torque's way of growing current (a sensor may be reversed)
+        return bool(np.percentile(beyond * torque[rows], 90) - beyond * (a * level + b) > margin)
+    return bool(np.ptp(np.percentile(torque[rows], [5, 95])) > margin)
+
+
+def _asked_current(current: Array, command: Array, rows: NDArray[np.intp], level: float) -> float | None:
+    """The current the command asks for on a plateau's rows (median) [A], from the relation off the plateau.
+
+    The command may be a torque (either side of a gearbox) or a current: a straight line current = a command + b,
+    fitted where the current is clearly below the plateau, converts it. None when the line explains too little.
+    """
+    off = np.abs(current) < 0.9 * abs(level)
+    off[rows] = False
+    if np.count_nonzero(off) < 10 or np.ptp(command[off]) <= 0:
+        return None
+    A = np.column_stack([command[off], np.ones(np.count_nonzero(off))])
+    coef, *_ = np.linalg.lstsq(A, current[off], rcond=None)
+    fitted = A @ coef
+    spread = float(np.var(current[off]))
+    if spread <= 0 or 1.0 - float(np.var(current[off] - fitted)) / spread < COMMAND_R2:
+        return None
+    return float(np.median(coef[0] * command[rows] + coef[1]))
+
+
+__all__ = [
+    "Plateau",
+    "Wrap",
+    "at_boundary",
+    "find_plateaus",
+    "find_wraps",
+    "noise_sigma",
+    "torque_per_amp",
+]
