@@ -139,11 +139,15 @@ def step_fit_current(out: Path) -> StepResult:
     start = fit_model(signals, log.torque, ("linear", "saturation"))
     ladder = auto(signals, log.torque, start)
     fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
-    peak, _, report = summarize(str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read)
+    peak, _, report = summarize(
+        str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read, log.current_limit, signals.time
+    )
     io.write_json(out / "fit_ilm85_dyno.json", report)
     pairs = [("before: " + "+".join(start.model), start), ("after: " + "+".join(fit.model), fit)]
     _save_png(
-        plot_fit(signals, log.torque, fit, peak, pairs, cogging_order=fit.hypers.get("cogging_order")),
+        plot_fit(
+            signals, log.torque, fit, peak, pairs, cogging_order=fit.hypers.get("cogging_order"), diagnosis=diagnosis
+        ),
         out / "fit_ilm85_dyno.png",
     )
     spec = samples_dir() / "motors" / "hound_ilm85.yaml"

@@ -33,7 +33,7 @@ def fit_current(
     out: Optional[Path] = typer.Option(
         None, "--out", help="Write a fitted-motor YAML (with --spec, one that 'hound-id mor --spec' reads)."
     ),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/1)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/2)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
     from hound_id.dyno.effects import Signals, load_effects_file, parse_model
@@ -56,7 +56,7 @@ def fit_current(
         flip_torque=flip_torque,
     )
     for note in log.notes:
-        if note.kind == "unit":
+        if note.kind in ("unit", "format"):
             if not json_out:
                 err_console.print(f"note: {note.message}", highlight=False, markup=False, soft_wrap=True)
         else:
@@ -67,26 +67,46 @@ def fit_current(
     fit, diagnosis, ladder, start = result
     from hound_id.dyno.report import fitted_motor, summarize
 
-    peak, _, report = summarize(str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read)
+    peak, _, report = summarize(
+        str(data),
+        fit,
+        diagnosis,
+        signals.current,
+        ladder,
+        log.notes,
+        log.rows_read,
+        current_limit=log.current_limit,
+        time=signals.time if signals.timed else None,
+    )
+    warnings = _fit_warnings(report)
+    sheet = None
+    if spec is not None:
+        from hound_id.dyno.report import spec_checks
+        from hound_id.mor.spec import load_motor_spec
+
+        sheet = load_motor_spec(spec)  # fail early on a bad sheet
+        warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
     if out is not None:
         import yaml
 
         from hound_id import io
 
-        name: str | None = None
-        if spec is None:
-            name = data.stem
-        else:
-            from hound_id.mor.spec import load_motor_spec
-
-            load_motor_spec(spec)  # fail early on a bad sheet
-        motor = fitted_motor(report, out, spec, name)
+        motor = fitted_motor(report, out, spec, data.stem if sheet is None else None)
         io.write_text(out, yaml.safe_dump(motor, sort_keys=False))
+        if "extrapolated" in motor:
+            warnings.append(
+                f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
+                f"(|i| <= {report['peak_torque']['max_measured_current']:.3g} A); written with "
+                "'extrapolated: [peak_torque]'"
+            )
         if not diagnosis.at_noise_floor:
-            warn(
+            warnings.append(
                 f"{out}: written from a fit that is not at the noise floor ({diagnosis.summary()}); "
                 "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
             )
+    report["warnings"] = warnings
+    for w in warnings:
+        warn(w)
     if plot is not None:
         from hound_id.dyno.fit import fit_model
         from hound_id.dyno.plot import plot_fit
@@ -97,7 +117,10 @@ def fit_current(
         )
         base = tuple(parse_model(model))
         if auto or tuple(fit.model) != base:  # compare against the model the user started from
-            before = start if auto else fit_model(signals, torque, base, robust=robust)
+            before = start if auto else _fit_or_none(signals, torque, base, robust)
+        else:
+            before = None
+        if before is not None:
             pairs = [("before: " + "+".join(before.model), before), ("after: " + "+".join(fit.model), fit)]
         elif diagnosis.best is not None:  # show what the top suggestion would do
             best = diagnosis.best.effect
@@ -105,12 +128,35 @@ def fit_current(
             pairs = [("model: " + "+".join(fit.model), fit), (f"with suggested {best}", suggested)]
         else:
             pairs = [("model: " + "+".join(fit.model), fit)]
-        save_figure(plot_fit(signals, torque, fit, peak, pairs, cogging_order=order), plot)
+        save_figure(plot_fit(signals, torque, fit, peak, pairs, cogging_order=order, diagnosis=diagnosis), plot)
     if json_out:
         report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
         print_json(report)
         return
     _print(report, fit, diagnosis, ladder, plot, out)
+
+
+def _fit_warnings(report: dict) -> list[str]:  # type: ignore[type-arg]
+    """Warnings every user must see: parameters held at a physical bound, disagreeing blocks."""
+    out = []
+    for name, wanted in report["unphysical"].items():
+        est = report["parameters"][name]
+        out.append(
+            f"{name} is held at its physical bound {est['value']:.4g} {est['unit']}: the unconstrained fit wants "
+            f"{wanted:.4g} {est['unit']}, which is not physical; the model lacks what the log shows there, or the "
+            f"log cannot separate {name} from another term"
+        )
+    out += report["flags"]
+    return out
+
+
+def _fit_or_none(signals, torque, model, robust):  # type: ignore[no-untyped-def]
+    from hound_id.dyno.fit import fit_model
+
+    try:
+        return fit_model(signals, torque, model, robust=robust)
+    except FitError:
+        return None
 
 
 def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[no-untyped-def]
@@ -144,9 +190,10 @@ def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[n
 
 
 def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
+    rows = report["rows"]
     console.print(
-        f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, "
-        f"{fit.n_train} training rows, {fit.n_test} held-out rows (time blocks)",
+        f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, {rows['fitted']} rows in "
+        f"{rows['blocks']} time blocks; cross-validated over {rows['folds']} folds (each held out once)",
         highlight=False,
     )
     table = Table(title="parameters", title_justify="left")
@@ -154,10 +201,12 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
         table.add_column(col, justify="right" if col in ("value", "std. error") else "left")
     for name, est in fit.parameters.items():
         err = "" if est.stderr != est.stderr else f"{est.stderr:.2g}"
+        if est.at_bound:
+            err = "at bound"
         table.add_row(name, f"{est.value:.5g}", err, est.unit, est.effect)
     console.print(table)
     console.print(
-        f"RMSE train {fit.rmse_train:.4g} N m, held-out {fit.rmse_test:.4g} N m; "
+        f"RMSE fit {fit.rmse_train:.4g} N m, cross-validated {fit.rmse_test:.4g} N m; "
         f"noise floor {diagnosis.noise_floor:.3g} N m; AIC {fit.aic:.6g}, BIC {fit.bic:.6g}",
         highlight=False,
     )
@@ -173,7 +222,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
         )
     if ladder is not None:
         lt = Table(title="--auto ladder", title_justify="left")
-        for col in ("step", "added", "held-out RMSE [N m]", "train RMSE [N m]", "BIC"):
+        for col in ("step", "added", "cross-validated RMSE [N m]", "fit RMSE [N m]", "BIC"):
             lt.add_column(col, justify="left" if col in ("step", "added") else "right")
         for k, step in enumerate(ladder):
             lt.add_row(
@@ -184,7 +233,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
                 f"{step.fit.bic:.6g}",
             )
         console.print(lt)
-    st = Table(title="missing effects, best first (held-out residual explained)", title_justify="left")
+    st = Table(title="missing effects, best first (cross-validated residual explained)", title_justify="left")
     for col in ("effect", "explained", "significant", "evidence"):
         st.add_column(col, justify="right" if col == "explained" else "left", overflow="fold")
     for s in diagnosis.suggestions:

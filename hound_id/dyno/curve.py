@@ -68,8 +68,18 @@ class PeakTorque:
         }
 
 
-def peak_torque(fit: FitResult, max_measured_current: float, deviation: float = PEAK_DEVIATION) -> PeakTorque:
-    """Peak torque where (Kt i - tau(i)) / (Kt i) reaches ``deviation``."""
+def peak_torque(
+    fit: FitResult,
+    max_measured_current: float,
+    deviation: float = PEAK_DEVIATION,
+    current_limit: float | None = None,
+) -> PeakTorque:
+    """Peak torque where (Kt i - tau(i)) / (Kt i) reaches ``deviation``.
+
+    Args:
+        current_limit: The driver's current limit seen in the log [A], if any: the advice then
+            says that this drive cannot test higher currents.
+    """
     from scipy.optimize import brentq
 
     kt = fit.value("kt")
@@ -80,13 +90,18 @@ def peak_torque(fit: FitResult, max_measured_current: float, deviation: float = 
     dev = 1.0 - curve_torque(fit, grid) / (kt * grid)
     above = np.flatnonzero(dev >= deviation)
     if above.size == 0:
+        advice = (
+            f"the driver held the current at its limit of {current_limit:.3g} A, so this drive cannot test higher "
+            "current: raise the driver's current limit or test on a stronger driver"
+            if current_limit is not None
+            else "add a saturation effect or test at higher current"
+        )
         return PeakTorque(
             None,
             None,
             max_measured_current,
             False,
-            f"the fitted curve stays within {deviation:.0%} of linear up to {top:.3g} A; "
-            "add a saturation effect or test at higher current",
+            f"the fitted curve stays within {deviation:.0%} of linear up to {top:.3g} A; {advice}",
         )
     k = int(above[0])
     if k == 0:
@@ -96,7 +111,7 @@ def peak_torque(fit: FitResult, max_measured_current: float, deviation: float = 
     tau = float(curve_torque(fit, i_peak)[0])
     extrapolated = i_peak > max_measured_current
     note = f"peak torque {tau:.4g} N m at {i_peak:.4g} A, where the curve is {deviation:.0%} below Kt i" + (
-        f" (extrapolated beyond the measured {max_measured_current:.3g} A)" if extrapolated else ""
+        f" (extrapolated beyond the measured currents, |i| <= {max_measured_current:.3g} A)" if extrapolated else ""
     )
     return PeakTorque(tau, i_peak, max_measured_current, extrapolated, note)
 

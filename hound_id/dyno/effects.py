@@ -54,6 +54,8 @@ class Signals:
     """Rotor angle [rad]."""
     temperature: Array | None = None
     """Winding temperature [degC]."""
+    timed: bool = True
+    """Whether ``time`` holds real sample times; False for a steady-state table (``time`` is the row index)."""
 
     @classmethod
     def from_log(cls, log: Any) -> Signals:
@@ -64,6 +66,7 @@ class Signals:
             velocity=None if log.velocity is None else np.asarray(log.velocity, float),
             position=None if log.position is None else np.asarray(log.position, float),
             temperature=None if log.temperature is None else np.asarray(log.temperature, float),
+            timed=bool(getattr(log, "timed", True)),
         )
 
     @cached_property
@@ -79,7 +82,9 @@ class Signals:
         return value  # type: ignore[no-any-return]
 
     def has(self, name: str) -> bool:
-        """Whether a channel is present."""
+        """Whether a channel is present (``time`` only when the log has real sample times)."""
+        if name == "time":
+            return self.timed
         return getattr(self, name) is not None
 
     def take(self, rows: NDArray[np.bool_] | NDArray[np.intp] | slice) -> Signals:
@@ -87,7 +92,7 @@ class Signals:
         values: dict[str, Any] = {}
         for f in fields(self):
             v = getattr(self, f.name)
-            values[f.name] = None if v is None else v[rows]
+            values[f.name] = v if f.name == "timed" or v is None else v[rows]
         return Signals(**values)
 
     def shifted(
@@ -103,7 +108,7 @@ class Signals:
             return self if rows is None else self.take(rows)
         times = self.time if rows is None else self.time[rows]
         t = times - delay
-        out: dict[str, Any] = {"time": times}
+        out: dict[str, Any] = {"time": times, "timed": self.timed}
         for name in ("current", "velocity", "position", "temperature"):
             value = getattr(self, name)
             if value is None or name not in keep:
@@ -117,7 +122,7 @@ class Signals:
 
 @dataclass(frozen=True)
 class Parameter:
-    """A parameter that enters the model linearly."""
+    """A parameter that enters the model linearly, with the physical bounds the fit respects."""
 
     name: str
     """Unique name across the library, e.g. ``kt``."""
@@ -125,6 +130,24 @@ class Parameter:
     """SI unit, e.g. ``N m/A``."""
     doc: str = ""
     """What it is."""
+    lower: float = -math.inf
+    """Smallest physically possible value (e.g. 0 for a friction coefficient)."""
+    upper: float = math.inf
+    """Largest physically possible value."""
+    bound_reason: str = ""
+    """Why the bounds hold, in a few words (shown when a fit asks for a value outside them)."""
+
+    def __post_init__(self) -> None:
+        if not self.lower < self.upper:
+            raise FitError(f"parameter '{self.name}': lower bound {self.lower} is not below upper bound {self.upper}")
+
+    def outside(self, value: float) -> str | None:
+        """'coulomb < 0' when ``value`` breaks a bound, else None."""
+        if value < self.lower:
+            return f"{self.name} < {self.lower:g}"
+        if value > self.upper:
+            return f"{self.name} > {self.upper:g}"
+        return None
 
 
 @dataclass(frozen=True)
@@ -389,7 +412,17 @@ def _evidence_thermal(p: Mapping[str, float], s: Signals) -> str:
 
 
 def _evidence_delay(p: Mapping[str, float], s: Signals) -> str:
-    return f"the torque channel lags the current channel by {1e3 * p['delay']:.3g} ms"
+    d = p["delay"]
+    if d >= 0:
+        return f"the torque channel lags the current channel by {1e3 * d:.3g} ms (transducer filter, bus latency)"
+    return (
+        f"the current channel lags the torque channel by {-1e3 * d:.3g} ms (for example a current reply read "
+        "one loop late)"
+    )
+
+
+_SAT_BOUND = "saturation bends the curve below the straight line"
+_FRICTION_BOUND = "friction dissipates energy, it opposes motion"
 
 
 def _builtin() -> None:
@@ -398,7 +431,9 @@ def _builtin() -> None:
         Effect(
             name="linear",
             physics="torque is proportional to current through the torque constant Kt",
-            parameters=(Parameter("kt", "N m/A", "torque constant at 20 degC"),),
+            parameters=(
+                Parameter("kt", "N m/A", "torque constant at 20 degC", 0.0, bound_reason="torque follows current"),
+            ),
             regressors=lambda s, h: s.current,
             shape=True,
             evidence=_evidence_linear,
@@ -408,7 +443,9 @@ def _builtin() -> None:
         Effect(
             name="saturation",
             physics=f"{sat_doc} (odd quadratic, as in the paper: -k i|i|)",
-            parameters=(Parameter("k_sat", "N m/A^2", "quadratic saturation coefficient"),),
+            parameters=(
+                Parameter("k_sat", "N m/A^2", "quadratic saturation coefficient", 0.0, bound_reason=_SAT_BOUND),
+            ),
             regressors=lambda s, h: -s.current * np.abs(s.current),
             shape=True,
             evidence=_evidence_saturation("saturation"),
@@ -418,7 +455,7 @@ def _builtin() -> None:
         Effect(
             name="saturation_cubic",
             physics=f"{sat_doc} (odd cubic: -k i^3)",
-            parameters=(Parameter("k_sat3", "N m/A^3", "cubic saturation coefficient"),),
+            parameters=(Parameter("k_sat3", "N m/A^3", "cubic saturation coefficient", 0.0, bound_reason=_SAT_BOUND),),
             regressors=lambda s, h: -(s.current**3),
             shape=True,
             evidence=_evidence_saturation("saturation_cubic"),
@@ -431,7 +468,9 @@ def _builtin() -> None:
                 f"{sat_doc} (linear up to a knee current, logarithmic beyond; the 'knee plus log' curve written "
                 "with ln so value and slope are continuous at the knee)"
             ),
-            parameters=(Parameter("k_knee", "N m/A", "torque lost per amp of the log-knee term"),),
+            parameters=(
+                Parameter("k_knee", "N m/A", "torque lost per amp of the log-knee term", 0.0, bound_reason=_SAT_BOUND),
+            ),
             regressors=lambda s, h: -_knee_loss(s.current, h["knee_current"]),
             hypers=(Hyper("knee_current", "A", _knee_grid),),
             shape=True,
@@ -451,7 +490,7 @@ def _builtin() -> None:
         Effect(
             name="coulomb",
             physics="dry friction opposes motion with a constant torque whatever the speed",
-            parameters=(Parameter("coulomb", "N m", "Coulomb friction torque"),),
+            parameters=(Parameter("coulomb", "N m", "Coulomb friction torque", 0.0, bound_reason=_FRICTION_BOUND),),
             regressors=lambda s, h: -s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_coulomb,
@@ -461,7 +500,9 @@ def _builtin() -> None:
         Effect(
             name="viscous",
             physics="viscous and eddy-current drag grow in proportion to speed",
-            parameters=(Parameter("viscous", "N m s/rad", "viscous friction coefficient"),),
+            parameters=(
+                Parameter("viscous", "N m s/rad", "viscous friction coefficient", 0.0, bound_reason=_FRICTION_BOUND),
+            ),
             regressors=lambda s, h: -s.channel("velocity"),
             requires=("velocity",),
             evidence=_evidence_viscous,
@@ -471,7 +512,9 @@ def _builtin() -> None:
         Effect(
             name="stribeck",
             physics="static friction exceeds Coulomb friction near rest and fades as speed builds a lubricant film",
-            parameters=(Parameter("stribeck", "N m", "extra static friction at rest"),),
+            parameters=(
+                Parameter("stribeck", "N m", "extra static friction at rest", 0.0, bound_reason=_FRICTION_BOUND),
+            ),
             regressors=lambda s, h: -s.velocity_sign * np.exp(-((s.channel("velocity") / h["stribeck_speed"]) ** 2)),
             requires=("velocity",),
             hypers=(Hyper("stribeck_speed", "rad/s", _speed_grid),),
@@ -482,7 +525,11 @@ def _builtin() -> None:
         Effect(
             name="gear_friction",
             physics="gear-mesh friction grows with the transmitted load (efficiency below 100 %), opposing motion",
-            parameters=(Parameter("gear_friction", "N m/A", "friction per amp of load current"),),
+            parameters=(
+                Parameter(
+                    "gear_friction", "N m/A", "friction per amp of load current", 0.0, bound_reason=_FRICTION_BOUND
+                ),
+            ),
             regressors=lambda s, h: -np.abs(s.current) * s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_gear,
@@ -529,7 +576,15 @@ def _builtin() -> None:
         Effect(
             name="thermal",
             physics="magnet flux, and so Kt, falls as the rotor warms (NdFeB about -0.1 %/K)",
-            parameters=(Parameter("kt_temp_coeff", "N m/A/K", "change of Kt per kelvin above 20 degC"),),
+            parameters=(
+                Parameter(
+                    "kt_temp_coeff",
+                    "N m/A/K",
+                    "change of Kt per kelvin above 20 degC",
+                    upper=0.0,
+                    bound_reason="magnet flux falls as the magnet warms",
+                ),
+            ),
             regressors=lambda s, h: s.current * (s.channel("temperature") - T_REF),
             requires=("temperature",),
             evidence=_evidence_thermal,
@@ -538,9 +593,13 @@ def _builtin() -> None:
     register(
         Effect(
             name="delay",
-            physics="the torque channel lags the current channel (transducer filter, bus latency)",
+            physics=(
+                "one channel lags the other: positive, the torque channel lags (transducer filter, bus latency); "
+                "negative, the current channel lags (e.g. a current reply read one loop late)"
+            ),
             parameters=(),
             regressors=None,
+            requires=("time",),
             hypers=(Hyper("delay", "s", lambda s, r: np.array([0.0])),),
             evidence=_evidence_delay,
         )
@@ -566,7 +625,16 @@ def describe(names: Sequence[str] | None = None) -> list[dict[str, Any]]:
             {
                 "effect": e.name,
                 "physics": e.physics,
-                "parameters": [{"name": p.name, "unit": p.unit, "doc": p.doc} for p in e.parameters],
+                "parameters": [
+                    {
+                        "name": p.name,
+                        "unit": p.unit,
+                        "doc": p.doc,
+                        "lower": None if math.isinf(p.lower) else p.lower,
+                        "upper": None if math.isinf(p.upper) else p.upper,
+                    }
+                    for p in e.parameters
+                ],
                 "hypers": [{"name": h.name, "unit": h.unit} for h in e.hypers],
                 "requires": list(e.requires),
             }

@@ -1,15 +1,27 @@
 """Fitting a sum of effects to a dynamometer log.
 
-Linear parameters are found by least squares on the training rows (optionally
-Huber-robust, by iteratively reweighted least squares), nonlinear ones by search:
-a candidate grid from the data (orders from the residual's spectrum over rotor
-angle, speeds and currents on log/linear grids), then a bounded scalar refinement.
-The delay is found by Gauss-Newton on the first-order expansion
-torque(t - d) ~ torque(t) - d dtorque/dt, iterated with the shifted signals.
+Linear parameters are found by least squares within their physical bounds (Kt > 0,
+friction >= 0, saturation bending the curve down; :class:`~hound_id.dyno.effects.Parameter`),
+optionally Huber-robust, nonlinear ones by search: a candidate grid from the data
+(orders from the residual's spectrum over rotor angle, speeds and currents on
+log/linear grids), then a bounded scalar refinement. The delay is found by
+Gauss-Newton on the first-order expansion torque(t - d) ~ torque(t) - d dtorque/dt,
+iterated with the shifted signals, within +-:data:`DELAY_WINDOW` (or two samples).
 
-The log is split in time blocks: ten contiguous blocks, two of them (the 3rd and the
-8th) held out. The held-out RMSE is the error the diagnosis tries to lower; the
-train RMSE, AIC and BIC are reported beside it.
+Everything after the columns are built works on per-block sums: the log is cut in
+contiguous time blocks (rows in order for a steady-state table) and each block keeps
+its Gram matrix X^T X, X^T y and y^T y. From these come, without another pass over
+the rows:
+
+* the fit itself (bounded least squares on the Cholesky factor of the Gram matrix,
+  ``scipy.optimize.lsq_linear``),
+* blocked cross-validation: the blocks are grouped in :data:`FOLDS` contiguous folds,
+  each fold is held out once and predicted by the fit to the others; the held-out
+  RMSE is the pooled error of those predictions, and every block has its own,
+* cluster-robust standard errors (the blocks are the clusters), so residuals that are
+  correlated in time (drift, coloured noise, a lag) do not make them too small,
+* identifiability: the variance inflation of each parameter, with a torque offset
+  always allowed for, on the whole log and with each fold left out.
 """
 
 from __future__ import annotations
@@ -24,17 +36,27 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.dyno.effects import Effect, Signals, get, requirements_missing
-from hound_id.errors import FitError
+from hound_id.errors import DynoDataError, FitError
 
 Array = NDArray[np.float64]
 
-#: Number of contiguous time blocks the log is cut into, and which of them are held out.
-BLOCKS = 10
-TEST_BLOCKS = (2, 7)
-#: Rows used to evaluate hyper-parameter candidates (a strided subset of the training rows).
+#: Largest number of contiguous time blocks (clusters of the robust standard errors).
+MAX_BLOCKS = 50
+#: Smallest number of rows in a block.
+MIN_BLOCK_ROWS = 25
+#: Number of cross-validation folds (contiguous groups of blocks), each held out once.
+FOLDS = 10
+#: Rows used to evaluate hyper-parameter candidates (a strided subset of the log).
 SEARCH_ROWS = 100_000
 #: Gauss-Newton iterations for the delay.
 DELAY_ITERATIONS = 12
+#: Half-width of the delay window [s]: a transducer filter or a bus adds milliseconds, not more.
+DELAY_WINDOW = 0.03
+#: Variance inflation beyond which the log cannot tell a parameter from the others (R^2 > 0.9999). The
+#: library's effects on a well-designed test stay below 1.5e3 (saturation family beside each other).
+VIF_MAX = 1.0e4
+#: Name of the torque offset the identifiability check always allows for.
+OFFSET = "a torque offset"
 
 
 @dataclass(frozen=True)
@@ -44,14 +66,54 @@ class Estimate:
     value: float
     """Value in SI units."""
     stderr: float
-    """Standard error (NaN where none is defined, e.g. an order found by search)."""
+    """Standard error, cluster-robust over time blocks (NaN where none is defined, e.g. an order found by search)."""
     unit: str
     """SI unit."""
     effect: str
     """Effect it belongs to."""
+    at_bound: bool = False
+    """Whether the value sits on a physical bound the unconstrained fit would cross."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"value": self.value, "stderr": None if math.isnan(self.stderr) else self.stderr, "unit": self.unit}
+        return {
+            "value": self.value,
+            "stderr": None if math.isnan(self.stderr) else self.stderr,
+            "unit": self.unit,
+            "at_bound": self.at_bound,
+        }
+
+
+@dataclass(frozen=True)
+class Blocks:
+    """How the rows are cut for cross-validation and robust errors."""
+
+    edges: NDArray[np.intp]
+    """Row index where each block starts, and the row count at the end (length blocks + 1)."""
+    fold: NDArray[np.intp]
+    """Fold of each block."""
+
+    @classmethod
+    def of(cls, n: int) -> Blocks:
+        count = max(2, min(MAX_BLOCKS, n // MIN_BLOCK_ROWS))
+        edges = (np.arange(count + 1) * n) // count
+        folds = min(FOLDS, count)
+        fold = (np.arange(count) * folds) // count
+        return cls(frozen(edges, dtype=np.intp), frozen(fold, dtype=np.intp))
+
+    @property
+    def count(self) -> int:
+        return int(self.edges.size - 1)
+
+    @property
+    def folds(self) -> int:
+        return int(self.fold.max()) + 1
+
+    def slices(self) -> list[slice]:
+        return [slice(int(a), int(b)) for a, b in zip(self.edges[:-1], self.edges[1:], strict=True)]
+
+    def rows_of_fold(self, k: int) -> slice:
+        idx = np.flatnonzero(self.fold == k)
+        return slice(int(self.edges[idx[0]]), int(self.edges[idx[-1] + 1]))
 
 
 @dataclass(frozen=True)
@@ -63,27 +125,42 @@ class FitResult:
     parameters: Mapping[str, Estimate]
     """Every linear and nonlinear parameter by name."""
     rmse_train: float
-    """Root-mean-square residual on the training rows [N m]."""
+    """Root-mean-square residual of the fit to every row [N m]."""
     rmse_test: float
-    """Root-mean-square residual on the held-out time blocks [N m]."""
+    """Cross-validated RMSE: every fold predicted by the fit to the others [N m]."""
     n_train: int
-    """Training rows."""
+    """Rows fitted (every row)."""
     n_test: int
-    """Held-out rows."""
+    """Rows held out once each (every row)."""
     aic: float
-    """Akaike information criterion on the training rows (Gaussian likelihood)."""
+    """Akaike information criterion (Gaussian likelihood, every row)."""
     bic: float
-    """Bayesian information criterion on the training rows."""
+    """Bayesian information criterion."""
     prediction: Array
     """Model torque for every row [N m]."""
     residual: Array
     """Measured minus model torque for every row [N m]."""
-    test: NDArray[np.bool_]
-    """Held-out rows."""
+    held_out: Array
+    """Measured minus the torque predicted by the fit without the row's fold [N m]."""
+    blocks: Blocks
+    """The time blocks and folds."""
+    block_rmse: Array
+    """Held-out RMSE of each block [N m]."""
+    fold_rmse_train: Array
+    """RMSE of each fold's fit on its own training rows [N m]."""
+    fold_rmse_test: Array
+    """RMSE of each fold's fit on the fold it holds out [N m]."""
     robust: bool = False
     """Whether Huber weights were used."""
     hypers: Mapping[str, float] = field(default_factory=dict)
     """Nonlinear parameter values (also in ``parameters``)."""
+    unphysical: Mapping[str, float] = field(default_factory=dict)
+    """Parameters held at a bound, with the value the unconstrained fit wanted."""
+
+    @property
+    def test(self) -> NDArray[np.bool_]:
+        """Held-out rows: every row (each in its own fold)."""
+        return np.ones(self.residual.shape[0], dtype=bool)
 
     def value(self, name: str) -> float:
         """A parameter value, 0 if the model lacks it."""
@@ -95,39 +172,116 @@ class FitResult:
         return {k: v.value for k, v in self.parameters.items()}
 
 
-def time_blocked_split(n: int) -> NDArray[np.bool_]:
-    """Held-out mask: blocks :data:`TEST_BLOCKS` of :data:`BLOCKS` contiguous blocks."""
-    block = np.minimum((np.arange(n) * BLOCKS) // max(n, 1), BLOCKS - 1)
-    return np.isin(block, TEST_BLOCKS)
+# ---------------------------------------------------------------------------------------------
+# Per-block sums and what comes from them
 
 
-class Design:
-    """Builds regressor columns for a model on a log and solves least-squares problems on it."""
+class Stats:
+    """Per-block Gram matrices of a design Z (n, p) and torque y.
 
-    def __init__(self, signals: Signals, torque: Array, test: NDArray[np.bool_] | None = None) -> None:
-        self.signals = signals
-        self.torque = np.asarray(torque, float)
-        n = self.torque.shape[0]
-        if n < 20:
-            raise FitError(f"only {n} rows; a fit needs at least 20")
-        self.test = time_blocked_split(n) if test is None else test
-        self.train = ~self.test
-        stride = max(1, int(self.train.sum()) // SEARCH_ROWS)
-        self.search = np.flatnonzero(self.train)[::stride]
+    Column 0 is always a column of ones (a virtual torque offset for the identifiability
+    check; the model's own columns follow).
+    """
 
-    def columns(self, model: Sequence[str], hypers: Mapping[str, float], signals: Signals | None = None) -> Array:
-        """Regressor matrix (n, p) of the model's linear parameters."""
-        s = self.signals if signals is None else signals
-        blocks = [get(name).columns(s, hypers) for name in model]
-        n = s.current.shape[0]
-        return np.hstack(blocks) if blocks else np.empty((n, 0))
+    def __init__(self, Z: Array, y: Array, blocks: Blocks, weights: Array | None = None) -> None:
+        self.blocks = blocks
+        count, p = blocks.count, Z.shape[1]
+        self.G = np.empty((count, p, p))
+        self.g = np.empty((count, p))
+        self.yy = np.empty(count)
+        for c, s in enumerate(blocks.slices()):
+            Zc, yc = Z[s], y[s]
+            if weights is not None:
+                Zw = Zc * weights[s, None]
+                self.G[c], self.g[c], self.yy[c] = Zw.T @ Zc, Zw.T @ yc, float((weights[s] * yc) @ yc)
+            else:
+                self.G[c], self.g[c], self.yy[c] = Zc.T @ Zc, Zc.T @ yc, float(yc @ yc)
+
+    @classmethod
+    def extended(cls, base: Stats, Z: Array, C: Array, y: Array) -> Stats:
+        """Stats of [Z, C] from those of Z: only the new cross-products are computed."""
+        out = cls.__new__(cls)
+        out.blocks = base.blocks
+        count, p, q = base.blocks.count, Z.shape[1], C.shape[1]
+        out.G = np.empty((count, p + q, p + q))
+        out.g = np.empty((count, p + q))
+        out.yy = base.yy
+        out.G[:, :p, :p] = base.G
+        out.g[:, :p] = base.g
+        for c, s in enumerate(base.blocks.slices()):
+            Cc = C[s]
+            ZC = Z[s].T @ Cc
+            out.G[c, :p, p:] = ZC
+            out.G[c, p:, :p] = ZC.T
+            out.G[c, p:, p:] = Cc.T @ Cc
+            out.g[c, p:] = Cc.T @ y[s]
+        return out
+
+    def total(self, cols: Sequence[int], use: NDArray[np.bool_] | None = None) -> tuple[Array, Array, float]:
+        """Summed (G, g, y^T y) over the blocks in ``use`` (all by default), restricted to ``cols``."""
+        ix = np.asarray(cols, dtype=np.intp)
+        sel = slice(None) if use is None else use
+        G = self.G[sel].sum(axis=0)[np.ix_(ix, ix)]
+        g = self.g[sel].sum(axis=0)[ix]
+        return G, g, float(self.yy[sel].sum())
+
+    def sse(self, cols: Sequence[int], beta: Array) -> Array:
+        """Residual sum of squares of every block for coefficients ``beta`` on ``cols``."""
+        ix = np.asarray(cols, dtype=np.intp)
+        G = self.G[:, ix][:, :, ix]
+        g = self.g[:, ix]
+        out = self.yy - 2.0 * (g @ beta) + np.einsum("i,cij,j->c", beta, G, beta)
+        return np.maximum(out, 0.0)  # type: ignore[no-any-return]
+
+    def scores(self, cols: Sequence[int], beta: Array) -> Array:
+        """Per-block score X_c^T r_c (blocks, len(cols))."""
+        ix = np.asarray(cols, dtype=np.intp)
+        return self.g[:, ix] - np.einsum("cij,j->ci", self.G[:, ix][:, :, ix], beta)  # type: ignore[no-any-return]
+
+
+@dataclass(frozen=True)
+class CrossValidation:
+    """Blocked cross-validation from per-block sums."""
+
+    block_sse: Array
+    """Held-out residual sum of squares of every block [N m^2]."""
+    fold_rmse_train: Array
+    """RMSE of each fold's fit on its training rows [N m]."""
+    fold_rmse_test: Array
+    """RMSE of each fold's fit on its held-out rows [N m]."""
+    betas: list[Array]
+    """Each fold's coefficients."""
+
+    @property
+    def sse(self) -> float:
+        return float(self.block_sse.sum())
+
+
+def cross_validate(fit_stats: Stats, stats: Stats, cols: Sequence[int], lower: Array, upper: Array) -> CrossValidation:
+    """Hold out each fold once, fit the others (``fit_stats``, possibly weighted) within bounds, score on ``stats``."""
+    blocks = stats.blocks
+    rows = np.diff(blocks.edges)
+    n = int(rows.sum())
+    block_sse = np.empty(blocks.count)
+    train, test, betas = np.empty(blocks.folds), np.empty(blocks.folds), []
+    for k in range(blocks.folds):
+        inside = blocks.fold == k
+        Gk, gk, _ = fit_stats.total(cols, ~inside)
+        beta_k, _ = solve_bounded(Gk, gk, lower, upper)
+        sse = stats.sse(cols, beta_k)
+        block_sse[inside] = sse[inside]
+        n_in = int(rows[inside].sum())
+        test[k] = math.sqrt(float(sse[inside].sum()) / max(n_in, 1))
+        train[k] = math.sqrt(float(sse[~inside].sum()) / max(n - n_in, 1))
+        betas.append(beta_k)
+    return CrossValidation(block_sse, train, test, betas)
 
 
 def solve_normal(G: Array, g: Array) -> tuple[Array, Array]:
     """Solve the normal equations G beta = g with diagonal scaling; returns (beta, G^-1)."""
     if G.shape[0] == 0:
         return np.empty(0), np.empty((0, 0))
-    d = np.sqrt(np.diag(G))
+    d = np.sqrt(np.maximum(np.diag(G), 0.0))
     d[d <= 1e-150 + 1e-12 * max(float(d.max()), 1e-300)] = 1.0  # (near-)empty column: leave it to pinv
     Gs = G / np.outer(d, d)
     try:
@@ -140,6 +294,202 @@ def solve_normal(G: Array, g: Array) -> tuple[Array, Array]:
     return beta / d, G_inv / np.outer(d, d)
 
 
+def solve_bounded(G: Array, g: Array, lower: Array, upper: Array) -> tuple[Array, NDArray[np.bool_]]:
+    """Least squares from normal equations within bounds; returns (beta, which bounds are active).
+
+    The unconstrained solution is kept when it is inside the bounds; otherwise the problem
+    min |R beta - R^-T g|^2 (R the Cholesky factor of the scaled Gram matrix, the same
+    objective up to a constant) is solved by bounded-variable least squares.
+    """
+    beta, _ = solve_normal(G, g)
+    p = beta.size
+    if p == 0 or (np.all(beta >= lower) and np.all(beta <= upper)):
+        return beta, np.zeros(p, dtype=bool)
+    from scipy.linalg import cho_factor, solve_triangular
+    from scipy.optimize import lsq_linear
+
+    d = np.sqrt(np.maximum(np.diag(G), 0.0))
+    d[d <= 1e-150 + 1e-12 * max(float(d.max()), 1e-300)] = 1.0
+    Gs = G / np.outer(d, d)
+    jitter = 1e-12 * max(float(np.trace(Gs)) / p, 1e-300)
+    R, _ = cho_factor(Gs + jitter * np.eye(p), lower=False)
+    R = np.triu(R)
+    b = solve_triangular(R, g / d, trans="T", lower=False)
+    res = lsq_linear(R, b, bounds=(lower * d, upper * d), method="bvls")
+    active = np.asarray(res.active_mask) != 0
+    x = np.clip(res.x / d, lower, upper)
+    x[active] = np.where(np.asarray(res.active_mask)[active] < 0, lower[active], upper[active])
+    return x, active
+
+
+def robust_cov(stats: Stats, cols: Sequence[int], beta: Array, free: NDArray[np.bool_]) -> Array:
+    """Cluster-robust covariance of the free coefficients (blocks as clusters, small-sample corrected).
+
+    Zero rows and columns for coefficients held at a bound.
+    """
+    p = len(cols)
+    cov = np.zeros((p, p))
+    idx = np.flatnonzero(free)
+    if idx.size == 0:
+        return cov
+    G, _, _ = stats.total(cols)
+    _, G_inv = solve_normal(G[np.ix_(idx, idx)], np.zeros(idx.size))
+    S = stats.scores(cols, beta)[:, idx]
+    count = S.shape[0]
+    meat = S.T @ S * (count / max(count - 1, 1))
+    cov[np.ix_(idx, idx)] = G_inv @ meat @ G_inv
+    return cov
+
+
+def vif(G: Array) -> tuple[Array, Array]:
+    """Variance inflation of each column of a Gram matrix, and the normalised inverse (for partners).
+
+    Uncentred (the columns are compared as they enter the model); a zero column gets inf.
+    """
+    d = np.sqrt(np.maximum(np.diag(G), 0.0))
+    dead = d <= 1e-300
+    d[dead] = 1.0
+    Gs = G / np.outer(d, d)
+    w, V = np.linalg.eigh(Gs)
+    w = np.maximum(w, max(float(w[-1]), 1e-300) * 1e-16)
+    inv = (V / w) @ V.T
+    out = np.diag(inv).copy()
+    out[dead] = np.inf
+    return out, inv
+
+
+@dataclass(frozen=True)
+class Unidentified:
+    """A parameter the log cannot tell from another."""
+
+    parameter: str
+    """The parameter."""
+    partner: str
+    """What it cannot be told from (a parameter, or :data:`OFFSET`)."""
+    vif: float
+    """Its worst variance inflation (whole log, or one fold left out)."""
+    why: str
+    """The reason in the log's terms, and what to record instead."""
+
+    def sentence(self) -> str:
+        return f"this log cannot tell {self.parameter} from {self.partner}: {self.why}"
+
+
+def _why(a: str, b: str, signals: Signals, vif_value: float) -> str:
+    """The physical reason two parameters cannot be told apart on this log, and what to record."""
+    pair = {a, b}
+    i = signals.current
+    friction = {"coulomb", "stribeck", "viscous"}
+    curve = {"kt", "k_sat", "k_sat3", "k_knee", "offset", OFFSET}
+    mean, std = float(np.mean(i)), float(np.std(i))
+    if pair <= curve and std < 0.1 * max(abs(mean), 1e-300):
+        return (
+            f"the current hardly varies ({mean:.3g} +- {std:.2g} A), so torque per amp cannot be told from a constant "
+            "torque; vary the current: record a current sweep over both signs"
+        )
+    if "gear_friction" in pair and signals.velocity is not None:
+        quadrant = np.sign(i * signals.velocity)
+        moving = quadrant[quadrant != 0]
+        share = float(np.mean(moving > 0)) if moving.size else 1.0
+        if share > 0.95 or share < 0.05:
+            kind = "motoring" if share > 0.5 else "braking"
+            return (
+                f"current and speed keep one sign relative to each other ({max(share, 1 - share):.0%} of the rows "
+                f"{kind}), so friction that grows with load looks like a change of Kt; record both motoring and "
+                "braking (all four quadrants)"
+            )
+    if pair & friction and (OFFSET in pair or "offset" in pair) and signals.velocity is not None:
+        w = signals.velocity
+        share = float(np.mean(w > 0))
+        return (
+            f"the speed keeps one sign ({max(share, 1 - share):.0%} of the rows), so friction that opposes motion "
+            "looks like a sensor offset; record both directions of rotation"
+        )
+    return (
+        f"their regressors are nearly collinear on this log (variance inflation {vif_value:.2g}, above "
+        f"{VIF_MAX:.0g}); vary the current and the speed more widely"
+    )
+
+
+def identifiability(stats: Stats, cols: Sequence[int], names: Sequence[str], signals: Signals) -> list[Unidentified]:
+    """Parameters among ``cols`` this log cannot estimate, with the reason.
+
+    A parameter is identified when its variance inflation stays below :data:`VIF_MAX`
+    on the whole log and with any one fold left out (a handful of rows must not be all
+    that separates two parameters). A torque offset (column 0) is always allowed for,
+    unless the model has its own.
+    """
+    with_offset = "offset" not in names
+    check = [0, *cols] if with_offset else list(cols)
+    labels = [OFFSET, *names] if with_offset else list(names)
+    uses = [np.ones(stats.blocks.count, dtype=bool)] + [
+        stats.blocks.fold != k for k in range(stats.blocks.folds) if stats.blocks.folds > 2
+    ]
+    worst = np.zeros(len(check))
+    worst_inv: Array | None = None
+    for use in uses:
+        G, _, _ = stats.total(check, use)
+        v, inv = vif(G)
+        if worst_inv is None or float(np.max(v)) > float(np.max(worst)):
+            worst_inv = inv
+        worst = np.maximum(worst, v)
+    out: list[Unidentified] = []
+    seen: set[frozenset[str]] = set()
+    assert worst_inv is not None
+    # Kt first: when it is lost, that is the news, whatever else goes with it.
+    order = sorted(range(len(labels)), key=lambda j: (labels[j] != "kt", -worst[j]))
+    for j in order:
+        if worst[j] <= VIF_MAX or labels[j] == OFFSET:
+            continue
+        corr = np.abs(worst_inv[j]) / np.sqrt(np.abs(np.diag(worst_inv)) * abs(worst_inv[j, j]) + 1e-300)
+        corr[j] = -1.0
+        k = int(np.argmax(corr))
+        key = frozenset((labels[j], labels[k]))
+        if key in seen:
+            continue
+        seen.add(key)
+        out.append(Unidentified(labels[j], labels[k], float(worst[j]), _why(labels[j], labels[k], signals, worst[j])))
+    return out
+
+
+# ---------------------------------------------------------------------------------------------
+# Building and searching
+
+
+class Design:
+    """A log with its blocks: builds regressor columns and the search rows."""
+
+    def __init__(self, signals: Signals, torque: Array) -> None:
+        self.signals = signals
+        self.torque = np.asarray(torque, float)
+        n = self.torque.shape[0]
+        if n < 20:
+            raise FitError(f"only {n} rows; a fit needs at least 20")
+        self.blocks = Blocks.of(n)
+        stride = max(1, n // SEARCH_ROWS)
+        self.search = np.arange(0, n, stride)
+
+    def columns(self, model: Sequence[str], hypers: Mapping[str, float], signals: Signals | None = None) -> Array:
+        """Regressor matrix (n, p) of the model's linear parameters."""
+        s = self.signals if signals is None else signals
+        blocks = [get(name).columns(s, hypers) for name in model]
+        n = s.current.shape[0]
+        return np.hstack(blocks) if blocks else np.empty((n, 0))
+
+    def with_ones(self, X: Array) -> Array:
+        return np.hstack([np.ones((X.shape[0], 1)), X])
+
+
+def parameters_of(model: Sequence[str]) -> list[tuple[Effect, Any]]:
+    """(effect, parameter) of every linear parameter of a model, in column order."""
+    return [(e, p) for e in (get(m) for m in model) for p in e.parameters]
+
+
+def bounds_of(model: Sequence[str]) -> tuple[Array, Array]:
+    params = parameters_of(model)
+    return np.array([p.lower for _, p in params], float), np.array([p.upper for _, p in params], float)
+
+
 def solve(X: Array, y: Array, weights: Array | None = None) -> tuple[Array, Array]:
     """Least squares of y on X (optionally weighted): returns (beta, inverse of X^T W X)."""
     if X.shape[1] == 0:
@@ -148,57 +498,6 @@ def solve(X: Array, y: Array, weights: Array | None = None) -> tuple[Array, Arra
         Xw = X * weights[:, None]
         return solve_normal(Xw.T @ X, Xw.T @ y)
     return solve_normal(X.T @ X, X.T @ y)
-
-
-class Normal:
-    """Normal equations of y on X over some rows, so extra columns cost only their cross-products.
-
-    The rows are given as contiguous slices (time blocks), so nothing is copied.
-    """
-
-    def __init__(self, X: Array, y: Array, rows: Sequence[slice] | None = None) -> None:
-        self.X, self.y = X, y
-        self.rows = [slice(None)] if rows is None else list(rows)
-        self.G = sum((X[r].T @ X[r] for r in self.rows), np.zeros((X.shape[1], X.shape[1])))
-        self.g = sum((X[r].T @ y[r] for r in self.rows), np.zeros(X.shape[1]))
-        self.yy = float(sum(y[r] @ y[r] for r in self.rows))
-
-    def extend(self, C: Array) -> tuple[Array, float]:
-        """Coefficients on [X, C] and the residual sum of squares over these rows (C: all rows of X)."""
-        G, g = self._blocks(C)
-        beta, _ = solve_normal(G, g)
-        return beta, self._rss(beta, G, g)
-
-    def sse(self, beta: Array, C: Array) -> float:
-        """Residual sum of squares over these rows for coefficients fitted elsewhere."""
-        G, g = self._blocks(C)
-        return self._rss(beta, G, g)
-
-    def _blocks(self, C: Array) -> tuple[Array, Array]:
-        if C.shape[1] == 0:
-            return self.G, self.g
-        p, q = self.X.shape[1], C.shape[1]
-        XC, CC, Cy = np.zeros((p, q)), np.zeros((q, q)), np.zeros(q)
-        for r in self.rows:
-            Cr = C[r]
-            XC += self.X[r].T @ Cr
-            CC += Cr.T @ Cr
-            Cy += Cr.T @ self.y[r]
-        return np.block([[self.G, XC], [XC.T, CC]]), np.concatenate([self.g, Cy])
-
-    def _rss(self, beta: Array, G: Array, g: Array) -> float:
-        return max(self.yy - 2.0 * float(beta @ g) + float(beta @ G @ beta), 0.0)
-
-
-def mask_slices(mask: NDArray[np.bool_]) -> list[slice]:
-    """The contiguous runs of True in a mask, as slices."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    return [slice(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
-def rss_with(base: Array, extra: Array, y: Array) -> float:
-    """Residual sum of squares of y on [base, extra]."""
-    return Normal(base, y).extend(extra)[1]
 
 
 def _huber_weights(r: Array, k: float = 1.345) -> Array:
@@ -210,14 +509,14 @@ def _huber_weights(r: Array, k: float = 1.345) -> Array:
 
 
 def search_hyper(
-    design: Design, effect: Effect, base: Normal, signals: Signals, residual: Array, hypers: Mapping[str, float]
+    effect: Effect, base: Array, y: Array, signals: Signals, residual: Array, hypers: Mapping[str, float]
 ) -> tuple[dict[str, float], int]:
     """Best value of an effect's nonlinear parameter on the search rows.
 
     Args:
-        design: The log.
         effect: The effect whose hyper is searched.
-        base: Normal equations of the rest of the model on the search rows.
+        base: Columns of the rest of the model on the search rows.
+        y: Torque on the search rows.
         signals: Signals (already delay-shifted) on the search rows.
         residual: Residual of the rest of the model on the search rows.
         hypers: Values of the other nonlinear parameters.
@@ -237,11 +536,17 @@ def search_hyper(
         raise FitError(
             f"effect '{effect.name}': the log gives no candidate for '{hyper.name}' (too little rotation or excitation)"
         )
+    G0, g0, yy = base.T @ base, base.T @ y, float(y @ y)
 
     def cost(value: float) -> float:
         trial = dict(hypers)
         trial[hyper.name] = float(value)
-        return base.extend(effect.columns(signals, trial))[1]
+        C = effect.columns(signals, trial)
+        BC = base.T @ C
+        G = np.block([[G0, BC], [BC.T, C.T @ C]])
+        g = np.concatenate([g0, C.T @ y])
+        beta, _ = solve_normal(G, g)
+        return max(yy - 2.0 * float(beta @ g) + float(beta @ G @ beta), 0.0)
 
     costs = np.array([cost(v) for v in candidates])
     best = int(np.argmin(costs))
@@ -264,13 +569,19 @@ def search_hyper(
 
 def _channels(model: Sequence[str]) -> tuple[str, ...]:
     """Channels the model's effects read (current is always kept)."""
-    return tuple(sorted({c for m in model for c in get(m).requires}))
+    return tuple(sorted({c for m in model for c in get(m).requires if c != "time"}))
+
+
+def delay_window(signals: Signals) -> float:
+    """Largest |delay| the fit accepts [s]: :data:`DELAY_WINDOW`, or two samples on a slow log."""
+    dt = float(np.median(np.diff(signals.time))) if signals.time.size > 1 else 0.0
+    return max(DELAY_WINDOW, 2.0 * dt)
 
 
 def _delay_step(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float
 ) -> tuple[float, float, float]:
-    """Gauss-Newton step for the delay on the search rows: (step [s], its stderr [s], RSS at ``delay``)."""
+    """Gauss-Newton step for the delay on the search rows: (step [s], its robust stderr [s], RSS at ``delay``)."""
     rows = design.search
     shifted = design.signals.shifted(delay, rows, _channels(model))
     X = design.columns([m for m in model if m != "delay"], hypers, shifted)
@@ -281,32 +592,36 @@ def _delay_step(
     # d/dt of the model torque; a positive step means the channel lags more than assumed.
     rate = np.gradient(pred, shifted.time)
     Z = np.column_stack([X, -rate])
-    beta2, cov = solve(Z, y)
-    r = y - Z @ beta2
-    dof = max(rows.size - Z.shape[1], 1)
-    sigma2 = float(r @ r) / dof
-    return float(beta2[-1]), math.sqrt(max(sigma2 * cov[-1, -1], 0.0)), float(r0 @ r0)
+    stats = Stats(Z, y, Blocks.of(rows.size))
+    G, g, _ = stats.total(range(Z.shape[1]))
+    beta2, _ = solve_normal(G, g)
+    cov = robust_cov(stats, range(Z.shape[1]), beta2, np.ones(Z.shape[1], dtype=bool))
+    return float(beta2[-1]), math.sqrt(max(float(cov[-1, -1]), 0.0)), float(r0 @ r0)
 
 
 def _delay_rss(design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float) -> float:
     rows = design.search
     shifted = design.signals.shifted(delay, rows, _channels(model))
     X = design.columns([m for m in model if m != "delay"], hypers, shifted)
-    return rss_with(X, np.empty((rows.size, 0)), design.torque[rows])
+    y = design.torque[rows]
+    beta, _ = solve(X, y)
+    r = y - X @ beta
+    return float(r @ r)
 
 
 def estimate_delay(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], start: float = 0.0
 ) -> tuple[float, float]:
-    """Delay of the torque channel [s] and its standard error.
+    """Delay of the torque channel behind the current channel [s] and its (robust) standard error.
 
     Gauss-Newton on the time shift gives the direction; a line search on the residual
-    sum of squares (steps x1, x2, x4, ... and halving) takes it as far as it pays. Near
-    the answer the linearisation is good and the steps converge quickly; far from it
-    (fast current edges, a delay of several samples) the line search keeps it moving.
+    sum of squares (steps x1, x2, x4, ... and halving) takes it as far as it pays. The
+    search stays within +-1.5 x :func:`delay_window`, so a value at that edge shows
+    the log asks for more than the window.
     """
     delay, stderr = start, float("nan")
     dt = float(np.median(np.diff(design.signals.time)))
+    reach = 1.5 * delay_window(design.signals)
     for _ in range(DELAY_ITERATIONS):
         step, stderr, rss0 = _delay_step(design, model, hypers, delay)
         if abs(step) < 1e-3 * dt:
@@ -314,17 +629,21 @@ def estimate_delay(
         best, best_rss = delay, rss0
         factor = 1.0
         while factor <= 64:
-            trial = _delay_rss(design, model, hypers, delay + factor * step)
+            target = float(np.clip(delay + factor * step, -reach, reach))
+            trial = _delay_rss(design, model, hypers, target)
             if trial >= best_rss:
                 break
-            best, best_rss = delay + factor * step, trial
+            best, best_rss = target, trial
+            if abs(target) >= reach:
+                break
             factor *= 2
         if best == delay:  # the full step overshoots: halve it until it helps
             factor = 0.5
             while factor > 1e-3:
-                trial = _delay_rss(design, model, hypers, delay + factor * step)
+                target = float(np.clip(delay + factor * step, -reach, reach))
+                trial = _delay_rss(design, model, hypers, target)
                 if trial < best_rss:
-                    best, best_rss = delay + factor * step, trial
+                    best, best_rss = target, trial
                     break
                 factor /= 2
         if best == delay:
@@ -333,38 +652,49 @@ def estimate_delay(
     return delay, stderr
 
 
-def fit_model(
-    signals: Signals,
-    torque: Array,
-    model: Sequence[str],
-    *,
-    robust: bool = False,
-    test: NDArray[np.bool_] | None = None,
-    hypers: Mapping[str, float] | None = None,
-) -> FitResult:
-    """Fit a model (sequence of effect names) to a log.
-
-    Args:
-        signals: Input channels.
-        torque: Measured torque [N m].
-        model: Effect names; ``linear`` is normally first.
-        robust: Use Huber weights (iteratively reweighted least squares).
-        test: Held-out mask (default: time blocks, :func:`time_blocked_split`).
-        hypers: Nonlinear parameter values to use instead of searching.
-
-    Raises:
-        FitError: Unknown effect, a channel it needs is missing, or too few rows.
-    """
+def _check_model(model: Sequence[str], signals: Signals) -> list[Effect]:
     effects = [get(name) for name in model]
     for e in effects:
         missing = requirements_missing(e, signals)
+        if missing == ["time"]:
+            raise FitError(
+                f"effect '{e.name}' needs sample times, and this log is a steady-state table (no time column); "
+                f"leave '{e.name}' out, or map a time column with --columns time=<column>",
+                effect=e.name,
+            )
         if missing:
             raise FitError(
                 f"effect '{e.name}' needs the {', '.join(missing)} channel, which the log lacks; "
                 f"map it with --columns {missing[0]}=<column> or leave '{e.name}' out",
                 effect=e.name,
             )
-    design = Design(signals, torque, test)
+    return effects
+
+
+def fit_model(
+    signals: Signals,
+    torque: Array,
+    model: Sequence[str],
+    *,
+    robust: bool = False,
+    hypers: Mapping[str, float] | None = None,
+) -> FitResult:
+    """Fit a model (sequence of effect names) to a log, within the parameters' physical bounds.
+
+    Args:
+        signals: Input channels.
+        torque: Measured torque [N m].
+        model: Effect names; ``linear`` is normally first.
+        robust: Use Huber weights (iteratively reweighted least squares).
+        hypers: Nonlinear parameter values to use instead of searching.
+
+    Raises:
+        FitError: Unknown effect, a channel it needs is missing, too few rows, or the log
+            cannot identify a parameter of the model (the message says which and why).
+        DynoDataError: The fitted torque constant is negative (a reversed torque sensor).
+    """
+    effects = _check_model(model, signals)
+    design = Design(signals, torque)
     fixed = dict(hypers or {})
     delay_stderr = float("nan")
     linear_names = [
@@ -383,17 +713,31 @@ def fit_model(
     sub = shifted.take(rows)
     for e in searched:
         base = design.columns(base_names, current, sub)
-        normal = Normal(base, torque[rows])
-        beta, _ = solve_normal(normal.G, normal.g)
-        value, _ = search_hyper(design, e, normal, sub, torque[rows] - base @ beta, current)
+        beta, _ = solve(base, torque[rows])
+        value, _ = search_hyper(e, base, torque[rows], sub, torque[rows] - base @ beta, current)
         current.update(value)
         base_names.append(e.name)
     if has_delay and "delay" not in fixed and searched:
         delay, delay_stderr = estimate_delay(design, [m for m in model if m != "delay"], current, start=delay)
         current["delay"] = delay
         shifted = signals.shifted(delay)
+    if has_delay and abs(delay) > delay_window(signals):
+        raise FitError(
+            f"the delay fits only at {1e3 * delay:+.3g} ms, outside the +-{1e3 * delay_window(signals):.3g} ms a "
+            "transducer filter or a bus can explain; check the time column's unit (--units time=ms) or leave "
+            "'delay' out",
+            delay=delay,
+        )
     X = design.columns([m for m in model if m != "delay"], current, shifted)
     return _finish(design, model, effects, X, current, has_delay, delay_stderr, robust)
+
+
+def reversed_sensor_error(kt: float) -> DynoDataError:
+    return DynoDataError(
+        f"the fitted torque constant is negative (Kt = {kt:.4g} N m/A): torque falls as current rises; the torque "
+        "sensor (or the current's sign) looks reversed: rerun with --flip-torque, or without it if you gave it",
+        kt=kt,
+    )
 
 
 def _finish(
@@ -406,70 +750,106 @@ def _finish(
     delay_stderr: float,
     robust: bool,
 ) -> FitResult:
-    tr, te = design.train, design.test
     y = design.torque
-    _check_identifiable(X[tr], model, effects)
+    n = y.size
+    p = X.shape[1]
+    names = [par.name for _, par in parameters_of(model)]
+    Z = design.with_ones(X)
+    stats = Stats(Z, y, design.blocks)
+    cols = list(range(1, p + 1))
+    _refuse_unidentified(stats, cols, model, design.signals)
+    lower, upper = bounds_of(model)
+    G, g, _ = stats.total(cols)
+    free_beta, _ = solve_normal(G, g)
+    if "kt" in names and free_beta[names.index("kt")] <= 0:
+        raise reversed_sensor_error(float(free_beta[names.index("kt")]))
+    beta, active = solve_bounded(G, g, lower, upper)
+    solve_stats = stats
     weights = None
-    beta, cov_unit = solve(X[tr], y[tr])
     if robust:
         for _ in range(8):
-            weights = _huber_weights(y[tr] - X[tr] @ beta)
-            beta, cov_unit = solve(X[tr], y[tr], weights)
+            weights = _huber_weights(y - X @ beta)
+            solve_stats = Stats(Z, y, design.blocks, weights)
+            Gw, gw, _ = solve_stats.total(cols)
+            beta, active = solve_bounded(Gw, gw, lower, upper)
     pred = X @ beta
     resid = y - pred
-    n_tr, n_te = int(tr.sum()), int(te.sum())
-    rss = float(resid[tr] @ resid[tr])
-    k = X.shape[1] + sum(len(e.hypers) for e in effects)
-    dof = max(n_tr - X.shape[1], 1)
-    sigma2 = (float((weights * resid[tr] ** 2).sum()) if weights is not None else rss) / dof
-    stderr = np.sqrt(np.maximum(np.diag(cov_unit) * sigma2, 0.0))
+    rss = float(resid @ resid)
+    blocks = design.blocks
+    cv = cross_validate(solve_stats, stats, cols, lower, upper)
+    block_sse = cv.block_sse
+    held_out = np.empty(n)
+    for k, beta_k in enumerate(cv.betas):
+        s = blocks.rows_of_fold(k)
+        held_out[s] = y[s] - X[s] @ beta_k
+    fold_train, fold_test = cv.fold_rmse_train, cv.fold_rmse_test
+    rmse_cv = math.sqrt(float(block_sse.sum()) / n)
+    # robust standard errors, never below the classical ones
+    free = ~active
+    cov = robust_cov(solve_stats, cols, beta, free)
+    dof = max(n - int(free.sum()), 1)
+    sigma2 = (float((weights * resid**2).sum()) if weights is not None else rss) / dof
+    classic = np.zeros(p)
+    if free.any():
+        Gf, _, _ = solve_stats.total([c for c, f in zip(cols, free, strict=True) if f])
+        _, Ginv = solve_normal(Gf, np.zeros(Gf.shape[0]))
+        classic[free] = np.diag(Ginv) * sigma2
+    stderr = np.sqrt(np.maximum(np.maximum(np.diag(cov), classic), 0.0))
+    unphysical: dict[str, float] = {}
     params: dict[str, Estimate] = {}
     col = 0
     for e in effects:
-        for p in e.parameters:
-            params[p.name] = Estimate(float(beta[col]), float(stderr[col]), p.unit, e.name)
+        for par in e.parameters:
+            at = bool(active[col])
+            if at:
+                unphysical[par.name] = float(free_beta[col])
+            params[par.name] = Estimate(float(beta[col]), float(stderr[col]), par.unit, e.name, at)
             col += 1
         for h in e.hypers:
             err = delay_stderr if h.name == "delay" else float("nan")
             params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name)
-    loglik_term = n_tr * math.log(max(rss / max(n_tr, 1), 1e-300))
+    k_all = p + sum(len(e.hypers) for e in effects)
+    loglik_term = n * math.log(max(rss / max(n, 1), 1e-300))
     return FitResult(
         model=tuple(model),
         parameters=params,
-        rmse_train=math.sqrt(rss / max(n_tr, 1)),
-        rmse_test=math.sqrt(float(resid[te] @ resid[te]) / max(n_te, 1)),
-        n_train=n_tr,
-        n_test=n_te,
-        aic=loglik_term + 2 * k,
-        bic=loglik_term + k * math.log(max(n_tr, 1)),
+        rmse_train=math.sqrt(rss / max(n, 1)),
+        rmse_test=rmse_cv,
+        n_train=n,
+        n_test=n,
+        aic=loglik_term + 2 * k_all,
+        bic=loglik_term + k_all * math.log(max(n, 1)),
         prediction=frozen(pred),
         residual=frozen(resid),
-        test=frozen(te, dtype=bool),
+        held_out=frozen(held_out),
+        blocks=blocks,
+        block_rmse=frozen(np.sqrt(block_sse / np.maximum(np.diff(blocks.edges), 1))),
+        fold_rmse_train=frozen(fold_train),
+        fold_rmse_test=frozen(fold_test),
         robust=robust,
         hypers={h.name: float(hypers.get(h.name, 0.0)) for e in effects for h in e.hypers},
+        unphysical=unphysical,
     )
 
 
-def _check_identifiable(X: Array, model: Sequence[str], effects: list[Effect]) -> None:
-    """Refuse a fit whose columns the log cannot tell apart (constant current, zero current, ...)."""
-    names = [f"{e.name}:{p.name}" for e in effects for p in e.parameters]
-    G = X.T @ X
-    norms = np.sqrt(np.diag(G))
-    for k, value in enumerate(norms):
-        if value == 0.0:
+def _refuse_unidentified(stats: Stats, cols: Sequence[int], model: Sequence[str], signals: Signals) -> None:
+    """Refuse a fit whose parameters the log cannot tell apart (constant current, one quadrant, ...)."""
+    owners = {par.name: e.name for e, par in parameters_of(model)}
+    names = list(owners)
+    G, _, _ = stats.total(cols)
+    for k, name in enumerate(names):
+        if G[k, k] == 0.0:
             raise FitError(
-                f"the log gives '{names[k]}' nothing to fit (its regressor is zero on every training row); "
+                f"the log gives '{name}' nothing to fit (its regressor is zero on every row); "
                 "vary the current (both signs) and the speed, or leave that effect out",
-                parameter=names[k],
+                parameter=name,
             )
-    # Singular values of the column-normalised X are the square roots of the normalised Gram's eigenvalues.
-    eigval, eigvec = np.linalg.eigh(G / np.outer(norms, norms))
-    smallest, largest = max(float(eigval[0]), 0.0), float(eigval[-1])
-    if smallest < 1e-12 * largest:
-        involved = [names[k] for k in np.argsort(np.abs(eigvec[:, 0]))[::-1][:2]]
+    problems = identifiability(stats, cols, names, signals)
+    if problems:
+        first = problems[0]
         raise FitError(
-            f"the log cannot tell {involved[0]} from {involved[1]} (their regressors are collinear, "
-            f"condition {np.sqrt(largest / max(smallest, 1e-300)):.2g}); the test must vary the current over a range "
-            "of both signs (and the speed, for friction terms)",
-            parameters=involved,
+            f"{first.sentence()}; no value is reported for {first.parameter} (leave out '{owners[first.parameter]}' "
+            "or record what is named)",
+            parameters=[first.parameter, first.partner],
+            vif=first.vif,
         )

@@ -12,7 +12,10 @@ from hound_id.dyno.effects import Signals
 from hound_id.dyno.fit import Array, FitResult
 
 if TYPE_CHECKING:  # pragma: no cover
+    from matplotlib.axes import Axes
     from matplotlib.figure import Figure
+
+    from hound_id.dyno.diagnose import Diagnosis
 
 #: Points drawn per scatter (the log is subsampled evenly beyond this).
 MAX_POINTS = 15_000
@@ -37,6 +40,7 @@ def plot_fit(
     peak: PeakTorque,
     residuals: Sequence[tuple[str, FitResult]] = (),
     cogging_order: float | None = None,
+    diagnosis: Diagnosis | None = None,
 ) -> Figure:
     """Torque against current with the fit, and residual panels comparing fits.
 
@@ -48,14 +52,37 @@ def plot_fit(
         residuals: (label, fit) pairs whose residuals are compared in the panels, e.g.
             ("before: linear+saturation", start) and ("after: ...", final). Default: ``fit`` alone.
         cogging_order: Fold the position panel on this many periods per revolution.
+        diagnosis: The fit's diagnosis, for the per-block panel (noise floor, disagreeing blocks).
+
+    Channels the log lacks get no panel. The last panel shows the held-out error of every
+    time block (each predicted by the fit without its fold) against the noise floor, so
+    where in the log the model fails is visible.
     """
     import matplotlib
 
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
-    fig = Figure(figsize=(15, 9), layout="constrained")
-    axes = fig.subplots(2, 3)
+    position = (
+        None
+        if signals.position is None
+        else np.mod(signals.position * (cogging_order or 1.0), 2 * np.pi) / (cogging_order or 1.0)
+    )
+    along = ("time [s]", signals.time) if signals.timed else ("row (steady-state table)", signals.time)
+    candidates: list[tuple[str, Array | None]] = [
+        ("current [A]", signals.current),
+        ("velocity [rad/s]", signals.velocity),
+        ("position" + (f" folded on 1/{cogging_order:g} rev [rad]" if cogging_order else " mod 2 pi [rad]"), position),
+        ("temperature [degC]", signals.temperature),
+        along,
+    ]
+    panels = [(label, x) for label, x in candidates if x is not None]
+    count = 2 + len(panels)
+    ncols = (count + 1) // 2
+    fig = Figure(figsize=(5 * ncols, 9), layout="constrained")
+    axes = fig.subplots(2, ncols, squeeze=False)
+    for extra in axes.flat[count:]:
+        extra.set_axis_off()
     n = torque.shape[0]
     pick = np.linspace(0, n - 1, min(n, MAX_POINTS)).astype(int)
     i = signals.current
@@ -86,23 +113,7 @@ def plot_fit(
     ax.legend(fontsize=7, loc="upper left")
     ax.grid(alpha=0.3)
 
-    panels: list[tuple[str, Array | None]] = [
-        ("current [A]", i),
-        ("velocity [rad/s]", signals.velocity),
-        (
-            "position" + (f" folded on 1/{cogging_order:g} rev [rad]" if cogging_order else " mod 2 pi [rad]"),
-            None
-            if signals.position is None
-            else np.mod(signals.position * (cogging_order or 1.0), 2 * np.pi) / (cogging_order or 1.0),
-        ),
-        ("temperature [degC]", signals.temperature),
-        ("time [s]", signals.time),
-    ]
-    for ax, (label, x) in zip(axes.flat[1:], panels, strict=True):
-        if x is None:
-            ax.text(0.5, 0.5, f"no {label.split(' ')[0]} channel", ha="center", va="center", transform=ax.transAxes)
-            ax.set_axis_off()
-            continue
+    for ax, (label, x) in zip(axes.flat[1 : 1 + len(panels)], panels, strict=True):
         pairs = list(residuals) or [("+".join(fit.model), fit)]
         colours = ["tab:red", "tab:blue", "tab:green", "tab:purple"]
         series = [(name, f.residual, colours[k % 4]) for k, (name, f) in enumerate(pairs)]
@@ -120,4 +131,30 @@ def plot_fit(
         ax.set_ylabel("residual [N m]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, loc="upper right")
+    _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
     return fig
+
+
+def _block_panel(ax: Axes, signals: Signals, fit: FitResult, diagnosis: Diagnosis | None) -> None:
+    """Held-out RMSE of each time block against the noise floor; disagreeing blocks in red."""
+    edges = fit.blocks.edges
+    x = signals.time
+    left = x[edges[:-1]]
+    right = x[np.minimum(edges[1:], x.size - 1)]
+    r = np.asarray(fit.block_rmse)
+    flagged = np.zeros(r.size, dtype=bool)
+    if diagnosis is not None:
+        floor = np.where(np.isfinite(diagnosis.block_floor), diagnosis.block_floor, diagnosis.noise_floor)
+        flagged = np.asarray(diagnosis.disagreeing, dtype=bool)
+        ax.stairs(floor, np.append(left, right[-1]), color="0.3", lw=1.2, label="noise floor of the block")
+        ax.axhline(diagnosis.noise_floor, color="0.5", lw=0.8, ls=":", label="noise floor of the log")
+    colours = np.where(flagged, "tab:red", "tab:blue")
+    ax.bar(left, r, width=right - left, align="edge", color=colours, alpha=0.7, label="held-out RMSE of the block")
+    if flagged.any():
+        ax.bar([], [], color="tab:red", label="disagrees with the rest")
+    ax.set_yscale("log")
+    ax.set_xlabel("time [s]" if signals.timed else "row (steady-state table)")
+    ax.set_ylabel("held-out RMSE [N m]")
+    ax.set_title(f"each block predicted by the fit without its fold ({fit.blocks.folds} folds)", fontsize=9)
+    ax.grid(alpha=0.3, which="both")
+    ax.legend(fontsize=6, loc="upper left")

@@ -11,7 +11,9 @@ from hound_id.dyno.curve import Compensation, PeakTorque
 from hound_id.dyno.diagnose import Diagnosis, Step
 from hound_id.dyno.fit import FitResult
 
-SCHEMA = "hound-id/fit/1"
+SCHEMA = "hound-id/fit/2"
+#: A fitted Kt or peak torque further than this factor from the spec sheet's is warned about.
+SPEC_FACTOR = 1.25
 
 
 def summarize(
@@ -22,18 +24,52 @@ def summarize(
     ladder: Sequence[Step] | None = None,
     cleaning: Sequence[Any] = (),
     rows_read: int | None = None,
+    current_limit: float | None = None,
+    time: Any = None,
 ) -> tuple[PeakTorque, Compensation, dict[str, Any]]:
     """Peak torque, current compensation (up to the peak, or the measured range) and the report of a fit.
 
     Args:
         current: The log's current [A]; its largest magnitude bounds the measured range.
+        current_limit: The driver's current limit the log shows [A], if any.
+        time: Sample times [s] for the per-block table (None for a steady-state table).
     """
     from hound_id.dyno.curve import compensation, peak_torque
 
     current_max = float(abs(current).max())
-    peak = peak_torque(fit, current_max)
+    peak = peak_torque(fit, current_max, current_limit=current_limit)
     comp = compensation(fit, peak.current if peak.current is not None else current_max)
-    return peak, comp, fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read)
+    report = fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read, time)
+    report["current_limit"] = current_limit
+    return peak, comp, report
+
+
+def spec_checks(report: dict[str, Any], spec: Any) -> list[str]:
+    """Warnings where a fit disagrees with the motor's spec sheet (a :class:`~hound_id.mor.spec.MotorSpec`)."""
+    out = []
+    kt = report["parameters"]["kt"]["value"]
+    ratio = kt / spec.kt
+    if not 1 / SPEC_FACTOR <= ratio <= SPEC_FACTOR:
+        out.append(
+            f"fitted Kt = {kt:.4g} N m/A is {ratio:.3g}x the sheet's {spec.kt:.4g} N m/A (more than a factor "
+            f"{SPEC_FACTOR:g} off): check the current and torque units and which side of a gearbox each is measured"
+        )
+    peak = report["peak_torque"]
+    if peak["torque"] is not None:
+        ratio = peak["torque"] / spec.peak_torque
+        if not 1 / SPEC_FACTOR <= ratio <= SPEC_FACTOR:
+            out.append(
+                f"fitted peak torque {peak['torque']:.4g} N m is {ratio:.3g}x the sheet's {spec.peak_torque:.4g} N m "
+                f"(more than a factor {SPEC_FACTOR:g} off)"
+                + (" and is extrapolated beyond the measured current" if peak["extrapolated"] else "")
+            )
+    i_max = peak["max_measured_current"]
+    if spec.max_current is not None and i_max > spec.max_current * 1.001:
+        out.append(
+            f"the log holds currents up to {i_max:.4g} A, beyond the sheet's max_current {spec.max_current:.4g} A: "
+            "check the current's unit or scale, or the sheet"
+        )
+    return out
 
 
 def fit_report(
@@ -45,18 +81,40 @@ def fit_report(
     ladder: Sequence[Step] | None = None,
     cleaning: Sequence[Any] = (),
     rows_read: int | None = None,
+    time: Any = None,
 ) -> dict[str, Any]:
-    """JSON-ready report, schema ``hound-id/fit/1`` (SI units)."""
+    """JSON-ready report, schema ``hound-id/fit/2`` (SI units).
+
+    Version 2 (from 1): ``rmse.test`` is the blocked cross-validated error (every fold held
+    out once), ``rmse.blocks`` gives it per time block, ``flags`` names disagreeing blocks,
+    ``unphysical`` the parameters held at a physical bound, parameters carry ``at_bound``,
+    suggestions ``physical``, and ``rows`` is {read, fitted, blocks, folds}.
+    """
+    edges = fit.blocks.edges
+    blocks = []
+    for c in range(fit.blocks.count):
+        a, b = int(edges[c]), int(edges[c + 1])
+        entry: dict[str, Any] = {
+            "rows": [a, b - 1],
+            "fold": int(fit.blocks.fold[c]),
+            "rmse_held_out": float(fit.block_rmse[c]),
+            "noise_floor": float(diagnosis.block_floor[c]) if diagnosis.block_floor.size else None,
+        }
+        if time is not None:
+            entry["time"] = [float(time[a]), float(time[b - 1])]
+        blocks.append(entry)
     return {
         "schema": SCHEMA,
         "source": source,
         "model": list(fit.model),
         "parameters": {name: est.to_dict() for name, est in fit.parameters.items()},
-        "rmse": {"train": fit.rmse_train, "test": fit.rmse_test},
+        "rmse": {"train": fit.rmse_train, "test": fit.rmse_test, "blocks": blocks},
         "aic": fit.aic,
         "bic": fit.bic,
         "robust": fit.robust,
-        "rows": {"read": rows_read, "train": fit.n_train, "test": fit.n_test},
+        "rows": {"read": rows_read, "fitted": fit.n_train, "blocks": fit.blocks.count, "folds": fit.blocks.folds},
+        "unphysical": dict(fit.unphysical),
+        "flags": list(diagnosis.flags),
         "peak_torque": peak.to_dict(),
         "compensation": None if comp is None else comp.to_dict(),
         "suggestions": [s.to_dict() for s in diagnosis.suggestions],
@@ -85,6 +143,8 @@ def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str
     motor["kt"] = report["parameters"]["kt"]["value"]
     if report["peak_torque"]["torque"] is not None:
         motor["peak_torque"] = report["peak_torque"]["torque"]
+        if report["peak_torque"]["extrapolated"]:
+            motor["extrapolated"] = ["peak_torque"]
     motor["source"] = f"hound-id fit-current on {report['source']} (model {'+'.join(report['model'])})"
     motor["fit"] = {
         k: report[k]
@@ -98,6 +158,7 @@ def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str
             "compensation",
             "noise_floor",
             "at_noise_floor",
+            "flags",
             "summary",
         )
     }

@@ -57,7 +57,19 @@ _QUANTITY_KEYS: dict[str, tuple[str, bool]] = {
     "rotor_inertia": ("inertia", False),
     "inductance": ("inductance", False),
 }
-_OTHER_KEYS = ("name", "source", "notes", "pole_pairs", "commutation", "schema", "assumed", "base", "fit", "envelope")
+_OTHER_KEYS = (
+    "name",
+    "source",
+    "notes",
+    "pole_pairs",
+    "commutation",
+    "schema",
+    "assumed",
+    "extrapolated",
+    "base",
+    "fit",
+    "envelope",
+)
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
 
@@ -91,8 +103,10 @@ class MotorSpec:
     """Where the numbers came from."""
     assumed: tuple[str, ...] = ()
     """Fields whose values are assumed rather than sourced."""
+    extrapolated: tuple[str, ...] = ()
+    """Fields whose values a fit extrapolated beyond what it measured (e.g. a peak torque past the tested current)."""
     fit: Mapping[str, Any] | None = field(default=None, compare=False)
-    """The dynamometer fit (schema hound-id/fit/1) whose Kt and peak torque this spec carries, if any."""
+    """The dynamometer fit (schema hound-id/fit/2) whose Kt and peak torque this spec carries, if any."""
     envelope: Mapping[str, Any] | None = field(default=None, compare=False)
     """A measured envelope (``mor --compare --out``): effects and polyline edges over speed, or None."""
 
@@ -142,7 +156,19 @@ def spec_warnings(spec: MotorSpec) -> tuple[str, ...]:
             f"{spec.name}: torque limit {spec.torque_limit:.4g} N m exceeds the stall torque "
             f"{spec.stall_torque:.4g} N m; the voltage limit, not the peak torque, bounds the region at rest"
         )
+    for key in spec.extrapolated:
+        out.append(
+            f"{spec.name}: {key} = {getattr(spec, key):.4g} is extrapolated beyond the measured range"
+            + (f" ({_fit_peak(spec)})" if key == "peak_torque" and _fit_peak(spec) else "")
+            + "; measure at higher current to confirm it"
+        )
     return tuple(out)
+
+
+def _fit_peak(spec: MotorSpec) -> str:
+    """The fit's sentence on its peak torque, if the spec carries one."""
+    peak = (spec.fit or {}).get("peak_torque")
+    return str(peak.get("note") or "") if isinstance(peak, Mapping) else ""
 
 
 def _suggest(key: str) -> str:
@@ -243,6 +269,13 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             raise SpecError(
                 f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
             )
+    extrapolated = data.get("extrapolated", [])
+    if not isinstance(extrapolated, list) or any(e not in _QUANTITY_KEYS for e in extrapolated):
+        raise SpecError(
+            f"{where(source, 'extrapolated')}: found {extrapolated!r}, expected a list of spec fields "
+            "(e.g. [peak_torque])",
+            field="extrapolated",
+        )
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
         raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
@@ -251,6 +284,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         pole_pairs=pole_pairs,
         source=src,
         assumed=tuple(assumed),
+        extrapolated=tuple(extrapolated),
         fit=fit,
         envelope=_envelope(data.get("envelope"), source),
         **values,

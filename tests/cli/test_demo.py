@@ -46,7 +46,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert sag["corner_speed_measured"] < 0.9 * sag["corner_speed_spec_sheet"]
     export = json.loads((tmp_path / "out" / "export" / "export.json").read_text())
     assert export["schema"] == "hound-id/export/1" and export["fitted_motors"] == ["hound_ilm85"] and export["foot"]
-    assert export["mujoco_check"]["max_outside"] == 0.0 and export["mujoco_check"]["max_difference"] < 1e-5
+    assert export["mujoco_check"]["max_outside"] < 1e-5 and export["mujoco_check"]["max_difference"] < 1e-5
     assert export["mujoco_check"]["clipped_fraction"] > 0.5
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())
     assert summary["schema"] == "hound-id/demo/1"

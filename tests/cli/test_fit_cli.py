@@ -40,7 +40,7 @@ def test_sample_auto_finds_every_hidden_effect(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/fit/1"
+    assert data["schema"] == "hound-id/fit/2"
     hidden = set(TRUTH["effects"]) - {"linear", "saturation"}
     assert set(data["model"]) == {"linear", "saturation"} | hidden
     assert [s["added"] for s in data["ladder"][1:]] and set(s["added"] for s in data["ladder"][1:]) == hidden

@@ -2,18 +2,22 @@ import numpy as np
 import pytest
 
 from hound_id.dyno.effects import Signals
-from hound_id.dyno.fit import BLOCKS, fit_model, time_blocked_split
+from hound_id.dyno.fit import FOLDS, MAX_BLOCKS, Blocks, fit_model
 from hound_id.errors import FitError
 from tests.dyno.conftest import simulated
 
 
-def test_held_out_rows_are_whole_time_blocks():
-    test = time_blocked_split(1000)
-    assert test.mean() == pytest.approx(0.2)
-    edges = np.flatnonzero(np.diff(test.astype(int)))
-    assert len(edges) == 4  # two contiguous blocks inside the log
-    assert not test[0] and not test[-1]
-    assert BLOCKS == 10
+@pytest.mark.parametrize("n", [20, 99, 1000, 123_457])
+def test_blocks_cover_every_row_once_and_folds_are_contiguous(n):
+    b = Blocks.of(n)
+    assert b.edges[0] == 0 and b.edges[-1] == n and np.all(np.diff(b.edges) > 0)
+    assert 2 <= b.count <= MAX_BLOCKS
+    assert b.folds == min(FOLDS, b.count)
+    assert np.all(np.diff(b.fold) >= 0) and set(b.fold) == set(range(b.folds))
+    covered = np.zeros(n, int)
+    for k in range(b.folds):
+        covered[b.rows_of_fold(k)] += 1
+    assert np.all(covered == 1)  # every row is held out exactly once
 
 
 @pytest.mark.parametrize("seed", [0, 1, 2])

@@ -1,0 +1,138 @@
+"""Run ``hound-id fit-current --auto`` over a folder of real dyno logs, one line per log.
+
+Real logs are what the synthetic suites cannot stand in for. This script runs the CLI
+exactly as a user would (a fresh process per log, ``--auto --json``) on every CSV or
+Parquet file under a folder you point it at, and prints per log: rows loaded, Kt with
+its cluster-robust standard error, the effects added with their values, the
+cross-validated RMSE against the noise floor, and the verdict (at the noise floor,
+flagged blocks, or the one-line reason the tool refused).
+
+A log whose torque falls as current rises is run again with ``--flip-torque`` (the
+sensor is mounted reversed), and the line says so.
+
+Example, on the AK80-9 logs of neurobionics/TMotorCANControl (GPL: fetch it yourself,
+do not copy its files into this repository)::
+
+    .venv/bin/python benchmarks/real_logs.py /path/to/TMotorCANControl/src/TMotorCANControl/test/saved_logs \\
+        --columns time=loop_time,current=motor_measured_current,torque=adc_measured_torque,\\
+velocity=motor_measured_speed,torque_cmd=motor_torque_command
+
+Add ``--markdown`` for a table to paste into the README, ``--json`` for every report.
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+from typing import Any
+
+SUFFIXES = (".csv", ".parquet", ".txt", ".tsv")
+
+
+def run_one(exe: str, path: Path, extra: list[str]) -> dict[str, Any]:
+    """Fit one log; retry with --flip-torque when the tool says the sensor looks reversed."""
+    flipped = False
+    for flip in (False, True):
+        args = [exe, "fit-current", str(path), "--auto", "--json", *extra, *(["--flip-torque"] if flip else [])]
+        proc = subprocess.run(args, capture_output=True, text=True, check=False)
+        if proc.returncode == 0:
+            report = json.loads(proc.stdout)
+            report["flipped"] = flipped
+            return report
+        message = (proc.stderr.strip().splitlines() or ["(no message)"])[-1]
+        if proc.returncode == 2 and not flip and "reversed" in message and "--flip-torque" in message:
+            flipped = True
+            continue
+        return {"error": message, "exit": proc.returncode, "flipped": flipped}
+    return {"error": "unreachable", "exit": -1, "flipped": flipped}
+
+
+def line(report: dict[str, Any]) -> dict[str, str]:
+    """The fields of one output line."""
+    if "error" in report:
+        return {
+            "rows": "-",
+            "kt": "-",
+            "effects": "-",
+            "cv": "-",
+            "verdict": f"exit {report['exit']}: {report['error']}",
+        }
+    kt = report["parameters"]["kt"]
+    err = kt["stderr"]
+    added = [e for e in report["model"] if e not in ("linear", "saturation")]
+    shown = []
+    for name, est in report["parameters"].items():
+        if name == "kt":
+            continue
+        value = est["value"]
+        shown.append(f"{name} {value:.3g}{' (bound)' if est.get('at_bound') else ''}")
+    floor = report["noise_floor"]
+    cv = report["rmse"]["test"]
+    if report["at_noise_floor"]:
+        verdict = "at the noise floor"
+    elif report["flags"]:
+        verdict = f"{len(report['flags'])} flag(s): {report['flags'][0]}"
+    else:
+        verdict = report["summary"]
+    return {
+        "rows": f"{report['rows']['fitted']}/{report['rows']['read']}",
+        "kt": f"{kt['value']:.4g} +- {err:.2g}" if err is not None else f"{kt['value']:.4g}",
+        "effects": ("+" + "+".join(added) + ": " if added else "") + ", ".join(shown),
+        "cv": f"{cv:.3g} / {floor:.3g}",
+        "verdict": ("(flipped) " if report.get("flipped") else "") + verdict,
+    }
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("folder", type=Path, help="Folder searched recursively for logs.")
+    parser.add_argument("--columns", help="Column mapping passed to fit-current --columns.")
+    parser.add_argument("--units", help="Units passed to fit-current --units.")
+    parser.add_argument("--model", default=None, help="Starting model (fit-current --model).")
+    parser.add_argument("--exclude", action="append", default=[], help="Skip paths containing this text (repeatable).")
+    parser.add_argument("--markdown", action="store_true", help="Print a Markdown table.")
+    parser.add_argument("--json", action="store_true", help="Print every report as JSON (schema hound-id/real-logs/1).")
+    args = parser.parse_args()
+    exe = shutil.which("hound-id") or str(Path(sys.executable).with_name("hound-id"))
+    extra = []
+    for flag in ("columns", "units", "model"):
+        if getattr(args, flag):
+            extra += [f"--{flag}", getattr(args, flag)]
+    paths = sorted(
+        p
+        for p in args.folder.rglob("*")
+        if p.suffix.lower() in SUFFIXES and p.is_file() and not any(x in str(p) for x in args.exclude)
+    )
+    if not paths:
+        print(f"{args.folder}: no logs ({', '.join(SUFFIXES)}) found", file=sys.stderr)
+        return 2
+    results = []
+    if args.markdown:
+        print("| log | rows used/read | Kt [N m/A] | effects added, values (SI) | CV RMSE / noise [N m] | verdict |")
+        print("|---|---|---|---|---|---|")
+    for path in paths:
+        report = run_one(exe, path, extra)
+        name = str(path.relative_to(args.folder))
+        results.append({"log": name, **report})
+        if args.json:
+            continue
+        f = line(report)
+        if args.markdown:
+            cells = [name, f["rows"], f["kt"], f["effects"], f["cv"], f["verdict"].replace("|", "/")]
+            print("| " + " | ".join(cells) + " |", flush=True)
+        else:
+            print(
+                f"{name}: rows {f['rows']}; Kt {f['kt']}; {f['effects']}; CV/noise {f['cv']}; {f['verdict']}",
+                flush=True,
+            )
+    if args.json:
+        print(json.dumps({"schema": "hound-id/real-logs/1", "logs": results}, indent=2))
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
