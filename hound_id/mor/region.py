@@ -225,10 +225,29 @@ def measured_region(spec: MotorSpec) -> OperatingRegion:
 
 def _traced_box(vertices: NDArray[np.float64], points: int = 20001) -> tuple[float, float]:
     """Largest-area symmetric box (torque [N m], speed [rad/s]) inside a region traced by ``vertices`` (convex or
-    not): at half-width W the torque half-width is the least of hi(w) and -lo(w) over |w| <= W."""
+    not): at half-width W the torque half-width is the least of hi(w) and -lo(w) over |w| <= W.
+
+    The speeds are searched on a grid over the whole region, then twice more between the best point's neighbours,
+    so that a region much wider than its box (a peak torque far above the stall torque) is resolved too. The edges
+    are linear between vertex speeds, so the least half-width below a speed is at 0 or at a vertex speed."""
     ring = np.vstack([vertices, vertices[:1]])
     top = float(np.abs(vertices[:, 1]).max())
-    W = np.unique(np.concatenate([np.linspace(0.0, top, points), np.abs(vertices[:, 1])]))
+    grid = np.unique(np.concatenate([np.linspace(0.0, top, points), np.abs(vertices[:, 1])]))
+    best = (0.0, 0.0)
+    for _ in range(3):
+        T = _box_torques(ring, grid)
+        k = int(np.argmax(T * grid))
+        if T[k] * grid[k] >= best[0] * best[1]:
+            best = (float(T[k]), float(grid[k]))
+        a, b = grid[max(k - 1, 0)], grid[min(k + 1, grid.size - 1)]
+        # the edges are linear between vertex speeds: the least half-width below a is at 0 or a vertex speed
+        corners = np.abs(vertices[:, 1])
+        grid = np.unique(np.concatenate([[0.0], corners[corners < a], np.linspace(a, b, points)]))
+    return best
+
+
+def _box_torques(ring: NDArray[np.float64], W: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Torque half-width of the largest symmetric box of speed half-width ``W`` (sorted, from 0) in ``ring``."""
     both = np.concatenate([-W[::-1], W])
     hi = np.full(both.size, np.inf)
     lo = np.full(both.size, -np.inf)
@@ -243,9 +262,7 @@ def _traced_box(vertices: NDArray[np.float64], points: int = 20001) -> tuple[flo
             lo[on] = np.maximum(lo[on], t)
     half = np.minimum(hi, -lo)
     T = np.minimum(np.minimum.accumulate(half[W.size :]), np.minimum.accumulate(half[: W.size][::-1]))
-    T = np.maximum(T, 0.0)
-    k = int(np.argmax(T * W))
-    return float(T[k]), float(W[k])
+    return np.asarray(np.maximum(T, 0.0), float)
 
 
 def _traced(
