@@ -153,7 +153,7 @@ def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, .
         values = frame[column]
         finite = values.dropna()
         if finite.empty or finite.nunique() == 1:
-            what = "empty" if finite.empty else f"always {finite.iloc[0]!r}"
+            what = "empty" if finite.empty else f"always {str(finite.iloc[0])!r}"
             notes.append(
                 f"every row has {len(layout.names) + len(extra)} fields but the header names "
                 f"{len(layout.names)} (a trailing separator): the last field is {what} and was dropped"

@@ -24,6 +24,9 @@ def fit_current(
     columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
     units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
     flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensor mounted reversed)."),
+    window: Optional[str] = typer.Option(
+        None, "--window", help="Fit only START:STOP seconds (data rows of a steady-state table); ends optional."
+    ),
     robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares (outliers left in the log)."),
     effects_file: Optional[list[Path]] = typer.Option(
         None, "--effects-file", help="Python file registering your own effects (repeatable)."
@@ -37,9 +40,10 @@ def fit_current(
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
     from hound_id.dyno.effects import Signals, load_effects_file, parse_model
-    from hound_id.dyno.log import load_log, parse_mapping
+    from hound_id.dyno.log import load_log, parse_mapping, parse_window
 
     check_output(plot, (".png",), "plot")
+    start_stop = parse_window(window)
     check_output(out, (".yaml", ".yml"), "fitted-motor")
     for path in effects_file or []:
         load_effects_file(path)
@@ -55,8 +59,10 @@ def fit_current(
         units=parse_mapping(units, "--units"),
         flip_torque=flip_torque,
     )
+    if window is not None:
+        log = log.window(*start_stop)
     for note in log.notes:
-        if note.kind in ("unit", "format"):
+        if note.kind in ("unit", "format", "window"):
             if not json_out:
                 err_console.print(f"note: {note.message}", highlight=False, markup=False, soft_wrap=True)
         else:

@@ -6,9 +6,12 @@ Seen on public actuator logs (``physics-notes.md``, "What real logs look like"):
   past the range comes back from the other end (a jump of one whole period P = 25.9 A), and a
   host that "unwraps" such jumps by guesswork adds or removes whole periods at random. The
   torque does not jump with it: a real current jump of P would move the torque by Kt P. So
-  jumps of one common size P that the torque does not share are wraps. They are undone
-  (whole periods subtracted), and the rows that then sit at the boundary +-P/2 are removed:
-  there the sign of the current cannot be known.
+  jumps of one common size P that the torque does not share are wraps. When the true current
+  went past the range, each row gets back the whole periods that put it nearest torque / Kt
+  (the torque has no wrap) and the current is whole again. When
+  the host added periods to a current within the range, the channel is folded back into +-P/2
+  and the rows that then sit at the boundary are removed: there the sign cannot be known. The
+  one of the two that follows the torque better is kept.
 * **A clamped reply.** The reported current sits at its extreme (the reply's encoding range
   or a saturated ADC) while the torque keeps moving: the true current there is unknown, so
   those rows are removed.
@@ -31,6 +34,8 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
+#: Without a ramp up to a plateau, the torque must spread over this share of what the level makes for a clamp.
+NO_RAMP_SHARE = 0.2
 #: A jump must exceed this many noise standard deviations of the channel to be a wrap candidate.
 WRAP_SIGMAS = 40.0
 #: Jumps whose sizes agree within this fraction share one wrap period.
@@ -45,6 +50,9 @@ WRAP_EDGE = 0.1
 #: a channel that only sits at the boundary and jumps twice (a spike of just the right size) is no wrap.
 WRAP_INNER = 0.05
 WRAP_MANY = 10
+#: Undoing the jumps by continuity must raise the squared correlation of current and torque by this much
+#: over folding the channel into its range.
+WRAP_BETTER = 0.02
 #: Shortest run at a plateau that counts [samples].
 PLATEAU_MIN_RUN = 5
 #: A plateau is within this many noise sigmas of its level (and at least PLATEAU_FLOOR of the level).
@@ -77,6 +85,10 @@ class Wrap:
     """Jumps undone."""
     first: int
     """Index (in the arrays given) of the first sample after the first jump."""
+    unwrapped: bool = False
+    """True when the true current left the encoding range and the jumps were undone by continuity (the
+    current then spans more than +-P/2); False when the channel was folded back into +-P/2 (a host that
+    added periods to a current within the range)."""
 
 
 @dataclass(frozen=True)
@@ -142,8 +154,11 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     2. The torque per amp is measured where the current lies within +-P/2 (rows no wrap has moved), and a
        jump is a wrap where the torque does not follow it (it moves less than WRAP_SILENT of Kt P, one
        sample either side: a reply read one loop late).
-    3. An encoded current always lies within +-P/2, whatever the host added: the channel is folded into
-       +-P/2 (whole periods taken out).
+    3. If the true current went past the range (the reply wrapped it), the whole number of periods that
+       puts each row nearest torque / Kt makes the current follow the torque much better than folding:
+       that is kept. Otherwise the encoded
+       current lies within +-P/2, whatever the host added: the channel is folded into +-P/2 (whole periods
+       taken out).
     4. It is a wrap-around only if the wraps left the range at its boundary, the folded channel spends time
        well inside the range and follows the torque at least as well as before; otherwise the channel is
        returned as it was.
@@ -175,7 +190,23 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     edge = np.abs(np.abs(folded[jumps]) - half) <= WRAP_EDGE * half
     inner = np.abs(folded) < half / 2.0
     clear = np.abs(folded) < half * (1.0 - WRAP_EDGE)  # rows off the boundary, where the sign is known
-    if edge.mean() < 0.9 or _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
+    if edge.mean() < 0.9:
+        return x, None
+    # A current that really went past the range: on each row take the whole number of periods that puts the
+    # current nearest torque / Kt (the torque does not wrap; Kt from rows well inside the range, which no wrap
+    # reaches; the choice is discrete, so a rough Kt and a torque off by friction do not matter).
+    # The jumps mix the wrap with the current's change between samples; a reply that wraps fills its range
+    # from end to end, so its extent (plus one quantum) measures the period better when it agrees.
+    extent = float(np.ptp(x)) + quantum(x)
+    exact = extent if abs(extent - period) <= WRAP_TOLERANCE * period else period
+    k_inner = torque_per_amp(folded[inner], y[inner]) if inner.sum() >= 10 else 0.0
+    if k_inner == 0.0:
+        continuous = folded
+    else:
+        continuous = x + exact * np.round((y / k_inner - x) / exact)
+    if _follows(continuous, y) > max(_follows(folded[clear], y[clear]), _follows(x, y)) + WRAP_BETTER:
+        return continuous, Wrap(exact, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
+    if _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
         return x, None
     if jumps.size < WRAP_MANY and inner.mean() < WRAP_INNER:  # a few jumps of a channel that never leaves the edge
         return x, None
@@ -184,6 +215,8 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
 
 def _follows(x: Array, y: Array) -> float:
     """Squared correlation of two channels (0 when one is constant)."""
+    if x.size < 3:
+        return 0.0
     sx, sy = float(np.std(x)), float(np.std(y))
     if sx == 0 or sy == 0:
         return 0.0
@@ -230,14 +263,15 @@ def find_plateaus(current: Array, torque: Array, command: Array | None = None) -
             c = np.asarray(command, float)
             cmd_span = (float(np.min(c[rows])), float(np.max(c[rows])))
         longest = max(b - a for a, b in runs)
+        asked = None if command is None else _asked_current(x, np.asarray(command, float), rows, level)
+        if asked is not None and abs(asked) <= (1.0 + COMMAND_EXCESS) * abs(level):
+            continue  # the command asks for this current: a hold, which is data
         if _torque_goes_past(x, y, rows, level, sigma_y, k_scale):
             found.append(Plateau("clamp", level, rows, (lo, hi), cmd_span, longest))
             continue
-        if command is not None and cmd_span is not None:
-            asked = _asked_current(x, np.asarray(command, float), rows, level)
-            if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
-                found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
-                continue
+        if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
+            found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
+            continue
         stuck = x == level
         exact = max((b - a for a, b in _runs(stuck)), default=0)
         if exact >= PLATEAU_MIN_RUN and sigma_x > STUCK_QUANTA * quantum(x):
@@ -253,17 +287,23 @@ def _torque_goes_past(
 
     The torque the level makes comes from a straight line torque = a current + b through the rows on the
     same side between 30 % and 95 % of the level (spanning 30 % of it at least); the plateau's torque (its
-    90th percentile in the level's direction) must exceed it by MOVING_SIGMAS noise sigmas and MOVING_SHARE
-    of it. Without such rows, the torque's spread over the plateau must exceed the same margin.
+    90th percentile in the level's direction) must exceed it by MOVING_SIGMAS noise sigmas, MOVING_SHARE
+    of it, and twice the torque's scatter about the line on those rows (friction, which changes with the
+    speed, scatters it there as much as on the plateau). Without such rows, the torque's spread over the
+    plateau must exceed the same margin and NO_RAMP_SHARE of the torque the level makes.
     """
     sign = 1.0 if level > 0 else -1.0
     ramp = (sign * current > 0.3 * abs(level)) & (sign * current < 0.95 * abs(level))
     margin = max(MOVING_SIGMAS * sigma_y, MOVING_SHARE * k_scale * abs(level))
     if np.count_nonzero(ramp) >= 10 and np.ptp(current[ramp]) > 0.3 * abs(level):
         a, b = np.polyfit(current[ramp], torque[ramp], 1)
+        # friction and other speed effects scatter the torque about the line on the ramp as on the plateau
+        scatter = float(np.percentile(np.abs(torque[ramp] - (a * current[ramp] + b)), 95))
+        margin = max(margin, 2.0 * scatter)
         beyond = sign * (1.0 if a >= 0 else -1.0)  # the torque's way of growing current (a sensor may be reversed)
         return bool(np.percentile(beyond * torque[rows], 90) - beyond * (a * level + b) > margin)
-    return bool(np.ptp(np.percentile(torque[rows], [5, 95])) > margin)
+    # no ramp to compare with: only a spread far beyond friction's (a fifth of what the level makes) is a clamp
+    return bool(np.ptp(np.percentile(torque[rows], [5, 95])) > max(margin, NO_RAMP_SHARE * k_scale * abs(level)))
 
 
 def _asked_current(current: Array, command: Array, rows: NDArray[np.intp], level: float) -> float | None:

@@ -127,7 +127,10 @@ class Diagnosis:
     block_floor: Array = field(default_factory=lambda: np.empty(0))
     """Noise floor of each time block [N m]."""
     disagreeing: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
-    """Blocks whose held-out error is BLOCK_FACTOR times both the median block's and their own noise."""
+    """Blocks whose error under the model fitted to the agreeing half of the blocks is BLOCK_FACTOR times both
+    the typical agreeing block's and their own noise."""
+    block_agreeing: Array = field(default_factory=lambda: np.empty(0))
+    """Each block's RMSE under the model fitted to the agreeing half of the blocks [N m]."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -353,8 +356,9 @@ def diagnose(
         )
     suggestions.sort(key=lambda s: (-s.significant, -s.physical, -s.explained))
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
-    disagreeing = _disagreeing(fit, floor, block_floor)
-    flags = tuple(_flags(fit, floor, disagreeing, signals))
+    agreeing = _agreeing_fit(stats, cols, lower, upper, np.asarray(fit.block_rmse))
+    disagreeing = _disagreeing(agreeing, floor, block_floor)
+    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
     return Diagnosis(
         fit.model,
@@ -367,26 +371,80 @@ def diagnose(
         flags,
         block_floor,
         disagreeing,
+        agreeing.rmse,
     )
 
 
 def _span(signals: Signals, start: int, stop: int) -> str:
     if signals.timed:
-        return f"rows {start}-{stop - 1}, t = {signals.time[start]:.4g}-{signals.time[stop - 1]:.4g} s"
-    return f"rows {start}-{stop - 1}"
+        return f"t = {signals.time[start]:.4g}-{signals.time[stop - 1]:.4g} s"
+    # a steady-state table's time is its 0-based data row
+    return f"data rows {int(signals.time[start]) + 1}-{int(signals.time[stop - 1]) + 1}"
 
 
-def _disagreeing(fit: FitResult, floor: float, block_floor: Array) -> np.ndarray:
-    r = np.asarray(fit.block_rmse)
+def _window(signals: Signals, start: int, stop: int) -> str:
+    """The --window option that keeps rows start..stop-1."""
+    if signals.timed:
+        return f"--window {signals.time[start]:.4g}:{signals.time[stop - 1]:.4g}"
+    return f"--window {int(signals.time[start]) + 1}:{int(signals.time[stop - 1]) + 1}"
+
+
+@dataclass(frozen=True)
+class _Agreeing:
+    """Each block's RMSE under a fit to the agreeing half of the blocks, and that half."""
+
+    rmse: Array
+    good: np.ndarray
+    beta: Array
+    """The coefficients of the fit to the agreeing half (the model's columns)."""
+
+    @property
+    def typical(self) -> float:
+        return float(np.median(self.rmse[self.good]))
+
+
+def _agreeing_fit(stats: Stats, cols: list[int], lower: Array, upper: Array, held_out: Array) -> _Agreeing:
+    """Block-level least trimmed squares: fit the half of the blocks that fit best, re-pick the half, repeat.
+
+    A motor switched off for a third of the log pulls a fit to all blocks towards it, so that no block stands
+    out against the median; the blocks are judged against a fit to the half that agrees (robust to breakage in
+    up to half the log). Starts from the half with the smallest held-out error.
+    """
+    rows = np.maximum(np.diff(stats.blocks.edges), 1)
+    half = max(stats.blocks.count // 2, 1)
+    good = np.zeros(stats.blocks.count, dtype=bool)
+    good[np.argsort(held_out, kind="stable")[:half]] = True
+    rmse = held_out
+    beta = np.zeros(len(cols))
+    for _ in range(8):
+        G, g, _ = stats.total(cols, good)
+        beta, _ = solve_bounded(G, g, lower, upper)
+        rmse = np.sqrt(stats.sse(cols, beta) / rows)
+        picked = np.zeros_like(good)
+        picked[np.argsort(rmse, kind="stable")[:half]] = True
+        if np.array_equal(picked, good):
+            break
+        good = picked
+    return _Agreeing(rmse, good, beta)
+
+
+def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in a boolean array."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.ndarray:
+    r = agreeing.rmse
     own = np.where(np.isfinite(block_floor), np.maximum(block_floor, floor), floor)
-    return (r > BLOCK_FACTOR * float(np.median(r))) & (r > BLOCK_FACTOR * own)  # type: ignore[no-any-return]
+    return (r > BLOCK_FACTOR * agreeing.typical) & (r > BLOCK_FACTOR * own)  # type: ignore[no-any-return]
 
 
-def _flags(fit: FitResult, floor: float, bad: np.ndarray, signals: Signals) -> list[str]:
+def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, signals: Signals) -> list[str]:
     """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out."""
-    r = np.asarray(fit.block_rmse)
+    r = agreeing.rmse
     edges = fit.blocks.edges
-    ref = float(np.median(r))
+    ref = agreeing.typical
     out = []
     k = 0
     while k < bad.size:
@@ -399,11 +457,23 @@ def _flags(fit: FitResult, floor: float, bad: np.ndarray, signals: Signals) -> l
         worst = float(r[k : j + 1].max())
         out.append(
             f"blocks {k + 1}-{j + 1} of {bad.size} ({_span(signals, int(edges[k]), int(edges[j + 1]))}) disagree with "
-            f"the rest: held-out RMSE up to {worst:.3g} N m against a median block's {ref:.3g} N m; the log changes "
-            "there (a motor switched off, a current running away, another regime) or an effect acting only there is "
-            "missing"
+            f"the rest: RMSE up to {worst:.3g} N m under the model fitted to the agreeing half of the blocks, against "
+            f"{ref:.3g} N m typical there; the log changes there (a motor switched off, a current running away, "
+            "another regime) or an effect acting only there is missing"
         )
         k = j + 1
+    if out:
+        good_runs = _runs_of(~bad)
+        if good_runs:
+            a, b = max(good_runs, key=lambda ab: int(edges[ab[1]] - edges[ab[0]]))
+            names = [par.name for _, par in parameters_of([m for m in fit.model if m != "delay"])]
+            kt_note = ""
+            if "kt" in names:
+                kt_note = f"fitted to the agreeing blocks alone, Kt = {agreeing.beta[names.index('kt')]:.4g} N m/A; "
+            out.append(
+                f"{kt_note}to fit the longest agreeing stretch ({_span(signals, int(edges[a]), int(edges[b]))}) "
+                f"alone, pass {_window(signals, int(edges[a]), int(edges[b]))}"
+            )
     kt = fit.parameters.get("kt")
     if kt is not None and not kt.stderr <= KT_UNDETERMINED * abs(kt.value):
         out.insert(

@@ -364,7 +364,17 @@ def _evidence_saturation(name: str) -> Callable[[Mapping[str, float], Signals], 
 
 
 def _evidence_offset(p: Mapping[str, float], s: Signals) -> str:
-    return f"the residual sits at {p['offset']:+.3g} N m at zero current (sensor offset)"
+    head = f"the residual sits at {p['offset']:+.3g} N m at zero current"
+    if s.velocity is not None:
+        moving = s.velocity[np.abs(s.velocity) > 0]
+        share = float(np.mean(moving > 0)) if moving.size else 0.5
+        if share > 0.95 or share < 0.05:
+            return (
+                f"{head}: a sensor offset, or Coulomb friction of {abs(p['offset']):.3g} N m (the speed keeps one "
+                "sign on this log, so the two cannot be told apart; record both directions of rotation to separate "
+                "them)"
+            )
+    return f"{head} (sensor offset)"
 
 
 def _evidence_coulomb(p: Mapping[str, float], s: Signals) -> str:

@@ -55,6 +55,11 @@ DELAY_WINDOW = 0.03
 #: Variance inflation beyond which the log cannot tell a parameter from the others (R^2 > 0.9999). The
 #: library's effects on a well-designed test stay below 1.5e3 (saturation family beside each other).
 VIF_MAX = 1.0e4
+#: Largest delay window [s]: a slower log (two samples further apart) cannot show a rig's lag.
+DELAY_MAX = 0.25
+#: A parameter held at its bound is reported as wanting an unphysical value when the unconstrained fit puts it
+#: this many standard errors beyond the bound (closer, the bound is simply where the truth may be).
+UNPHYSICAL_SIGMAS = 3.0
 #: Name of the torque offset the identifiability check always allows for.
 OFFSET = "a torque offset"
 
@@ -155,7 +160,8 @@ class FitResult:
     hypers: Mapping[str, float] = field(default_factory=dict)
     """Nonlinear parameter values (also in ``parameters``)."""
     unphysical: Mapping[str, float] = field(default_factory=dict)
-    """Parameters held at a bound, with the value the unconstrained fit wanted."""
+    """Parameters held at a bound where the unconstrained fit wants a value beyond it by more than
+    :data:`UNPHYSICAL_SIGMAS` standard errors (a finding: the model lacks something), with that value."""
 
     @property
     def test(self) -> NDArray[np.bool_]:
@@ -419,6 +425,10 @@ def identifiability(stats: Stats, cols: Sequence[int], names: Sequence[str], sig
     that separates two parameters). A torque offset (column 0) is always allowed for,
     unless the model has its own.
     """
+    i = signals.current
+    if "kt" in names and float(np.std(i)) < 0.1 * abs(float(np.mean(i))):
+        # one held current: Kt against any constant, whatever else the model has
+        return [Unidentified("kt", OFFSET, math.inf, _why("kt", OFFSET, signals, math.inf))]
     with_offset = "offset" not in names
     check = [0, *cols] if with_offset else list(cols)
     labels = [OFFSET, *names] if with_offset else list(names)
@@ -573,8 +583,19 @@ def _channels(model: Sequence[str]) -> tuple[str, ...]:
 
 
 def delay_window(signals: Signals) -> float:
-    """Largest |delay| the fit accepts [s]: :data:`DELAY_WINDOW`, or two samples on a slow log."""
+    """Largest |delay| the fit accepts [s]: :data:`DELAY_WINDOW`, or two samples on a slow log.
+
+    Raises:
+        FitError: The samples are so far apart (beyond :data:`DELAY_MAX` for two of them) that no lag a rig
+            makes can be seen; most often a time column in ms read as seconds.
+    """
     dt = float(np.median(np.diff(signals.time))) if signals.time.size > 1 else 0.0
+    if 2.0 * dt > DELAY_MAX:
+        raise FitError(
+            f"the samples are {dt:.3g} s apart ({1 / dt:.3g} Hz): a lag between channels, milliseconds on a rig, "
+            "cannot be seen at that rate; if the time column is in ms, pass --units time=ms",
+            delay=dt,
+        )
     return max(DELAY_WINDOW, 2.0 * dt)
 
 
@@ -795,13 +816,22 @@ def _finish(
         _, Ginv = solve_normal(Gf, np.zeros(Gf.shape[0]))
         classic[free] = np.diag(Ginv) * sigma2
     stderr = np.sqrt(np.maximum(np.maximum(np.diag(cov), classic), 0.0))
+    # how far past its bound the unconstrained fit puts each held parameter, in its own standard errors
+    beyond = np.zeros(p)
+    if active.any():
+        free_all = np.ones(p, dtype=bool)
+        free_cov = robust_cov(stats, cols, free_beta, free_all)
+        _, Ginv_all = solve_normal(G, np.zeros(p))
+        free_err = np.sqrt(np.maximum(np.maximum(np.diag(free_cov), np.diag(Ginv_all) * rss / dof), 1e-300))
+        bound = np.where(free_beta < lower, lower, upper)
+        beyond = np.abs(free_beta - bound) / free_err
     unphysical: dict[str, float] = {}
     params: dict[str, Estimate] = {}
     col = 0
     for e in effects:
         for par in e.parameters:
             at = bool(active[col])
-            if at:
+            if at and beyond[col] > UNPHYSICAL_SIGMAS:
                 unphysical[par.name] = float(free_beta[col])
             params[par.name] = Estimate(float(beta[col]), float(stderr[col]), par.unit, e.name, at)
             col += 1
@@ -847,9 +877,13 @@ def _refuse_unidentified(stats: Stats, cols: Sequence[int], model: Sequence[str]
     problems = identifiability(stats, cols, names, signals)
     if problems:
         first = problems[0]
+        # Kt is the point of the fit: suggest dropping the other effect (a torque offset is not an effect)
+        drop = [
+            owners[x] for x in (first.parameter, first.partner) if x in owners and owners[x] not in ("linear", "offset")
+        ]
+        remedy = f"leave out '{drop[-1]}' or record what is named" if drop else "record what is named"
         raise FitError(
-            f"{first.sentence()}; no value is reported for {first.parameter} (leave out '{owners[first.parameter]}' "
-            "or record what is named)",
+            f"{first.sentence()}; no value is reported for {first.parameter} ({remedy})",
             parameters=[first.parameter, first.partner],
             vif=first.vif,
         )

@@ -57,6 +57,7 @@ At least :data:`MIN_ROWS` rows must remain.
 
 from __future__ import annotations
 
+import dataclasses
 import difflib
 import math
 import re
@@ -285,6 +286,63 @@ class DynoLog:
         )
 
 
+    def window(self, start: float | None, stop: float | None) -> DynoLog:
+        """The rows with start <= t <= stop [s] (for a steady-state table, 1-based data rows); None is open.
+
+        Raises:
+            DynoDataError: Fewer than :data:`MIN_ROWS` rows lie in the window.
+        """
+        key = self.time if self.timed else self.time + 1.0
+        keep = np.ones(self.n, dtype=bool)
+        if start is not None:
+            keep &= key >= start
+        if stop is not None:
+            keep &= key <= stop
+        unit = "s" if self.timed else "(data rows)"
+        if int(keep.sum()) < MIN_ROWS:
+            lo, hi = float(key[0]), float(key[-1])
+            raise DynoDataError(
+                f"{self.source}: --window {_bound(start)}:{_bound(stop)} keeps {int(keep.sum())} rows, expected at "
+                f"least {MIN_ROWS}; the log spans {lo:.6g} to {hi:.6g} {unit}",
+                option="--window",
+            )
+        arrays = {name: (None if getattr(self, name) is None else getattr(self, name)[keep]) for name in CANONICAL}
+        note = CleaningNote(
+            "window",
+            int(self.n - keep.sum()),
+            f"kept {'the start' if start is None else f'{start:g}'} to {'the end' if stop is None else f'{stop:g}'} "
+            f"{unit} (--window): {int(keep.sum())} of {self.n} rows",
+        )
+        return dataclasses.replace(self, **arrays, notes=(*self.notes, note))
+
+
+def _bound(value: float | None) -> str:
+    return "" if value is None else f"{value:g}"
+
+
+def parse_window(text: str | None) -> tuple[float | None, float | None]:
+    """Read ``--window START:STOP`` (either end may be left out): (start, stop), None for an open end.
+
+    Raises:
+        DynoDataError: Not two numbers around a colon, or start after stop.
+    """
+    if text is None:
+        return None, None
+    parts = text.split(":")
+    example = "--window 0:39.5 (seconds; data rows for a steady-state table), --window 12: or --window :40"
+    try:
+        if len(parts) != 2:
+            raise ValueError
+        start, stop = (float(p) if p.strip() else None for p in parts)
+    except ValueError:
+        raise DynoDataError(
+            f"--window: found {text!r}, expected START:STOP, for example {example}", option="--window"
+        ) from None
+    if start is not None and stop is not None and start >= stop:
+        raise DynoDataError(f"--window: start {start:g} is not before stop {stop:g}", option="--window")
+    return start, stop
+
+
 def parse_mapping(text: str | None, option: str) -> dict[str, str]:
     """Read a ``name=value,name=value`` option, e.g. ``"torque=adc_torque,current=iq[mA]"``.
 
@@ -417,11 +475,15 @@ def log_from_frame(
         core, rows = _clean_time(core, rows, notes)
         _check_enough(rows.size, rows_read, notes, source)
     command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
-    core, rows, current_limit = _current_artefacts(core, rows, command, notes)
+    core, rows, current_limit = _undo_wraps(core, rows, command, notes)
     _check_enough(rows.size, rows_read, notes, source)
     noise: dict[str, float] = {}
     if timed:  # a glitch is a spike in time; the rows of a steady-state table are separate operating points
+        # before clamps are cut out: a row next to a removed stretch is no spike
         core, rows, noise = _remove_glitches(core, rows, notes)
+    core, rows, limit = _current_plateaus(core, rows, command, notes)
+    current_limit = limit if current_limit is None else max(current_limit, limit or 0.0)
+    _check_enough(rows.size, rows_read, notes, source)
     core, rows = _remove_clipping(core, rows, noise, notes)
     _check_enough(rows.size, rows_read, notes, source)
     torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source)
@@ -978,17 +1040,32 @@ def _remove_glitches(
     return (*_keep(data, rows, keep), noise)
 
 
-def _current_artefacts(
+def _undo_wraps(
     data: dict[str, NDArray[np.float64]],
     rows: NDArray[np.int64],
     command: NDArray[np.float64] | None,
     notes: list[CleaningNote],
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
-    """Undo wrap-around, remove clamped rows and find a driver current limit (:mod:`hound_id.dyno.artefacts`)."""
+    """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); a limit when the command asks past it."""
     current, torque, time = data["current"], data["torque"], data["time"]
     unwrapped, wrap = find_wraps(current, torque)
     limit: float | None = None
-    if wrap is not None:
+    if wrap is not None and wrap.unwrapped:
+        data = {**data, "current": unwrapped}
+        top = float(np.max(np.abs(unwrapped)))
+        notes.append(
+            CleaningNote(
+                "wrap",
+                0,
+                f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range "
+                f"of +-{wrap.period / 2:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
+                f"(t = {time[wrap.first]:.4g} s); the current went past the range (to {top:.3g} A), so each row "
+                "got back the whole periods that put it nearest torque / Kt (the torque does not wrap) and every row "
+                "was kept; a reply with a wider range avoids this",
+                "current",
+            )
+        )
+    elif wrap is not None:
         data = {**data, "current": unwrapped}
         boundary = at_boundary(unwrapped, wrap)
         half = wrap.period / 2.0
@@ -1013,7 +1090,18 @@ def _current_artefacts(
             )
         )
         data, rows = _keep(data, rows, ~boundary)
-        current, torque, time = data["current"], data["torque"], data["time"]
+    return data, rows, limit
+
+
+def _current_plateaus(
+    data: dict[str, NDArray[np.float64]],
+    rows: NDArray[np.int64],
+    command: NDArray[np.float64] | None,
+    notes: list[CleaningNote],
+) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
+    """Remove clamped rows and find a driver current limit (:mod:`hound_id.dyno.artefacts`)."""
+    current, torque = data["current"], data["torque"]
+    limit: float | None = None
     cmd = None if command is None else command[rows - 1]
     keep = np.ones(rows.size, dtype=bool)
     for plateau in find_plateaus(current, torque, cmd):
@@ -1086,7 +1174,7 @@ def _check_time_unit(time: NDArray[np.float64], stated: bool, notes: list[Cleani
 def _remove_clipping(
     data: dict[str, NDArray[np.float64]], rows: NDArray[np.int64], noise: dict[str, float], notes: list[CleaningNote]
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64]]:
-    """Remove the rows where the torque is stuck at its extreme (the current: :func:`_current_artefacts`).
+    """Remove the rows where the torque is stuck at its extreme (the current: :func:`_current_plateaus`).
 
     ``noise``: sigma of each channel.
     """
