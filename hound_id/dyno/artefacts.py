@@ -6,9 +6,9 @@ Seen on public actuator logs (``physics-notes.md``, "What real logs look like"):
   past the range comes back from the other end (a jump of one whole period P = 25.9 A), and a
   host that "unwraps" such jumps by guesswork adds or removes whole periods at random. The
   torque does not jump with it: a real current jump of P would move the torque by Kt P. So
-  jumps of one common size P that the torque does not share are wraps. When the true current
-  went past the range, each row gets back the whole periods that put it nearest torque / Kt
-  (the torque has no wrap) and the current is whole again. When
+  jumps of one common size P that the torque does not share are wraps. Each row gets back the
+  whole periods that put it nearest torque / Kt (the torque has no wrap), which restores a
+  current that went past the range or sat at its edge, when the torque follows the current. When
   the host added periods to a current within the range, the channel is folded back into +-P/2
   and the rows that then sit at the boundary are removed: there the sign cannot be known. The
   one of the two that follows the torque better is kept.
@@ -50,8 +50,8 @@ WRAP_EDGE = 0.1
 #: a channel that only sits at the boundary and jumps twice (a spike of just the right size) is no wrap.
 WRAP_INNER = 0.05
 WRAP_MANY = 10
-#: Undoing the jumps by continuity must raise the squared correlation of current and torque by this much
-#: over folding the channel into its range.
+#: Restoring the periods from the torque is kept when its squared correlation with the torque (all rows) is
+#: within this of folding's (rows off the boundary) and this much above the channel's as read.
 WRAP_BETTER = 0.02
 #: Shortest run at a plateau that counts [samples].
 PLATEAU_MIN_RUN = 5
@@ -154,9 +154,10 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     2. The torque per amp is measured where the current lies within +-P/2 (rows no wrap has moved), and a
        jump is a wrap where the torque does not follow it (it moves less than WRAP_SILENT of Kt P, one
        sample either side: a reply read one loop late).
-    3. If the true current went past the range (the reply wrapped it), the whole number of periods that
-       puts each row nearest torque / Kt makes the current follow the torque much better than folding:
-       that is kept. Otherwise the encoded
+    3. When the channel as read fills its range end to end (a reply that wraps), the whole number of
+       periods that puts each row nearest torque / Kt restores a current that went past the range, or sat
+       at its edge, on every row: that is kept when it follows the torque on all rows as well as folding
+       does on the rows off the boundary. Otherwise the encoded
        current lies within +-P/2, whatever the host added: the channel is folded into +-P/2 (whole periods
        taken out).
     4. It is a wrap-around only if the wraps left the range at its boundary, the folded channel spends time
@@ -198,14 +199,21 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     # The jumps mix the wrap with the current's change between samples; a reply that wraps fills its range
     # from end to end, so its extent (plus one quantum) measures the period better when it agrees.
     extent = float(np.ptp(x)) + quantum(x)
-    exact = extent if abs(extent - period) <= WRAP_TOLERANCE * period else period
+    fills = abs(extent - period) <= WRAP_TOLERANCE * period  # the reply as read fills its range end to end
+    exact = extent if fills else period
     k_inner = torque_per_amp(folded[inner], y[inner]) if inner.sum() >= 10 else 0.0
-    if k_inner == 0.0:
-        continuous = folded
-    else:
+    if k_inner != 0.0 and fills:
         continuous = x + exact * np.round((y / k_inner - x) / exact)
-    if _follows(continuous, y) > max(_follows(folded[clear], y[clear]), _follows(x, y)) + WRAP_BETTER:
-        return continuous, Wrap(exact, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
+        # the torque's choice keeps every row: take it when it follows the torque on all rows as well as folding
+        # does on the rows off the boundary (a torque that hardly follows the current cannot choose)
+        folding = _follows(folded[clear], y[clear])
+        if _follows(continuous, y) >= max(folding - WRAP_BETTER, _follows(x, y) + WRAP_BETTER):
+            return continuous, Wrap(exact, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
+    if exact != period:
+        period, half = exact, exact / 2.0
+        folded = x - period * np.round(x / period)
+        inner = np.abs(folded) < half / 2.0
+        clear = np.abs(folded) < half * (1.0 - WRAP_EDGE)
     if _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
         return x, None
     if jumps.size < WRAP_MANY and inner.mean() < WRAP_INNER:  # a few jumps of a channel that never leaves the edge

@@ -400,7 +400,8 @@ class _Agreeing:
 
     @property
     def typical(self) -> float:
-        return float(np.median(self.rmse[self.good]))
+        """The median block's RMSE under that fit (a good block's while fewer than half disagree)."""
+        return float(np.median(self.rmse))
 
 
 def _agreeing_fit(stats: Stats, cols: list[int], lower: Array, upper: Array, held_out: Array) -> _Agreeing:
@@ -458,12 +459,14 @@ def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, s
         out.append(
             f"blocks {k + 1}-{j + 1} of {bad.size} ({_span(signals, int(edges[k]), int(edges[j + 1]))}) disagree with "
             f"the rest: RMSE up to {worst:.3g} N m under the model fitted to the agreeing half of the blocks, against "
-            f"{ref:.3g} N m typical there; the log changes there (a motor switched off, a current running away, "
+            f"{ref:.3g} N m for the median block; the log changes there (a motor switched off, a current running away, "
             "another regime) or an effect acting only there is missing"
         )
         k = j + 1
     if out:
-        good_runs = _runs_of(~bad)
+        # a block next to a disagreeing one may hold the start of the change: leave it out of the advice
+        margin = ~bad & ~np.concatenate(([False], bad[:-1])) & ~np.concatenate((bad[1:], [False]))
+        good_runs = _runs_of(margin) or _runs_of(~bad)
         if good_runs:
             a, b = max(good_runs, key=lambda ab: int(edges[ab[1]] - edges[ab[0]]))
             names = [par.name for _, par in parameters_of([m for m in fit.model if m != "delay"])]

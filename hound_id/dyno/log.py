@@ -285,7 +285,6 @@ class DynoLog:
             channel=name,
         )
 
-
     def window(self, start: float | None, stop: float | None) -> DynoLog:
         """The rows with start <= t <= stop [s] (for a steady-state table, 1-based data rows); None is open.
 
@@ -1059,9 +1058,14 @@ def _undo_wraps(
                 0,
                 f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range "
                 f"of +-{wrap.period / 2:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
-                f"(t = {time[wrap.first]:.4g} s); the current went past the range (to {top:.3g} A), so each row "
-                "got back the whole periods that put it nearest torque / Kt (the torque does not wrap) and every row "
-                "was kept; a reply with a wider range avoids this",
+                f"(t = {time[wrap.first]:.4g} s); each row got back the whole periods that put it nearest torque / Kt "
+                f"(the torque does not wrap) and every row was kept"
+                + (
+                    f"; the current went past the range (to {top:.3g} A)"
+                    if top > 1.02 * wrap.period / 2
+                    else "; the current sat at the edge of the range"
+                )
+                + "; a reply with a wider range avoids this",
                 "current",
             )
         )

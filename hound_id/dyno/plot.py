@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -136,25 +136,37 @@ def plot_fit(
 
 
 def _block_panel(ax: Axes, signals: Signals, fit: FitResult, diagnosis: Diagnosis | None) -> None:
-    """Held-out RMSE of each time block against the noise floor; disagreeing blocks in red."""
+    """Held-out RMSE of each time block against the noise floor and its error under the fit to the agreeing half
+    of the blocks (what the flags are judged on); disagreeing blocks in red."""
     edges = fit.blocks.edges
     x = signals.time
     left = x[edges[:-1]]
     right = x[np.minimum(edges[1:], x.size - 1)]
     r = np.asarray(fit.block_rmse)
-    flagged = np.zeros(r.size, dtype=bool)
+    flagged = np.zeros(r.size, dtype=bool) if diagnosis is None else np.asarray(diagnosis.disagreeing, dtype=bool)
+    steps = np.append(left, right[-1])
+    colours = np.where(flagged, "tab:red", "tab:blue")
+    ax.bar(left, r, width=right - left, align="edge", color=colours, alpha=0.45, zorder=1)
+    from matplotlib.lines import Line2D
+    from matplotlib.patches import Patch
+
+    handles: list[Any] = [Patch(color="tab:blue", alpha=0.45, label="held-out RMSE of the block")]
+    if flagged.any():
+        handles.append(Patch(color="tab:red", alpha=0.45, label="held-out RMSE, block disagrees with the rest"))
     if diagnosis is not None:
         floor = np.where(np.isfinite(diagnosis.block_floor), diagnosis.block_floor, diagnosis.noise_floor)
-        flagged = np.asarray(diagnosis.disagreeing, dtype=bool)
-        ax.stairs(floor, np.append(left, right[-1]), color="0.3", lw=1.2, label="noise floor of the block")
-        ax.axhline(diagnosis.noise_floor, color="0.5", lw=0.8, ls=":", label="noise floor of the log")
-    colours = np.where(flagged, "tab:red", "tab:blue")
-    ax.bar(left, r, width=right - left, align="edge", color=colours, alpha=0.7, label="held-out RMSE of the block")
-    if flagged.any():
-        ax.bar([], [], color="tab:red", label="disagrees with the rest")
+        ax.stairs(floor, steps, color="0.2", lw=1.2, zorder=3, baseline=None)
+        ax.axhline(diagnosis.noise_floor, color="0.5", lw=0.8, ls=":", zorder=3)
+        handles += [
+            Line2D([], [], color="0.2", lw=1.2, label="noise floor of the block"),
+            Line2D([], [], color="0.5", lw=0.8, ls=":", label="noise floor of the log"),
+        ]
+        if diagnosis.block_agreeing.size == r.size:
+            ax.stairs(diagnosis.block_agreeing, steps, color="tab:orange", lw=1.6, zorder=4, baseline=None)
+            handles.append(Line2D([], [], color="tab:orange", lw=1.6, label="RMSE, model fitted to the agreeing half"))
+    ax.legend(handles=handles, fontsize=6, loc="upper left")
     ax.set_yscale("log")
     ax.set_xlabel("time [s]" if signals.timed else "row (steady-state table)")
-    ax.set_ylabel("held-out RMSE [N m]")
+    ax.set_ylabel("RMSE of the block [N m]")
     ax.set_title(f"each block predicted by the fit without its fold ({fit.blocks.folds} folds)", fontsize=9)
     ax.grid(alpha=0.3, which="both")
-    ax.legend(fontsize=6, loc="upper left")

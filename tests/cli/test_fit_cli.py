@@ -193,3 +193,78 @@ def test_a_units_override_is_said(canonical_log, tmp_path):
 def test_effects_table_keeps_units():
     proc = run_cli("effects")
     assert "delay [s]" in proc.stdout.replace("\n", " ") or "[s]" in proc.stdout
+
+
+# --- real-rig checks from the command line (issue 12) ----------------------------------------------------------
+
+
+def _polled(tmp_path, name="rig.csv", **rig):
+    from tests.dyno.polledrig import Rig, Truth, run, write
+
+    rig.setdefault("truth", Truth(coulomb=0.25, k_sat=0.01))
+    return write(run(Rig(**rig)), tmp_path / name)
+
+
+def test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked(tmp_path):
+    from tests.dyno.polledrig import COLUMNS
+
+    log, out = _polled(tmp_path), tmp_path / "fitted.yaml"
+    proc = run_cli("fit-current", str(log), "--columns", COLUMNS, "--auto", "--spec", str(MOTOR), "--out", str(out))
+    assert proc.returncode == 0, proc.stderr
+    # an output-side Kt of an AK80-9-like actuator against a direct-drive motor's sheet: far off, both named
+    assert "fitted Kt = 1.1" in proc.stderr and "the sheet's 0.138 N m/A" in proc.stderr
+    # k_sat = 0.01 N m/A^2 puts the 20 % point at 23 A, beyond the 10 A measured: marked, with the range
+    written = yaml.safe_load(out.read_text())
+    assert written["extrapolated"] == ["peak_torque"]
+    assert "is extrapolated beyond the measured currents (|i| <= 10" in proc.stderr
+    assert run_cli("mor", "--spec", str(out), "--json").returncode == 0  # the marked file still loads
+    assert "extrapolated" in run_cli("mor", "--spec", str(out)).stderr
+
+
+def test_window_option_and_its_errors(tmp_path):
+    from tests.dyno.polledrig import COLUMNS
+
+    log = _polled(tmp_path, motor_off_at=40.0)
+    flagged = run_cli("fit-current", str(log), "--columns", COLUMNS, "--json")
+    assert flagged.returncode == 0
+    data = json.loads(flagged.stdout)
+    assert not data["at_noise_floor"] and any("--window 0:" in f for f in data["flags"])
+    window = next(f for f in data["flags"] if "--window" in f).split("--window ")[1]
+    good = json.loads(
+        run_cli("fit-current", str(log), "--columns", COLUMNS, "--json", "--auto", "--window", window).stdout
+    )
+    assert not any(f.startswith("blocks") for f in good["flags"])
+    assert good["parameters"]["kt"]["value"] == pytest.approx(1.15, rel=0.01)
+    assert_one_line_error(run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "x"), "START:STOP")
+    assert_one_line_error(run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "5:1"), "not before")
+    assert_one_line_error(
+        run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "70:"), "keeps 0 rows", "spans 0 to"
+    )
+
+
+def test_the_plot_drops_missing_channels_and_shows_the_blocks(tmp_path):
+    from hound_id.dyno.curve import peak_torque
+    from hound_id.dyno.diagnose import diagnose
+    from hound_id.dyno.effects import Signals
+    from hound_id.dyno.fit import fit_model
+    from hound_id.dyno.log import load_log, parse_mapping
+    from hound_id.dyno.plot import plot_fit
+    from tests.dyno.polledrig import COLUMNS
+
+    path = _polled(tmp_path, motor_off_at=40.0)
+    for columns, absent in (
+        (COLUMNS, ("position", "temperature")),
+        ("time=loop_time,current=iq_meas,torque=torque_adc", ("velocity",)),
+    ):
+        log = load_log(path, columns=parse_mapping(columns, "--columns"))
+        signals = Signals.from_log(log)
+        fit = fit_model(signals, log.torque, ("linear", "saturation"))
+        d = diagnose(signals, log.torque, fit)
+        fig = plot_fit(signals, log.torque, fit, peak_torque(fit, 10.0), diagnosis=d)
+        labels = [ax.get_xlabel() for ax in fig.axes if ax.axison]
+        assert not any(name in label for label in labels for name in absent)
+        block = next(ax for ax in fig.axes if ax.axison and "block" in ax.get_title().lower())
+        reds = [p for p in block.patches if p.get_facecolor()[:3] == pytest.approx((0.839, 0.153, 0.157), abs=0.01)]
+        assert len(reds) == int(d.disagreeing.sum()) > 0  # the blocks after the motor was switched off
+    proc = run_cli("fit-current", str(path), "--columns", COLUMNS, "--plot", str(tmp_path / "p.png"))
+    assert proc.returncode == 0 and (tmp_path / "p.png").read_bytes().startswith(PNG_MAGIC)

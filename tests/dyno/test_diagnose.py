@@ -69,3 +69,27 @@ def test_a_long_glitch_is_named_as_outliers_not_a_missing_effect():
     d = diagnose(signals, dirty, fit_model(signals, dirty, DEFAULT))
     assert d.outliers is not None and "3 rows" in d.outliers
     assert "inspect them" in d.summary()
+
+
+COMBINATIONS = [
+    ("thermal", "delay"),  # where saturation_knee used to be added at the floor for a 0.03 % gain
+    ("coulomb", "viscous"),
+    ("cogging", "gear_friction"),
+    ("offset", "ripple"),
+    ("saturation_cubic", "coulomb"),
+    ("coulomb", "stribeck", "delay"),
+    ("thermal", "delay", "coulomb"),
+    ("viscous", "cogging", "offset"),
+]
+
+
+@pytest.mark.parametrize("k", range(len(COMBINATIONS)), ids=["+".join(c) for c in COMBINATIONS])
+def test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra(k):
+    hidden = COMBINATIONS[k]
+    signals, torque, sim = simulated((*DEFAULT, *hidden), 80 + k, k % len(RIGS))
+    ladder = auto(signals, torque, fit_model(signals, torque, DEFAULT))
+    assert sorted(step.added for step in ladder[1:]) == sorted(hidden)
+    final = ladder[-1]
+    assert final.diagnosis.at_noise_floor and not final.diagnosis.flags
+    assert final.fit.rmse_test <= 1.05 * sim.truth["noise_std"]
+    assert not final.fit.unphysical
