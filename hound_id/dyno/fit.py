@@ -761,6 +761,31 @@ def reversed_sensor_error(kt: float) -> DynoDataError:
     )
 
 
+#: The plain torque-per-amp slope must lie this many (cluster-robust) standard errors from zero to be read.
+SLOPE_SIGMAS = 3.0
+
+
+def _check_slope(stats: Stats, col: int) -> None:
+    """Refuse a log whose torque does not follow the current, or falls with it (a reversed sensor).
+
+    Judged on the plain slope of torque on current (with an offset), which shape terms that trade off
+    against Kt (saturation, load-dependent friction) cannot flip.
+    """
+    G, g, _ = stats.total([0, col])
+    beta, _ = solve_normal(G, g)
+    se = math.sqrt(max(float(robust_cov(stats, [0, col], beta, np.ones(2, dtype=bool))[1, 1]), 0.0))
+    slope = float(beta[1])
+    if abs(slope) <= SLOPE_SIGMAS * se:
+        raise FitError(
+            f"the torque does not follow the current: torque per amp is {slope:.3g} +- {se:.2g} N m/A, no different "
+            "from zero, so this log cannot measure Kt; the torque sensor is not loaded by the motor (or not "
+            "connected), or the current column is not this motor's",
+            kt=slope,
+        )
+    if slope < 0:
+        raise reversed_sensor_error(slope)
+
+
 def _finish(
     design: Design,
     model: Sequence[str],
@@ -782,8 +807,8 @@ def _finish(
     lower, upper = bounds_of(model)
     G, g, _ = stats.total(cols)
     free_beta, _ = solve_normal(G, g)
-    if "kt" in names and free_beta[names.index("kt")] <= 0:
-        raise reversed_sensor_error(float(free_beta[names.index("kt")]))
+    if "kt" in names:
+        _check_slope(stats, 1 + names.index("kt"))
     beta, active = solve_bounded(G, g, lower, upper)
     solve_stats = stats
     weights = None

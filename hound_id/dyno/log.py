@@ -485,6 +485,7 @@ def log_from_frame(
     _check_enough(rows.size, rows_read, notes, source)
     core, rows = _remove_clipping(core, rows, noise, notes)
     _check_enough(rows.size, rows_read, notes, source)
+    _check_varies(core, source)
     torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source)
     positions = rows - 1
     optional = {name: np.take(values, positions) for name, values in data.items() if name not in CORE}
@@ -767,6 +768,21 @@ def _plural(count: int, word: str) -> str:
 
 def _unit_label(name: str) -> str:
     return UNITS[name].replace("*", " ")
+
+
+def _check_varies(core: dict[str, NDArray[np.float64]], source: str) -> None:
+    """Refuse a torque channel that holds one value (to float precision) on every row.
+
+    (A current held at one value is a test a rig can run; the fit says what it cannot identify.)
+    """
+    x = core["torque"]
+    top = float(np.max(np.abs(x)))
+    if float(np.ptp(x)) <= 1e-9 * top or top == 0.0:
+        raise DynoDataError(
+            f"{source}: the torque channel holds one value ({float(x[0]):.6g} N m) on every row; expected a torque "
+            "that varies: the sensor is not connected or not read, or --columns maps the wrong column",
+            channel="torque",
+        )
 
 
 def _check_enough(n: int, rows_read: int, notes: list[CleaningNote], source: str) -> None:

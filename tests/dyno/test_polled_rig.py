@@ -382,3 +382,23 @@ def test_a_steady_state_table_cannot_fit_a_delay(tmp_path):
     with pytest.raises(FitError, match="steady-state table"):
         fit_model(Signals.from_log(log), log.torque, (*DEFAULT, "delay"))
     assert math.isfinite(fit_model(Signals.from_log(log), log.torque, DEFAULT).rmse_test)
+
+
+def test_a_torque_sensor_the_motor_does_not_load_gives_no_kt(tmp_path):
+    f = frame(Rig()).copy()
+    rng = np.random.default_rng(3)
+    f["torque_adc"] = 0.2 * np.sin(np.linspace(0, 40, len(f))) + rng.normal(0, 0.05, len(f))  # drift and noise only
+    path = tmp_path / "unloaded.csv"
+    f.to_csv(path, index=False)
+    log = load_log(path, columns=MAP)
+    with pytest.raises(FitError, match="the torque does not follow the current.*no different from zero"):
+        fit_model(Signals.from_log(log), log.torque, DEFAULT)
+
+
+def test_a_torque_channel_stuck_at_one_value_is_refused(tmp_path):
+    f = frame(Rig()).copy()
+    f["torque_adc"] = -2.741623e16  # an ADC never read: one huge value on every row
+    path = tmp_path / "stuck.csv"
+    f.to_csv(path, index=False)
+    with pytest.raises(DynoDataError, match="torque channel holds one value"):
+        load_log(path, columns=MAP)
