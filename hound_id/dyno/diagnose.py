@@ -43,6 +43,7 @@ from hound_id.dyno.fit import (
     Design,
     FitResult,
     Stats,
+    agreeing_half,
     bounds_of,
     cross_validate,
     fit_model,
@@ -405,27 +406,12 @@ class _Agreeing:
 
 
 def _agreeing_fit(stats: Stats, cols: list[int], lower: Array, upper: Array, held_out: Array) -> _Agreeing:
-    """Block-level least trimmed squares: fit the half of the blocks that fit best, re-pick the half, repeat.
+    """The blocks judged against a fit to the half of them that agrees (:func:`~hound_id.dyno.fit.agreeing_half`).
 
     A motor switched off for a third of the log pulls a fit to all blocks towards it, so that no block stands
-    out against the median; the blocks are judged against a fit to the half that agrees (robust to breakage in
-    up to half the log). Starts from the half with the smallest held-out error.
+    out against the median; a fit to the agreeing half does not (robust to breakage in up to half the log).
     """
-    rows = np.maximum(np.diff(stats.blocks.edges), 1)
-    half = max(stats.blocks.count // 2, 1)
-    good = np.zeros(stats.blocks.count, dtype=bool)
-    good[np.argsort(held_out, kind="stable")[:half]] = True
-    rmse = held_out
-    beta = np.zeros(len(cols))
-    for _ in range(8):
-        G, g, _ = stats.total(cols, good)
-        beta, _ = solve_bounded(G, g, lower, upper)
-        rmse = np.sqrt(stats.sse(cols, beta) / rows)
-        picked = np.zeros_like(good)
-        picked[np.argsort(rmse, kind="stable")[:half]] = True
-        if np.array_equal(picked, good):
-            break
-        good = picked
+    good, beta, rmse = agreeing_half(stats, cols, lower, upper, held_out)
     return _Agreeing(rmse, good, beta)
 
 

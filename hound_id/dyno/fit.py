@@ -763,27 +763,120 @@ def reversed_sensor_error(kt: float) -> DynoDataError:
 
 #: The plain torque-per-amp slope must lie this many (cluster-robust) standard errors from zero to be read.
 SLOPE_SIGMAS = 3.0
+#: Significance of the block sign test of the slope.
+SIGN_ALPHA = 0.001
+#: Fewest blocks in which the current moves for the block-by-block slope to count.
+MIN_SIGN_BLOCKS = 8
+#: A block's current must have a standard deviation of this many noise sigmas for its slope to count.
+MOVING_NOISE = 5.0
+#: Share of the torque's variance the current must explain on the agreeing half of the blocks.
+HALF_EXPLAINED = 0.5
 
 
-def _check_slope(stats: Stats, col: int) -> None:
+def agreeing_half(
+    stats: Stats, cols: Sequence[int], lower: Array, upper: Array, start: Array | None = None
+) -> tuple[NDArray[np.bool_], Array, Array]:
+    """Block-level least trimmed squares: fit the half of the blocks that fit best, re-pick that half, repeat.
+
+    Starts from the half with the smallest ``start`` (e.g. held-out RMSE; by default the RMSE under a fit to
+    all blocks). Returns (the agreeing half, its coefficients, every block's RMSE under them).
+    """
+    rows = np.maximum(np.diff(stats.blocks.edges), 1)
+    half = max(stats.blocks.count // 2, 1)
+    if start is None:
+        G, g, _ = stats.total(cols)
+        beta, _ = solve_bounded(G, g, lower, upper)
+        start = np.sqrt(stats.sse(cols, beta) / rows)
+    good = np.zeros(stats.blocks.count, dtype=bool)
+    good[np.argsort(start, kind="stable")[:half]] = True
+    rmse = np.asarray(start, float)
+    beta = np.zeros(len(cols))
+    for _ in range(8):
+        G, g, _ = stats.total(cols, good)
+        beta, _ = solve_bounded(G, g, lower, upper)
+        rmse = np.sqrt(stats.sse(cols, beta) / rows)
+        picked = np.zeros_like(good)
+        picked[np.argsort(rmse, kind="stable")[:half]] = True
+        if np.array_equal(picked, good):
+            break
+        good = picked
+    return good, beta, rmse
+
+
+def _check_slope(stats: Stats, col: int, current: Array) -> None:
     """Refuse a log whose torque does not follow the current, or falls with it (a reversed sensor).
 
     Judged on the plain slope of torque on current (with an offset), which shape terms that trade off
-    against Kt (saturation, load-dependent friction) cannot flip.
+    against Kt (saturation, load-dependent friction) cannot flip, two ways: over the whole log (within
+    SLOPE_SIGMAS cluster-robust standard errors of zero or not), and block by block over the blocks in which
+    the current moves (a sign test, and the median of the blocks' slopes against its standard error), and
+    over the agreeing half of the blocks (:func:`agreeing_half`), which a broken stretch of the log cannot
+    sway. Any of them showing a sign is enough; if they disagree in sign,
+    the log is read as rising (the fit's own checks flag what is broken).
     """
+    from scipy.special import bdtr  # binomial cdf
+
     G, g, _ = stats.total([0, col])
     beta, _ = solve_normal(G, g)
     se = math.sqrt(max(float(robust_cov(stats, [0, col], beta, np.ones(2, dtype=bool))[1, 1]), 0.0))
     slope = float(beta[1])
-    if abs(slope) <= SLOPE_SIGMAS * se:
+    n = stats.G[:, 0, 0]
+    mean = stats.G[:, 0, col] / np.maximum(n, 1)
+    var = stats.G[:, col, col] / np.maximum(n, 1) - mean**2
+    from hound_id.dyno.artefacts import noise_sigma, quantum
+
+    # a block counts where its current moves by more than a few noise sigmas (or steps of the reply)
+    floor = max(noise_sigma(current), quantum(current))
+    moving = var > (MOVING_NOISE * floor) ** 2 if floor > 0 else var > 0
+    cov = stats.g[moving, col] / n[moving] - mean[moving] * stats.g[moving, 0] / n[moving]
+    up, m = int(np.count_nonzero(cov > 0)), int(np.count_nonzero(moving))
+    p_down = float(bdtr(up, m, 0.5)) if m else 1.0  # this few rising blocks by chance
+    p_up = float(bdtr(m - up, m, 0.5)) if m else 1.0
+    # the blocks' own slopes: their median, with the standard error of a median (1.2533 x that of a mean)
+    block = cov / np.maximum(var[moving], 1e-300)
+    typical = float(np.median(block)) if m else 0.0
+    scatter = 1.2533 * 1.4826 * float(np.median(np.abs(block - typical))) / math.sqrt(max(m, 1)) if m else math.inf
+    blocks_say = m >= MIN_SIGN_BLOCKS and abs(typical) > SLOPE_SIGMAS * scatter
+    clear = abs(slope) > SLOPE_SIGMAS * se
+    # the same slope over the agreeing half of the blocks, which a broken tail or a spike cannot drag
+    free = np.full(2, -np.inf), np.full(2, np.inf)
+    good, trimmed, _ = agreeing_half(stats, [0, col], *free)
+    G_half, _, _ = stats.total([0, col], good)
+    half_cov = np.zeros((2, 2))
+    if good.sum() > 2:
+        _, inv = solve_normal(G_half, np.zeros(2))
+        S = stats.scores([0, col], trimmed)[good]
+        half_cov = inv @ (S.T @ S) * (S.shape[0] / max(S.shape[0] - 1, 1)) @ inv
+    half_se = math.sqrt(max(float(half_cov[1, 1]), 0.0))
+    # the half is picked for fitting well, which flatters its standard error: it must also explain the torque
+    yy = float(stats.yy[good].sum())
+    g0 = float(stats.g[good, 0].sum())
+    total = yy - g0**2 / max(float(G_half[0, 0]), 1.0)
+    explained = 1.0 - float(stats.sse([0, col], trimmed)[good].sum()) / total if total > 0 else 0.0
+    half_says = (
+        good.sum() >= MIN_SIGN_BLOCKS
+        and abs(float(trimmed[1])) > SLOPE_SIGMAS * half_se
+        and explained >= HALF_EXPLAINED
+    )
+    down = (clear and slope < 0) or p_down < SIGN_ALPHA or (blocks_say and typical < 0)
+    down = down or (half_says and trimmed[1] < 0)
+    rise = (clear and slope > 0) or p_up < SIGN_ALPHA or (blocks_say and typical > 0)
+    rise = rise or (half_says and trimmed[1] > 0)
+    if down and not rise:
+        raise reversed_sensor_error(slope if slope < 0 else typical)
+    if not rise:
         raise FitError(
             f"the torque does not follow the current: torque per amp is {slope:.3g} +- {se:.2g} N m/A, no different "
-            "from zero, so this log cannot measure Kt; the torque sensor is not loaded by the motor (or not "
-            "connected), or the current column is not this motor's",
+            "from zero, "
+            + (
+                f"and it rises with the current in {up} of the {m} blocks where the current moves"
+                if m
+                else "and in no block does the current move beyond its noise"
+            )
+            + "; this log cannot measure Kt: the torque sensor is not loaded by the motor (or not connected), or the "
+            "current column is not this motor's",
             kt=slope,
         )
-    if slope < 0:
-        raise reversed_sensor_error(slope)
 
 
 def _finish(
@@ -808,7 +901,7 @@ def _finish(
     G, g, _ = stats.total(cols)
     free_beta, _ = solve_normal(G, g)
     if "kt" in names:
-        _check_slope(stats, 1 + names.index("kt"))
+        _check_slope(stats, 1 + names.index("kt"), design.signals.current)
     beta, active = solve_bounded(G, g, lower, upper)
     solve_stats = stats
     weights = None
