@@ -142,6 +142,18 @@ def fit_current(
     _print(report, fit, diagnosis, ladder, plot, out)
 
 
+def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
+    """' >= 0', ' <= 0' or '' for a parameter's physical bound."""
+    lower, upper = p.get("lower"), p.get("upper")
+    if lower is not None and upper is not None:
+        return f" in [{lower:g}, {upper:g}]"
+    if lower is not None:
+        return f" >= {lower:g}"
+    if upper is not None:
+        return f" <= {upper:g}"
+    return ""
+
+
 def _fit_warnings(report: dict) -> list[str]:  # type: ignore[type-arg]
     """Warnings every user must see: parameters held at a physical bound, disagreeing blocks."""
     out = []
@@ -265,6 +277,6 @@ def effects(json_out: bool = typer.Option(False, "--json", help="Print JSON (sch
     for col in ("effect", "parameters", "needs", "physics"):
         table.add_column(col, overflow="fold")
     for e in items:
-        params = ", ".join(f"{p['name']} [{p['unit']}]" for p in (*e["parameters"], *e["hypers"]))
+        params = ", ".join(f"{p['name']} [{p['unit']}]{_bound_text(p)}" for p in (*e["parameters"], *e["hypers"]))
         table.add_row(*(escape(x) for x in (e["effect"], params, ", ".join(e["requires"]) or "-", e["physics"])))
     console.print(table)

@@ -64,7 +64,7 @@ import re
 from collections.abc import Mapping
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -305,7 +305,9 @@ class DynoLog:
                 f"least {MIN_ROWS}; the log spans {lo:.6g} to {hi:.6g} {unit}",
                 option="--window",
             )
-        arrays = {name: (None if getattr(self, name) is None else getattr(self, name)[keep]) for name in CANONICAL}
+        arrays: dict[str, Any] = {
+            name: (None if getattr(self, name) is None else getattr(self, name)[keep]) for name in CANONICAL
+        }
         note = CleaningNote(
             "window",
             int(self.n - keep.sum()),
