@@ -187,6 +187,12 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     jumps = candidates[near < WRAP_SILENT * k * period] if k > 0 else candidates
     if jumps.size < WRAP_MIN_JUMPS:
         return x, None
+    # The jumps mix the wrap with the current's change between samples; a reply that wraps fills its range
+    # from end to end, so its extent (plus one quantum) measures the period better when it agrees.
+    extent = float(np.ptp(x)) + quantum(x)
+    fills = abs(extent - period) <= WRAP_TOLERANCE * period  # the reply as read fills its range end to end
+    if fills:
+        period, half = extent, extent / 2.0
     folded = x - period * np.round(x / period)
     edge = np.abs(np.abs(folded[jumps]) - half) <= WRAP_EDGE * half
     inner = np.abs(folded) < half / 2.0
@@ -196,24 +202,14 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     # A current that really went past the range: on each row take the whole number of periods that puts the
     # current nearest torque / Kt (the torque does not wrap; Kt from rows well inside the range, which no wrap
     # reaches; the choice is discrete, so a rough Kt and a torque off by friction do not matter).
-    # The jumps mix the wrap with the current's change between samples; a reply that wraps fills its range
-    # from end to end, so its extent (plus one quantum) measures the period better when it agrees.
-    extent = float(np.ptp(x)) + quantum(x)
-    fills = abs(extent - period) <= WRAP_TOLERANCE * period  # the reply as read fills its range end to end
-    exact = extent if fills else period
     k_inner = torque_per_amp(folded[inner], y[inner]) if inner.sum() >= 10 else 0.0
     if k_inner != 0.0 and fills:
-        continuous = x + exact * np.round((y / k_inner - x) / exact)
+        continuous = x + period * np.round((y / k_inner - x) / period)
         # the torque's choice keeps every row: take it when it follows the torque on all rows as well as folding
         # does on the rows off the boundary (a torque that hardly follows the current cannot choose)
         folding = _follows(folded[clear], y[clear])
         if _follows(continuous, y) >= max(folding - WRAP_BETTER, _follows(x, y) + WRAP_BETTER):
-            return continuous, Wrap(exact, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
-    if exact != period:
-        period, half = exact, exact / 2.0
-        folded = x - period * np.round(x / period)
-        inner = np.abs(folded) < half / 2.0
-        clear = np.abs(folded) < half * (1.0 - WRAP_EDGE)
+            return continuous, Wrap(period, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
     if _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
         return x, None
     if jumps.size < WRAP_MANY and inner.mean() < WRAP_INNER:  # a few jumps of a channel that never leaves the edge

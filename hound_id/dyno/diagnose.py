@@ -357,7 +357,7 @@ def diagnose(
         )
     suggestions.sort(key=lambda s: (-s.significant, -s.physical, -s.explained))
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
-    agreeing = _agreeing_fit(stats, cols, lower, upper, np.asarray(fit.block_rmse))
+    agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
     disagreeing = _disagreeing(agreeing, floor, block_floor)
     flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
@@ -392,27 +392,23 @@ def _window(signals: Signals, start: int, stop: int) -> str:
 
 @dataclass(frozen=True)
 class _Agreeing:
-    """Each block's RMSE under a fit to the agreeing half of the blocks, and that half."""
-
-    rmse: Array
-    good: np.ndarray
-    beta: Array
-    """The coefficients of the fit to the agreeing half (the model's columns)."""
-
-    @property
-    def typical(self) -> float:
-        """The median block's RMSE under that fit (a good block's while fewer than half disagree)."""
-        return float(np.median(self.rmse))
-
-
-def _agreeing_fit(stats: Stats, cols: list[int], lower: Array, upper: Array, held_out: Array) -> _Agreeing:
     """The blocks judged against a fit to the half of them that agrees (:func:`~hound_id.dyno.fit.agreeing_half`).
 
     A motor switched off for a third of the log pulls a fit to all blocks towards it, so that no block stands
     out against the median; a fit to the agreeing half does not (robust to breakage in up to half the log).
     """
-    good, beta, rmse = agreeing_half(stats, cols, lower, upper, held_out)
-    return _Agreeing(rmse, good, beta)
+
+    good: np.ndarray
+    """The agreeing half."""
+    beta: Array
+    """The coefficients of the fit to it (the model's columns)."""
+    rmse: Array
+    """Every block's RMSE under that fit [N m]."""
+
+    @property
+    def typical(self) -> float:
+        """The median block's RMSE under that fit (a good block's while fewer than half disagree)."""
+        return float(np.median(self.rmse))
 
 
 def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -455,7 +451,7 @@ def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, s
         good_runs = _runs_of(margin) or _runs_of(~bad)
         if good_runs:
             a, b = max(good_runs, key=lambda ab: int(edges[ab[1]] - edges[ab[0]]))
-            names = [par.name for _, par in parameters_of([m for m in fit.model if m != "delay"])]
+            names = [par.name for _, par in parameters_of(fit.model)]
             kt_note = ""
             if "kt" in names:
                 kt_note = f"fitted to the agreeing blocks alone, Kt = {agreeing.beta[names.index('kt')]:.4g} N m/A; "

@@ -35,6 +35,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
+from hound_id.dyno.artefacts import noise_sigma, quantum
 from hound_id.dyno.effects import Effect, Signals, get, requirements_missing
 from hound_id.errors import DynoDataError, FitError
 
@@ -328,8 +329,11 @@ def solve_bounded(G: Array, g: Array, lower: Array, upper: Array) -> tuple[Array
     return x, active
 
 
-def robust_cov(stats: Stats, cols: Sequence[int], beta: Array, free: NDArray[np.bool_]) -> Array:
-    """Cluster-robust covariance of the free coefficients (blocks as clusters, small-sample corrected).
+def robust_cov(
+    stats: Stats, cols: Sequence[int], beta: Array, free: NDArray[np.bool_], use: NDArray[np.bool_] | None = None
+) -> Array:
+    """Cluster-robust covariance of the free coefficients (blocks as clusters, small-sample corrected), over
+    the blocks in ``use`` (all by default).
 
     Zero rows and columns for coefficients held at a bound.
     """
@@ -338,9 +342,9 @@ def robust_cov(stats: Stats, cols: Sequence[int], beta: Array, free: NDArray[np.
     idx = np.flatnonzero(free)
     if idx.size == 0:
         return cov
-    G, _, _ = stats.total(cols)
+    G, _, _ = stats.total(cols, use)
     _, G_inv = solve_normal(G[np.ix_(idx, idx)], np.zeros(idx.size))
-    S = stats.scores(cols, beta)[:, idx]
+    S = stats.scores(cols, beta)[slice(None) if use is None else use][:, idx]
     count = S.shape[0]
     meat = S.T @ S * (count / max(count - 1, 1))
     cov[np.ix_(idx, idx)] = G_inv @ meat @ G_inv
@@ -742,9 +746,10 @@ def fit_model(
         delay, delay_stderr = estimate_delay(design, [m for m in model if m != "delay"], current, start=delay)
         current["delay"] = delay
         shifted = signals.shifted(delay)
-    if has_delay and abs(delay) > delay_window(signals):
+    window = delay_window(signals) if has_delay else math.inf
+    if abs(delay) > window:
         raise FitError(
-            f"the delay fits only at {1e3 * delay:+.3g} ms, outside the +-{1e3 * delay_window(signals):.3g} ms a "
+            f"the delay fits only at {1e3 * delay:+.3g} ms, outside the +-{1e3 * window:.3g} ms a "
             "transducer filter or a bus can explain; check the time column's unit (--units time=ms) or leave "
             "'delay' out",
             delay=delay,
@@ -811,8 +816,8 @@ def _check_slope(stats: Stats, col: int, current: Array) -> None:
     SLOPE_SIGMAS cluster-robust standard errors of zero or not), and block by block over the blocks in which
     the current moves (a sign test, and the median of the blocks' slopes against its standard error), and
     over the agreeing half of the blocks (:func:`agreeing_half`), which a broken stretch of the log cannot
-    sway. Any of them showing a sign is enough; if they disagree in sign,
-    the log is read as rising (the fit's own checks flag what is broken).
+    sway. Any of them showing a sign is enough; if they disagree in sign, the log is read as rising (the
+    fit's own checks flag what is broken).
     """
     from scipy.special import bdtr  # binomial cdf
 
@@ -823,8 +828,6 @@ def _check_slope(stats: Stats, col: int, current: Array) -> None:
     n = stats.G[:, 0, 0]
     mean = stats.G[:, 0, col] / np.maximum(n, 1)
     var = stats.G[:, col, col] / np.maximum(n, 1) - mean**2
-    from hound_id.dyno.artefacts import noise_sigma, quantum
-
     # a block counts where its current moves by more than a few noise sigmas (or steps of the reply)
     floor = max(noise_sigma(current), quantum(current))
     moving = var > (MOVING_NOISE * floor) ** 2 if floor > 0 else var > 0
@@ -842,11 +845,7 @@ def _check_slope(stats: Stats, col: int, current: Array) -> None:
     free = np.full(2, -np.inf), np.full(2, np.inf)
     good, trimmed, _ = agreeing_half(stats, [0, col], *free)
     G_half, _, _ = stats.total([0, col], good)
-    half_cov = np.zeros((2, 2))
-    if good.sum() > 2:
-        _, inv = solve_normal(G_half, np.zeros(2))
-        S = stats.scores([0, col], trimmed)[good]
-        half_cov = inv @ (S.T @ S) * (S.shape[0] / max(S.shape[0] - 1, 1)) @ inv
+    half_cov = robust_cov(stats, [0, col], trimmed, np.ones(2, dtype=bool), good)
     half_se = math.sqrt(max(float(half_cov[1, 1]), 0.0))
     # the half is picked for fitting well, which flatters its standard error: it must also explain the torque
     yy = float(stats.yy[good].sum())

@@ -1064,54 +1064,51 @@ def _undo_wraps(
     notes: list[CleaningNote],
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
     """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); a limit when the command asks past it."""
-    current, torque, time = data["current"], data["torque"], data["time"]
-    unwrapped, wrap = find_wraps(current, torque)
-    limit: float | None = None
-    if wrap is not None and wrap.unwrapped:
-        data = {**data, "current": unwrapped}
+    time = data["time"]
+    unwrapped, wrap = find_wraps(data["current"], data["torque"])
+    if wrap is None:
+        return data, rows, None
+    data = {**data, "current": unwrapped}
+    half = wrap.period / 2.0
+    head = (
+        f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range of "
+        f"+-{half:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
+        f"(t = {time[wrap.first]:.4g} s); "
+    )
+    if wrap.unwrapped:
         top = float(np.max(np.abs(unwrapped)))
+        where = f"went past the range (to {top:.3g} A)" if top > 1.02 * half else "sat at the edge of the range"
         notes.append(
             CleaningNote(
                 "wrap",
                 0,
-                f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range "
-                f"of +-{wrap.period / 2:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
-                f"(t = {time[wrap.first]:.4g} s); each row got back the whole periods that put it nearest torque / Kt "
-                f"(the torque does not wrap) and every row was kept"
-                + (
-                    f"; the current went past the range (to {top:.3g} A)"
-                    if top > 1.02 * wrap.period / 2
-                    else "; the current sat at the edge of the range"
-                )
-                + "; a reply with a wider range avoids this",
+                f"{head}each row got back the whole periods that put it nearest torque / Kt (the torque does not "
+                f"wrap) and every row was kept; the current {where}; a reply with a wider range avoids this",
                 "current",
             )
         )
-    elif wrap is not None:
-        data = {**data, "current": unwrapped}
-        boundary = at_boundary(unwrapped, wrap)
-        half = wrap.period / 2.0
-        count = int(np.count_nonzero(boundary))
-        asked = asked_at_boundary(unwrapped, None if command is None else command[rows - 1], boundary, half)
-        capped = ""
-        if asked is not None and asked > 1.05 * half:
-            limit = half
-            capped = (
-                f"; there the command asks for {asked:.3g} A (median, from the command-current relation elsewhere), "
-                f"so the current is capped at {half:.4g} A (the driver's limit or the reply's range)"
-            )
-        notes.append(
-            CleaningNote(
-                "wrap",
-                count,
-                f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range of "
-                f"+-{half:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
-                f"(t = {time[wrap.first]:.4g} s); folded back into +-{half:.4g} A, and the {_plural(count, 'row')} at "
-                f"the boundary, where the sign of the current cannot be known, were removed{capped}",
-                "current",
-            )
+        return data, rows, None
+    boundary = at_boundary(unwrapped, wrap)
+    count = int(np.count_nonzero(boundary))
+    asked = asked_at_boundary(unwrapped, None if command is None else command[rows - 1], boundary, half)
+    limit: float | None = None
+    capped = ""
+    if asked is not None and asked > 1.05 * half:
+        limit = half
+        capped = (
+            f"; there the command asks for {asked:.3g} A (median, from the command-current relation elsewhere), "
+            f"so the current is capped at {half:.4g} A (the driver's limit or the reply's range)"
         )
-        data, rows = _keep(data, rows, ~boundary)
+    notes.append(
+        CleaningNote(
+            "wrap",
+            count,
+            f"{head}folded back into +-{half:.4g} A, and the {_plural(count, 'row')} at the boundary, where the sign "
+            f"of the current cannot be known, were removed{capped}",
+            "current",
+        )
+    )
+    data, rows = _keep(data, rows, ~boundary)
     return data, rows, limit
 
 

@@ -22,7 +22,6 @@ kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w, with the transducer
 
 from __future__ import annotations
 
-import dataclasses
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -65,9 +64,6 @@ class Rig:
     runaway_from: float | None = None  # s
     runaway_rate: float = 1.5  # A/s
     seed: int = 0
-
-    def replace(self, **changes: object) -> Rig:
-        return dataclasses.replace(self, **changes)  # type: ignore[arg-type]
 
 
 def _butter2(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
