@@ -89,8 +89,10 @@ def _mor_compare(
         final, noise = data["envelope_rmse"]["with_added"], data["noise_level"]
         raise SpecError(
             f"--out {out}: the model does not explain {log.source} (envelope error {final:.3g} N m, "
-            f"{final / max(noise, 1e-12):.0f}x the noise level); a measured envelope is written only when it explains "
-            "the log: run without --out to see what is missing"
+            f"{final / max(noise, 1e-12):.0f}x the noise level"
+            + "".join(f"; {f['text']}" for f in data["flags"])
+            + "); a measured envelope is written only when it explains the log: run without --out to see what is "
+            "missing"
         )
     if plot is not None:
         from hound_id.mor.plot import plot_compare
@@ -126,6 +128,15 @@ def _mor_compare(
         f"{data['envelope_rmse']['model']:.3g} N m against the spec sheet, noise level {data['noise_level']:.2g} N m",
         highlight=False,
     )
+    detection = data["limit_detection"]
+    if detection:
+        console.print(
+            f"at the limit where the lagged command passes the torque by more than "
+            f"{detection['threshold']['upper']:.3g} N m (upper) / {detection['threshold']['lower']:.3g} N m (lower) "
+            f"for {detection['persist_rows']} rows: lag {detection['lag_rows']:.1f} rows, gain {detection['gain']:.3f}, "
+            f"bias {detection['bias']:+.3g} N m, noise {detection['noise']:.2g} N m inside the region",
+            highlight=False,
+        )
     for step in data["ladder"][1:]:
         params = ", ".join(f"{k} = {v:.4g}" for k, v in step["model"].items())
         console.print(f"+ {step['added']}: envelope error {step['envelope_rmse']:.3g} N m ({params})", highlight=False)
@@ -162,6 +173,8 @@ def _mor_compare(
         )
     significant = [s for s in data["suggestions"] if s["significant"]]
     final = data["envelope_rmse"]["with_added"]
+    for flag in data["flags"]:
+        warn(flag["text"])
     for item in data["unneeded"]:
         name = item["effect"]
         console.print(f"not needed: {name}: {item['reason']}; leave out --add {name}", highlight=False)
@@ -172,7 +185,7 @@ def _mor_compare(
     else:
         console.print(
             f"no candidate effect is significant, but the model does not explain the log: envelope error "
-            f"{final:.3g} N m ({final / max(data['noise_level'], 1e-12):.0f}x the noise level), "
+            f"{final:.3g} N m ({final / max(data['noise_level'], 1e-12):.1f}x the noise level), "
             f"{data['outside_fraction']:.1%} of the samples past the region. Check the units, log torque_cmd, "
             "or suspect an effect hound-id does not model",
             highlight=False,

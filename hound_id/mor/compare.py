@@ -49,12 +49,26 @@ SCHEMA = "hound-id/mor-compare/1"
 
 #: Channels of a comparison log; the first two are required.
 CHANNELS = ("torque", "velocity", "torque_cmd", "current", "temperature", "bus_voltage")
-#: A command above the measured torque by this share of the torque limit marks a sample at its limit.
-CMD_GAP = 0.02
+#: With a command channel: the lag searched [rows], the quantile of the shortfall inside the region that a sample at
+#: the limit must pass, a floor of that many robust noise levels, the rows it must last, and the robust spreads
+#: about a cluster's median beyond which a sample is left out of it.
+LAG_MAX = 100
+INSIDE_QUANTILE = 0.999
+CMD_SIGMAS = 5.0
+PERSIST = 3
+TRIM = 5.0
 #: A bin has a wall when (q98 - q90) < WALL (q98 - q50) of its margins.
 WALL = 0.1
 #: ... and its top (q98 - q90) narrower than this share of the torque limit: piled up within the noise.
 WALL_WIDTH = 0.03
+#: ... and approached: the bin's margins span at least this share of the torque limit below it (a motor resting while
+#: the speed ramps piles up too, at one torque).
+APPROACH = 0.2
+#: Or a pile: at least PILE of the bin's margins within WALL_WIDTH of its top (q98), and at most WALL_CONTRAST as many
+#: in the band of that width below; such a wall is its margins within BAND robust spreads of their median.
+PILE = 0.2
+WALL_CONTRAST = 0.2
+BAND = 4.0
 #: Speed bins across the logged range, and the fewest samples a bin (and a wall) needs.
 BINS = 32
 MAX_BINS = 96
@@ -62,6 +76,10 @@ MAX_BINS = 96
 STEP = 0.05
 #: ... looking this many bins either side for them.
 NEIGHBOURS = 3
+#: ... or this share of all bins, whichever is more.
+NEIGHBOUR_SPAN = 0.1
+#: A one-pass wall whose margins' slope in speed is this many standard errors from a plateau's tracks the edge.
+TRACK_SIGMAS = 5.0
 #: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall.
 ISOLATED = 5.0
 #: Passes of a wall whose levels differ at this significance are not one wall, unless they differ by less than
@@ -71,6 +89,8 @@ LEVEL_FLOOR = 0.005
 #: A wall's samples spread at most this many times the typical noise at a limit (a pass of a moving command spreads
 #: more).
 FLAT = 3.0
+#: Passes (at one level) that make a wall on their own, without walls in the bins beside it.
+REPEATED = 2
 #: Rows of a log apart beyond which two samples of a wall belong to different passes through its speed bin.
 PASS_GAP = 25
 #: Speeds [share of the spec's corner / no-load speed] past which a motoring / braking edge may fall steeply.
@@ -86,6 +106,14 @@ EXPLAINED = 3.0
 OUTSIDE_OK = 0.005
 #: A candidate is refuted when more than OUTSIDE_OK of the samples pass its edges by this share of the torque limit.
 REFUTE = 0.05
+#: A fitted pack resistance this many standard errors (and a third of itself) above the one the logged bus voltage
+#: shows is contradicted by it.
+EVIDENCE_SIGMAS = 5.0
+#: A bin off the final model by more than OFF_SIGMAS standard errors and OFF_FLOOR of the torque limit is not explained;
+#: a noise level above INFLATED x the median bin's standard error is flagged.
+OFF_SIGMAS = 5.0
+OFF_FLOOR = 0.005
+INFLATED = 2.0
 #: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
 IMPLAUSIBLE = 2.0
 #: Accuracy of the polyline boundary, as a share of the torque limit.
@@ -226,14 +254,174 @@ class Walls:
     rho: float = 0.0
     """Lag-1 autocorrelation of the torque noise between consecutive samples at the limit (0 for shuffled logs),
     from the walls' residuals about a straight line in speed; it widens the offsets' standard errors."""
+    commanded: CommandLimits | None = None
+    """How the command channel was read (``command`` method only)."""
+
+
+@dataclass(frozen=True)
+class CommandLimits:
+    """The samples a command channel shows at the limit (:func:`command_limits`)."""
+
+    upper: NDArray[np.bool_]
+    lower: NDArray[np.bool_]
+    lag: float
+    """Rows by which the measured torque follows the command (current loop, transducer filter, a late reply)."""
+    gain: float
+    """Measured torque per commanded torque inside the region (1 for a driver and transducer that agree)."""
+    bias: float
+    """Measured minus commanded torque at zero command inside the region [N m] (friction, inertia torque)."""
+    threshold: tuple[float, float]
+    """Shortfall [N m] of the measured torque under (upper) and over (lower) the lagged command past which a sample
+    may be at its limit: the largest seen inside the region (:data:`INSIDE_QUANTILE`), at least
+    :data:`CMD_SIGMAS` noise levels."""
+    noise: float
+    """Robust noise of the torque about the lagged command inside the region (1.4826 MAD) [N m]."""
+    persist: int
+    """Consecutive rows the shortfall must last."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "lag_rows": self.lag,
+            "gain": self.gain,
+            "bias": self.bias,
+            "threshold": {"upper": self.threshold[0], "lower": self.threshold[1]},
+            "noise": self.noise,
+            "persist_rows": self.persist,
+            "samples": {"upper": int(self.upper.sum()), "lower": int(self.lower.sum())},
+            "units": "N m, rows",
+        }
+
+
+def _lagged(x: Array, lag: float) -> Array:
+    """``x`` delayed by ``lag`` rows (linear interpolation; the first rows hold x[0])."""
+    rows = np.arange(x.size, dtype=float)
+    return np.interp(rows - lag, rows, x)
+
+
+def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
+    """Which samples a command channel shows at the limit, allowing for the lag, gain and bias between the command
+    and the measured torque, and for their noise, all measured on the log itself.
+
+    *Inside the region* are the samples whose command lies within half the spec sheet's edges at their speed
+    (where no plausible effect bounds the torque). There the measured torque follows the command: the lag (whole
+    rows up to :data:`LAG_MAX` rows, refined to a tenth of a row) minimises the mean absolute difference between
+    the torque and the lagged command (no lag when the rows are not in time order, :func:`time_ordered`), then a
+    straight line torque = gain x command + bias is fitted. A sample is
+    at its upper limit when the line through its lagged command exceeds its torque by more than any shortfall
+    inside the region does (the :data:`INSIDE_QUANTILE` quantile, at least :data:`CMD_SIGMAS` robust noise levels),
+    for :data:`PERSIST` rows or more (and twice the lag; any one row in a table); the first rows of each such run, while the filtered torque still settles
+    (more than 3 noise levels from the run's later median), are left out. The lower limit likewise."""
+    assert log.torque_cmd is not None
+    tau, cmd = log.torque, log.torque_cmd
+    n = tau.size
+    lo_s, hi_s = envelope(log.velocity, {}, _inputs_for(log, inputs, np.arange(n)))
+    lo_s, hi_s = np.nan_to_num(lo_s, nan=0.0), np.nan_to_num(hi_s, nan=0.0)
+
+    def inside(c: Array, rows: slice) -> NDArray[np.bool_]:
+        return np.asarray((c < 0.5 * hi_s[rows]) & (c > 0.5 * lo_s[rows]))
+
+    def misfit(lag: float) -> float:
+        c = _lagged(cmd, lag)
+        keep = inside(c, slice(None))
+        return float(np.mean(np.abs(tau[keep] - c[keep]))) if keep.sum() >= MIN_SAMPLES else math.inf
+
+    ordered = time_ordered(tau)
+    lag = 0.0
+    if ordered:  # a table of operating points (rows in no time order) has no lag to find
+        scores = [misfit(float(d)) for d in range(min(LAG_MAX, n // 10) + 1)]
+        best = int(np.argmin(scores))
+        fine = np.arange(max(best - 1, 0), best + 1.0001, 0.1)
+        lag = float(fine[int(np.argmin([misfit(float(d)) for d in fine]))])
+    c = _lagged(cmd, lag)
+    keep = inside(c, slice(None))
+    if keep.sum() < MIN_SAMPLES:
+        raise DynoDataError(
+            f"{log.source}: torque_cmd is inside the region in only {int(keep.sum())} rows; the command cannot be "
+            "compared with the torque: is it the command of this motor, in N m (map with --columns, --units)?"
+        )
+    gain, bias = np.polyfit(c[keep], tau[keep], 1)
+    if not 0.5 <= gain <= 2.0:
+        raise DynoDataError(
+            f"{log.source}: the measured torque follows torque_cmd with a gain of {gain:.3g} inside the region, "
+            "expected about 1: is torque_cmd in another unit (a current, N*cm)? Fix its unit with --units "
+            "torque_cmd=..., or leave the column out"
+        )
+    expected = gain * c + bias
+    short = expected - tau  # positive: the torque falls short of the command (upper limit)
+    inner = short[keep]
+    noise = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
+    floor = CMD_SIGMAS * noise
+    thr_up = max(float(np.quantile(inner, INSIDE_QUANTILE)), floor)
+    thr_lo = max(float(np.quantile(-inner, INSIDE_QUANTILE)), floor)
+    persist = max(PERSIST, int(math.ceil(2 * lag)) + 1) if ordered else 1
+
+    def runs(mask: NDArray[np.bool_], sign: float) -> NDArray[np.bool_]:
+        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+        out = np.zeros(n, dtype=bool)
+        for start, stop in zip(edges[::2], edges[1::2], strict=True):
+            if stop - start < persist:
+                continue
+            if not ordered:
+                out[start:stop] = True
+                continue
+            settled = float(np.median(tau[start + (stop - start) // 2 : stop]))
+            off = np.abs(tau[start:stop] - settled) > 3 * noise
+            first = int(np.argmin(off)) if not off.all() else stop - start
+            first = min(first, (stop - start) // 2)
+            out[start + first : stop] = True
+        return out
+
+    return CommandLimits(
+        upper=runs(short > thr_up, 1.0),
+        lower=runs(-short > thr_lo, -1.0),
+        lag=lag,
+        gain=float(gain),
+        bias=float(bias),
+        threshold=(thr_up, thr_lo),
+        noise=noise,
+        persist=persist,
+    )
+
+
+def time_ordered(x: Array) -> bool:
+    """Whether consecutive rows are samples of one signal in time (steps between rows much smaller than its spread),
+    not a table of operating points or a shuffled log."""
+    if x.size < 3:
+        return False
+    q25, q75 = np.quantile(x, [0.25, 0.75])
+    return bool(np.median(np.abs(np.diff(x))) < 0.1 * (q75 - q25))
+
+
+def _trimmed(members: NDArray[np.int64], margin_of: Any, width: float) -> NDArray[np.int64]:
+    """A cluster of samples at the limit without its outliers: margins more than :data:`TRIM` robust spreads from the
+    cluster's median (a sample flagged by a passing disturbance) are left out. ``width`` [N m] floors the spread."""
+    if members.size < 3:
+        return members
+    m = margin_of(members)
+    centre = float(np.median(m))
+    spread = max(1.4826 * float(np.median(np.abs(m - centre))), 1e-3 * width)
+    return members[np.abs(m - centre) <= TRIM * spread]
 
 
 def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int64]:
     """The members whose margins form a wall at the top of the bin (module docstring), or none. The top
     must also be narrower than ``width`` [N m] in absolute terms: piled up within the sensor noise."""
-    q50, q90, q98 = np.quantile(m, [0.5, 0.9, 0.98])
+    q10, q50, q90, q98 = np.quantile(m, [0.1, 0.5, 0.9, 0.98])
+    if (q98 - q10) <= APPROACH * width / WALL_WIDTH:
+        return np.array([], dtype=np.int64)
     if (q98 - q90) < WALL * (q98 - q50) and (q98 - q90) < width:
         return members[m >= q90 - 2 * (q98 - q90)]
+    top = m >= q98 - width
+    below = (m >= q98 - 2 * width) & ~top
+    if top.mean() >= PILE and below.sum() <= WALL_CONTRAST * top.sum():
+        # a wall that holds much of the bin (a speed hold, pushed for long): centred on its median, as wide as its
+        # noise either side
+        band = top
+        for _ in range(2):
+            centre = float(np.median(m[band]))
+            spread = max(1.4826 * float(np.median(np.abs(m[band] - centre))), 1e-3 * width)
+            band = np.abs(m - centre) <= BAND * spread
+        return members[band]
     return np.array([], dtype=np.int64)
 
 
@@ -254,7 +442,7 @@ def find_walls(
     lo, hi = envelope(w, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
     upper, lower = [], []
     drifting: set[tuple[int, int]] = set()  # (side, bin) of walls found with their drift taken out
-    gap = CMD_GAP * inputs.spec.torque_limit
+    commanded = command_limits(log, inputs) if log.torque_cmd is not None else None
     width = WALL_WIDTH * inputs.spec.torque_limit
     for b in range(bins):
         members = np.flatnonzero(index == b)
@@ -263,8 +451,8 @@ def find_walls(
             if members.size < MIN_SAMPLES:
                 found.append(np.array([], dtype=np.int64))
                 continue
-            if log.torque_cmd is not None:
-                at = members[cmd_side * (log.torque_cmd[members] - log.torque[members]) > gap]
+            if commanded is not None:
+                at = _trimmed(members[(commanded.upper if cmd_side > 0 else commanded.lower)[members]], margin_of, width)
             else:
                 m = margin_of(members)
                 finite = np.isfinite(m)
@@ -284,6 +472,8 @@ def find_walls(
                         if at.size and not _passes_agree(at, margin_of(at), w[at]):
                             at = np.array([], dtype=np.int64)
                         drifting.add((int(cmd_side), b))
+            if commanded is None and at.size:
+                at = _trimmed(at, margin_of, width)
             found.append(at if at.size >= MIN_WALL else np.array([], dtype=np.int64))
         upper.append(found[0])
         lower.append(found[1])
@@ -309,10 +499,11 @@ def find_walls(
                 if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
                     i = empty
                 walls_[b] = i
-            walls_[:] = _contiguous(_continuous(walls_, margin, w, tol))
+            kept, vouched = _continuous(walls_, margin, w, tol, (hi if side > 0 else lo, side))
+            walls_[:] = _contiguous(kept, vouched)
         rho = _autocorrelation(log, upper + lower)
     method = "command" if log.torque_cmd is not None else "wall"
-    return Walls(centres, tuple(upper), tuple(lower), method, rho)
+    return Walls(centres, tuple(upper), tuple(lower), method, rho, commanded)
 
 
 def _passes(idx: NDArray[np.int64], run: int = 5) -> list[NDArray[np.int64]]:
@@ -431,23 +622,27 @@ def _steep(speed: float, side: float, inputs: EnvelopeInputs) -> bool:
     return abs(speed) >= (STEEP_MOTORING * corner if motoring else STEEP_BRAKING * spec.no_load_speed)
 
 
-def _continuous(walls: list[NDArray[np.int64]], margin: Array, w: Array, tol: float) -> list[NDArray[np.int64]]:
+def _continuous(
+    walls: list[NDArray[np.int64]], margin: Array, w: Array, tol: float, edge: tuple[Array, int] | None = None
+) -> tuple[list[NDArray[np.int64]], set[int]]:
     """Drop the walls that are likely a command's peak: a smooth command topping out while the speed passes one bin
     (or dwells at a turning point) piles samples up like a wall, at an arbitrary torque. Such a wall is made of one
     pass (most of its samples at most :data:`PASS_GAP` rows apart). A one-pass wall counts only if its offset (mean
     margin against the model) is within ``tol`` [N m] of the model, or of the straight line through the nearest two
-    walls seen in several passes within :data:`NEIGHBOURS` bins (on both sides, or two on one side)."""
+    walls seen in several passes within :data:`NEIGHBOURS` bins or :data:`NEIGHBOUR_SPAN` of the bins (on both
+    sides, or two on one side), or if its torque follows the speed as the model's ``edge`` (values, side) does, where that is steep
+    (:func:`_tracks_edge`). Returns the walls and the one-pass walls vouched for by such a line or by tracking (they
+    need no run of neighbouring walls: in a protocol of speed holds the walls lie bins apart)."""
     walled = [b for b, i in enumerate(walls) if i.size]
     single = {b for b in walled if _one_pass(walls[b])}
     level = {b: float(np.mean(margin[walls[b]])) for b in walled}
     speed = {b: float(np.mean(w[walls[b]])) for b in walled}
     solid = [b for b in walled if b not in single]
+    reach = max(NEIGHBOURS, math.ceil(NEIGHBOUR_SPAN * len(walls)))
 
-    def agrees(b: int) -> bool:
-        if abs(level[b]) <= tol:
-            return True
-        left = [k for k in solid if b - NEIGHBOURS <= k < b][-2:]
-        right = [k for k in solid if b < k <= b + NEIGHBOURS][:2]
+    def on_line(b: int) -> bool:
+        left = [k for k in solid if b - reach <= k < b][-2:]
+        right = [k for k in solid if b < k <= b + reach][:2]
         if left and right:
             pair = [left[-1], right[0]]
         else:
@@ -458,8 +653,30 @@ def _continuous(walls: list[NDArray[np.int64]], margin: Array, w: Array, tol: fl
         line = level[k1] + (level[k2] - level[k1]) * (speed[b] - speed[k1]) / (speed[k2] - speed[k1])
         return abs(level[b] - line) <= tol
 
+    vouched = {b for b in single if on_line(b) or (edge is not None and _tracks_edge(walls[b], margin, *edge, w))}
     empty = np.array([], dtype=np.int64)
-    return [i if i.size and (b not in single or agrees(b)) else empty for b, i in enumerate(walls)]
+    keep = [i if i.size and (b not in single or b in vouched or abs(level[b]) <= tol) else empty for b, i in
+            enumerate(walls)]  # fmt: skip
+    return keep, vouched
+
+
+def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, w: Array) -> bool:
+    """Whether the samples ``idx`` of a one-pass wall follow the speed as a limit does, not as a command's plateau.
+    Where an edge is steep, a speed that wanders within the pass (a dyno's speed loop yielding to the torque) moves
+    the torque at a limit along the edge, while a commanded plateau stays flat. Against the model's ``edge`` [N m]
+    (``side`` +1 upper, -1 lower),
+    the margins of a limit are flat in speed and those of a plateau fall with the edge's slope s: the margins' slope
+    must be within half of s of zero, and :data:`TRACK_SIGMAS` standard errors (AR(1) noise) away from -s."""
+    x, m = w[idx], margin[idx]
+    if idx.size < MIN_WALL or np.ptp(x) <= 0:
+        return False
+    slope_edge = float(np.polyfit(x, edge[idx], 1)[0])
+    coef = np.polyfit(x, m, 1)
+    resid = m - np.polyval(coef, x)
+    rho = float(np.clip(np.sum(resid[1:] * resid[:-1]) / max(float(np.sum(resid**2)), 1e-30), 0.0, 0.95))
+    se = float(np.std(resid)) / (float(np.std(x)) * math.sqrt(idx.size)) * math.sqrt((1 + rho) / (1 - rho))
+    plateau = -side * slope_edge  # the margins' slope if the torque stayed put (margin = side (tau - edge))
+    return bool(abs(coef[0]) < 0.5 * abs(plateau) and abs(coef[0] - plateau) > TRACK_SIGMAS * se)
 
 
 def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
@@ -467,10 +684,12 @@ def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
     return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
 
 
-def _contiguous(walls: list[NDArray[np.int64]], run: int = 3) -> list[NDArray[np.int64]]:
-    """Keep the walls that belong to a run of at least ``run`` neighbouring bins with walls."""
+def _contiguous(walls: list[NDArray[np.int64]], vouched: set[int] = frozenset(), run: int = 3) -> list[NDArray[np.int64]]:  # type: ignore[assignment]
+    """Keep the walls that belong to a run of at least ``run`` neighbouring bins with walls, that are seen in
+    :data:`REPEATED` passes or more (a speed hold with several pulses: repeated evidence at one speed; their levels
+    were checked to agree), or that are ``vouched`` for by the walls of such passes around them."""
     has = np.array([w.size > 0 for w in walls])
-    keep = np.zeros_like(has)
+    keep = np.array([w.size > 0 and (b in vouched or len(_passes(w)) >= REPEATED) for b, w in enumerate(walls)])
     start = 0
     for b in range(len(has) + 1):
         if b == len(has) or not has[b]:
@@ -685,10 +904,23 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         if evidence is None:
             continue
         for k, sug in enumerate(out):
-            if sug.effect == named and sug.explained > 0.5:
+            if named == "bus_sag" and sug.effect == named and _contradicts(sug.value, evidence):
+                # the logged bus is the direct measurement: a sag it does not show is another effect's shortfall
+                out[k] = replace(
+                    sug,
+                    significant=False,
+                    reason=sug.reason + f"; contradicted: {evidence['text']}, not {sug.value:.3g} ohm",
+                )
+            elif sug.effect == named and sug.explained > 0.5:
                 out[k] = replace(sug, reason=sug.reason + f"; {evidence['text']}", supported=evidence["significant"])
     out.sort(key=lambda s: (-int(s.supported and s.significant), -s.explained))
     return out
+
+
+def _contradicts(value: float, evidence: Mapping[str, Any]) -> bool:
+    """Whether a fitted pack resistance is ruled out by the logged bus voltage's own: more than
+    :data:`EVIDENCE_SIGMAS` standard errors and a third of the fitted value above it."""
+    return bool(value - evidence["r_pack"] > max(EVIDENCE_SIGMAS * evidence["se"], value / 3))
 
 
 def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
@@ -717,7 +949,7 @@ def _leading(A: Array, y: Array) -> tuple[float, float]:
 
 
 def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
-    """The pack resistance the logged bus voltage shows: V_nominal - V_bus against the bus current P / V_nominal
+    """The pack resistance the logged bus voltage shows: V_nominal - V_bus against the bus current P / V_bus
     of motoring samples (P = (R i + omega/Kv) i, i from the current channel or tau / Kt); None without the channel.
     """
     if log.bus_voltage is None:
@@ -728,7 +960,7 @@ def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | N
     motoring = power > 0.05 * float(np.max(np.abs(power)))
     if motoring.sum() < 20:
         return None
-    x = power[motoring] / spec.bus_voltage
+    x = power[motoring] / np.maximum(log.bus_voltage[motoring], 1e-3 * spec.bus_voltage)  # the bus current
     r_pack, se = _leading(np.column_stack([x, np.ones_like(x)]), spec.bus_voltage - log.bus_voltage[motoring])
     significant = r_pack > 5 * se and r_pack > 1e-3
     return {
@@ -1061,6 +1293,66 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
     }
 
 
+def verdict(c: Comparison) -> dict[str, Any]:
+    """``explained`` and the ``flags`` that say why not: the model explains the log when its envelope error is at
+    the noise level (:data:`EXPLAINED` x), no bin sits off it by more than :data:`OFF_SIGMAS` standard errors (the
+    bin's, or the typical sample noise's if larger) and
+    :data:`OFF_FLOOR` of the torque limit, and (against the spec sheet) no share of the samples lies past its edges.
+    A noise level inflated by a few bins (:data:`INFLATED` x the median bin's) would pass any model: then the error
+    must also be at the median bin's level."""
+    off, spec = c.final.offsets, c.inputs.spec
+    flags: list[dict[str, Any]] = []
+    if off.offset.size:
+        typical = math.sqrt(float(np.median(off.se**2)))
+        # a bin's own spread is a noisy estimate of the noise (few independent samples): never below the typical one
+        se = off.se * np.maximum(1.0, off.sample_noise / np.maximum(off.spread, 1e-30))
+        far = (np.abs(off.offset) > OFF_SIGMAS * se) & (np.abs(off.offset) > OFF_FLOOR * spec.torque_limit)
+        if far.any():
+            worst = int(np.argmax(np.where(far, np.abs(off.offset) / np.maximum(se, 1e-30), -1.0)))
+            where = "; ".join(
+                f"{name} edge at {_speeds(off.speeds[far & (off.side == s)])} rad/s"
+                for s, name in ((1, "upper"), (-1, "lower"))
+                if (far & (off.side == s)).any()
+            )
+            flags.append({
+                "kind": "bins_off_model",
+                "bins": int(far.sum()),
+                "text": f"{int(far.sum())} bins sit off the model by more than {OFF_SIGMAS:g} standard errors and "
+                f"{OFF_FLOOR:.1%} of the torque limit ({where}), up to {off.offset[worst]:+.3g} N m "
+                f"({abs(off.offset[worst]) / max(se[worst], 1e-30):.0f} SE at {off.speeds[worst]:.4g} rad/s): the "
+                "model misses something there",
+            })  # fmt: skip
+        if off.noise > INFLATED * typical:
+            wide = off.se > INFLATED * typical
+            flags.append({
+                "kind": "noise_inflated",
+                "bins": int(wide.sum()),
+                "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the median "
+                f"bin's {typical:.3g} N m, from {int(wide.sum())} bins at {_speeds(off.speeds[wide])} rad/s whose "
+                f"samples spread up to {float(np.max(off.spread[wide])):.3g} N m (sample noise "
+                f"{off.sample_noise:.3g} N m): samples counted at the limit that were not, or an edge that moves within "
+                "the bin",
+            })  # fmt: skip
+    else:
+        typical = 0.0
+    rmse, noise = off.rmse, max(off.noise, 1e-12)
+    inflated = any(f["kind"] == "noise_inflated" for f in flags)
+    explained = (
+        rmse <= EXPLAINED * noise
+        and (not inflated or rmse <= EXPLAINED * typical)
+        and not any(f["kind"] == "bins_off_model" for f in flags)
+        and (bool(c.final.model) or c.outside["fraction"] <= OUTSIDE_OK)
+        and c.outside_final <= OUTSIDE_OK
+    )
+    return {"explained": bool(explained), "flags": flags}
+
+
+def _speeds(w: Array) -> str:
+    """Speeds [rad/s] as a short list ("-483, 12 to 40, 496")."""
+    values = sorted(float(x) for x in w)
+    return ", ".join(f"{v:.4g}" for v in values) if len(values) <= 4 else f"{values[0]:.4g} to {values[-1]:.4g}"
+
+
 def comparison_json(c: Comparison) -> dict[str, Any]:
     """The ``hound-id/mor-compare/1`` JSON."""
     first, last = c.ladder[0], c.final
@@ -1073,16 +1365,12 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "samples": c.log.n,
         "rows_dropped": c.log.dropped,
         "limit_method": c.walls.method,
+        "limit_detection": c.walls.commanded.to_dict() if c.walls.commanded is not None else None,
         "bins_at_limit": int(last.offsets.offset.size),
         "outside_fraction": c.outside["fraction"],
         "outside": c.outside,
         "envelope_rmse": {"model": before.rmse, "with_added": last.offsets.rmse},
-        # explained: the error at the noise level, and (against the spec sheet) no share of samples past its edges
-        "explained": bool(
-            last.offsets.rmse <= EXPLAINED * max(last.offsets.noise, 1e-12)
-            and (bool(last.model) or c.outside["fraction"] <= OUTSIDE_OK)
-            and c.outside_final <= OUTSIDE_OK
-        ),
+        **verdict(c),
         "outside_final": c.outside_final,
         "coverage": coverage(last.offsets),
         "noise_level": last.offsets.noise,

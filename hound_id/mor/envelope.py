@@ -9,8 +9,9 @@ that satisfy every condition at once,
     |V_req(tau, omega)| <= V_avail(tau, omega),   |i(tau)| <= I_lim,   |tau| <= tau_lim,
 
     V_req   = R(T) i(tau) + omega/Kv          (in quadrature with p omega L i for ``inductance``)
-    V_avail = V_bus - R_x P / V_bus,  P = V_req i  (the inverter's input power; R_x = R_pack when
-              motoring, P > 0, and -R_regen when regenerating, P < 0)
+    V_avail = V_bus - R_x P / V_avail,  P = V_q i  (the inverter's input power; R_x = R_pack when
+              motoring, P > 0, and R_regen when regenerating, P < 0, which raises the bus): the
+              bus voltage itself, (V_bus + sqrt(V_bus^2 - 4 R_x P)) / 2
 
 * ``bus_sag`` (R_pack [ohm]): the pack's internal resistance drops the bus under motoring load;
 * ``regen_rise`` (R_regen [ohm]): regenerated current raises the bus when braking;
@@ -163,6 +164,15 @@ def _checked(params: Mapping[str, float], inputs: EnvelopeInputs) -> dict[str, f
     return values
 
 
+def bus_voltage(v0: float, r_x: Array | float, power: Array) -> Array:
+    """The bus voltage [V] while the inverter draws ``power`` [W] from a source of open-circuit voltage ``v0``
+    through ``r_x`` [ohm]: V = v0 - r_x P / V, so V = (v0 + sqrt(v0^2 - 4 r_x P)) / 2 (the high root; regenerated
+    power, P < 0, raises it). Past the most the source can deliver, v0^2 / (4 r_x), no voltage is: -v0 (infeasible).
+    """
+    disc = v0 * v0 - 4.0 * np.asarray(r_x) * power
+    return np.asarray(np.where(disc >= 0.0, 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0))), -v0), dtype=float)
+
+
 def _current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
     linear = tau / inputs.spec.kt
     if scale == 0.0 or inputs.compensation is None:
@@ -186,7 +196,7 @@ def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: Enve
         v_req = np.hypot(v_q, (spec.pole_pairs or 0) * omega * p["inductance"] * i)
     power = v_q * i  # the quadrature part carries no power
     r_x = np.where(power > 0.0, p.get("bus_sag", 0.0), p.get("regen_rise", 0.0))
-    v_avail = spec.bus_voltage - r_x * power / spec.bus_voltage
+    v_avail = bus_voltage(spec.bus_voltage, r_x, power)
     i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
     ok = (np.abs(v_req) <= v_avail) & (np.abs(i) <= i_limit) & (np.abs(tau) <= spec.torque_limit)
     if spec.max_speed is not None:  # past the rated speed only braking passes, as in the region
@@ -287,7 +297,7 @@ def _voltage_margin(w: Array, p: Mapping[str, float], inputs: EnvelopeInputs):  
         i = _current(tau, inputs, scale)
         v_q = r * i + e
         power = v_q * i
-        v_avail = spec.bus_voltage - np.where(power > 0.0, sag, rise) * power / spec.bus_voltage
+        v_avail = bus_voltage(spec.bus_voltage, np.where(power > 0.0, sag, rise), power)
         v_req = np.hypot(v_q, q * i) if p.get("inductance", 0.0) > 0.0 else np.abs(v_q)
         return np.asarray(v_avail - v_req)
 
@@ -378,7 +388,7 @@ def _realise(
         "torque": tau + sensor_noise,
         "current": i,
         "temperature": temperature,
-        "bus_voltage": spec.bus_voltage - r_x * power / spec.bus_voltage,
+        "bus_voltage": bus_voltage(spec.bus_voltage, r_x, power),
     }
 
 
