@@ -133,8 +133,9 @@ def _mor_compare(
         console.print(
             f"at the limit where the lagged command passes the torque by more than "
             f"{detection['threshold']['upper']:.3g} N m (upper) / {detection['threshold']['lower']:.3g} N m (lower) "
-            f"for {detection['persist_rows']} rows: lag {detection['lag_rows']:.1f} rows, gain {detection['gain']:.3f}, "
-            f"bias {detection['bias']:+.3g} N m, noise {detection['noise']:.2g} N m inside the region",
+            f"for {detection['persist_rows']} rows: lag {detection['lag_rows']:.1f} rows, "
+            f"gain {detection['gain']:.3f}, bias {detection['bias']:+.3g} N m, "
+            f"noise {detection['noise']:.2g} N m inside the region",
             highlight=False,
         )
     for step in data["ladder"][1:]:

@@ -32,7 +32,7 @@ model as in ``fit-current``; :func:`unneeded` names the effects the final model 
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping, Sequence
+from collections.abc import Mapping, Sequence, Set
 from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
@@ -309,7 +309,8 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     straight line torque = gain x command + bias is fitted. A sample is
     at its upper limit when the line through its lagged command exceeds its torque by more than any shortfall
     inside the region does (the :data:`INSIDE_QUANTILE` quantile, at least :data:`CMD_SIGMAS` robust noise levels),
-    for :data:`PERSIST` rows or more (and twice the lag; any one row in a table); the first rows of each such run, while the filtered torque still settles
+    for :data:`PERSIST` rows or more (and twice the lag; any one row in a table); the first rows of each such run,
+    while the filtered torque still settles
     (more than 3 noise levels from the run's later median), are left out. The lower limit likewise."""
     assert log.torque_cmd is not None
     tau, cmd = log.torque, log.torque_cmd
@@ -452,7 +453,8 @@ def find_walls(
                 found.append(np.array([], dtype=np.int64))
                 continue
             if commanded is not None:
-                at = _trimmed(members[(commanded.upper if cmd_side > 0 else commanded.lower)[members]], margin_of, width)
+                flagged = commanded.upper if cmd_side > 0 else commanded.lower
+                at = _trimmed(members[flagged[members]], margin_of, width)
             else:
                 m = margin_of(members)
                 finite = np.isfinite(m)
@@ -630,9 +632,9 @@ def _continuous(
     pass (most of its samples at most :data:`PASS_GAP` rows apart). A one-pass wall counts only if its offset (mean
     margin against the model) is within ``tol`` [N m] of the model, or of the straight line through the nearest two
     walls seen in several passes within :data:`NEIGHBOURS` bins or :data:`NEIGHBOUR_SPAN` of the bins (on both
-    sides, or two on one side), or if its torque follows the speed as the model's ``edge`` (values, side) does, where that is steep
-    (:func:`_tracks_edge`). Returns the walls and the one-pass walls vouched for by such a line or by tracking (they
-    need no run of neighbouring walls: in a protocol of speed holds the walls lie bins apart)."""
+    sides, or two on one side), or if its torque follows the speed as the model's ``edge`` (values, side) does,
+    where that is steep (:func:`_tracks_edge`). Returns the walls and the one-pass walls vouched for by such a line
+    or by tracking (they need no run of neighbouring walls: in a protocol of speed holds the walls lie bins apart)."""
     walled = [b for b, i in enumerate(walls) if i.size]
     single = {b for b in walled if _one_pass(walls[b])}
     level = {b: float(np.mean(margin[walls[b]])) for b in walled}
@@ -684,7 +686,9 @@ def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
     return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
 
 
-def _contiguous(walls: list[NDArray[np.int64]], vouched: set[int] = frozenset(), run: int = 3) -> list[NDArray[np.int64]]:  # type: ignore[assignment]
+def _contiguous(
+    walls: list[NDArray[np.int64]], vouched: Set[int] = frozenset(), run: int = 3
+) -> list[NDArray[np.int64]]:
     """Keep the walls that belong to a run of at least ``run`` neighbouring bins with walls, that are seen in
     :data:`REPEATED` passes or more (a speed hold with several pulses: repeated evidence at one speed; their levels
     were checked to agree), or that are ``vouched`` for by the walls of such passes around them."""
@@ -1330,8 +1334,8 @@ def verdict(c: Comparison) -> dict[str, Any]:
                 "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the median "
                 f"bin's {typical:.3g} N m, from {int(wide.sum())} bins at {_speeds(off.speeds[wide])} rad/s whose "
                 f"samples spread up to {float(np.max(off.spread[wide])):.3g} N m (sample noise "
-                f"{off.sample_noise:.3g} N m): samples counted at the limit that were not, or an edge that moves within "
-                "the bin",
+                f"{off.sample_noise:.3g} N m): samples counted at the limit that were not, or an edge that moves "
+                "within the bin",
             })  # fmt: skip
     else:
         typical = 0.0

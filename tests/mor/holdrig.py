@@ -161,7 +161,8 @@ def _electrical(spec, dyno: Dyno, w: np.ndarray, command: np.ndarray, temperatur
     hidden = dyno.hidden
     resistance = spec.resistance * (1.0 + hidden.alpha * (temperature - 25.0))
     coarse = np.arange(0, w.size + 9, 10).clip(max=w.size - 1)  # the window moves slowly: solved at 1 kHz
-    lo, hi = (np.interp(np.arange(w.size), coarse, x) for x in _current_window(w[coarse], resistance[coarse], spec, hidden))
+    window = _current_window(w[coarse], resistance[coarse], spec, hidden)
+    lo, hi = (np.interp(np.arange(w.size), coarse, x) for x in window)
     limit = min(spec.max_current or math.inf, hidden.current_limit or math.inf)
     log_step = int(FINE_HZ / dyno.log_hz)
     late = np.concatenate([np.zeros(log_step), command[:-log_step]])  # the host's command, one loop late
