@@ -49,11 +49,10 @@ SCHEMA = "hound-id/mor-compare/1"
 
 #: Channels of a comparison log; the first two are required.
 CHANNELS = ("torque", "velocity", "torque_cmd", "current", "temperature", "bus_voltage")
-#: With a command channel: the lag searched [rows], the quantile of the shortfall inside the region that a sample at
-#: the limit must pass, a floor of that many robust noise levels, the rows it must last, and the robust spreads
-#: about a cluster's median beyond which a sample is left out of it.
+#: With a command channel: the lag searched [rows], a floor (robust noise levels) under the shortfall a sample at the
+#: limit must pass, the rows it must last, and the robust spreads about a cluster's median beyond which a sample is
+#: left out of it.
 LAG_MAX = 100
-INSIDE_QUANTILE = 0.999
 CMD_SIGMAS = 5.0
 PERSIST = 3
 TRIM = 5.0
@@ -112,7 +111,7 @@ EVIDENCE_SIGMAS = 5.0
 #: A bin off the final model by more than OFF_SIGMAS standard errors and OFF_FLOOR of the torque limit is not explained;
 #: a noise level above INFLATED x the median bin's standard error is flagged.
 OFF_SIGMAS = 5.0
-OFF_FLOOR = 0.005
+OFF_FLOOR = 0.01
 INFLATED = 2.0
 #: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
 IMPLAUSIBLE = 2.0
@@ -272,8 +271,8 @@ class CommandLimits:
     """Measured minus commanded torque at zero command inside the region [N m] (friction, inertia torque)."""
     threshold: tuple[float, float]
     """Shortfall [N m] of the measured torque under (upper) and over (lower) the lagged command past which a sample
-    may be at its limit: the largest seen inside the region (:data:`INSIDE_QUANTILE`), at least
-    :data:`CMD_SIGMAS` noise levels."""
+    may be at its limit: the largest that lasted ``persist`` rows inside the region, at least :data:`CMD_SIGMAS`
+    noise levels."""
     noise: float
     """Robust noise of the torque about the lagged command inside the region (1.4826 MAD) [N m]."""
     persist: int
@@ -307,9 +306,10 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     rows up to :data:`LAG_MAX` rows, refined to a tenth of a row) minimises the mean absolute difference between
     the torque and the lagged command (no lag when the rows are not in time order, :func:`time_ordered`), then a
     straight line torque = gain x command + bias is fitted. A sample is
-    at its upper limit when the line through its lagged command exceeds its torque by more than any shortfall
-    inside the region does (the :data:`INSIDE_QUANTILE` quantile, at least :data:`CMD_SIGMAS` robust noise levels),
-    for :data:`PERSIST` rows or more (and twice the lag; any one row in a table); the first rows of each such run,
+    at its upper limit when the line through its lagged command exceeds its torque for :data:`PERSIST` rows or more
+    (and twice the lag; any one row in a table) by more than any shortfall that lasted as long inside the region
+    (the rotor's inertia torque while the speed ramps, a filter ringing), and by :data:`CMD_SIGMAS` robust noise
+    levels at least; the first rows of each such run,
     while the filtered torque still settles
     (more than 3 noise levels from the run's later median), are left out. The lower limit likewise."""
     assert log.torque_cmd is not None
@@ -352,9 +352,17 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     inner = short[keep]
     noise = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
     floor = CMD_SIGMAS * noise
-    thr_up = max(float(np.quantile(inner, INSIDE_QUANTILE)), floor)
-    thr_lo = max(float(np.quantile(-inner, INSIDE_QUANTILE)), floor)
     persist = max(PERSIST, int(math.ceil(2 * lag)) + 1) if ordered else 1
+    # the largest shortfall that lasted `persist` rows inside the region: a limit must beat what the region does
+    from numpy.lib.stride_tricks import sliding_window_view
+
+    whole = sliding_window_view(keep, persist).all(axis=1)
+    if not whole.any():
+        whole = np.ones(n - persist + 1, dtype=bool)
+    lasting_up = sliding_window_view(short, persist).min(axis=1)[whole]
+    lasting_lo = sliding_window_view(-short, persist).min(axis=1)[whole]
+    thr_up = max(float(np.max(lasting_up)), floor)
+    thr_lo = max(float(np.max(lasting_lo)), floor)
 
     def runs(mask: NDArray[np.bool_], sign: float) -> NDArray[np.bool_]:
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))

@@ -49,6 +49,7 @@ class Dyno:
     holds: int = 24
     speed_fraction: float = 0.95  # of the no-load speed
     pulses: int = 3  # per hold, alternating sign
+    amplitude: tuple[float, float] = (1.2, 2.2)  # pulse peaks, multiples of the torque limit
     acceleration: float = 3000.0  # rad/s^2 between holds
     current_loop_hz: float = 1000.0
     transducer_hz: float = 300.0
@@ -79,7 +80,7 @@ def _protocol(spec, dyno: Dyno, rng: np.random.Generator) -> tuple[np.ndarray, n
         c_parts.append(np.zeros(settle))
         sign = rng.choice([-1.0, 1.0])
         for _ in range(dyno.pulses):
-            peak = sign * rng.uniform(1.2, 2.2) * tau_lim
+            peak = sign * rng.uniform(*dyno.amplitude) * tau_lim
             rate = rng.uniform(15.0, 40.0) * tau_lim
             rise = int(abs(peak) / rate / dt)
             top = int(rng.uniform(0.04, 0.08) / dt)
@@ -156,8 +157,11 @@ def _ar1(rng: np.random.Generator, n: int, rho: float) -> np.ndarray:
     return lfilter([1.0], [1.0, -rho], e)
 
 
-def _electrical(spec, dyno: Dyno, w: np.ndarray, command: np.ndarray, temperature: np.ndarray) -> np.ndarray:
-    """The motor current [A] on the fine grid: the drive's loop following the command, clamped."""
+def _electrical(
+    spec, dyno: Dyno, w: np.ndarray, command: np.ndarray, temperature: np.ndarray
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """The motor current [A] on the fine grid, the drive's loop following the command, clamped; and the lowest and
+    highest current the drive can make at each instant [A]."""
     hidden = dyno.hidden
     resistance = spec.resistance * (1.0 + hidden.alpha * (temperature - 25.0))
     coarse = np.arange(0, w.size + 9, 10).clip(max=w.size - 1)  # the window moves slowly: solved at 1 kHz
@@ -174,12 +178,13 @@ def _electrical(spec, dyno: Dyno, w: np.ndarray, command: np.ndarray, temperatur
         state += k * (ref - state)
         state = a if state < a else (b if state > b else state)  # the voltage limit: the integrator clamps
         i[n] = state
-    return i
+    return i, np.maximum(lo, -limit), np.minimum(hi, limit)
 
 
 def run(spec, dyno: Dyno = Dyno()) -> dict[str, np.ndarray]:
     """The log, at ``dyno.log_hz``: time [s], torque [N m] (transducer), velocity [rad/s], torque_cmd [N m],
-    current [A], bus_voltage [V], temperature [degC]. Motor side, SI."""
+    current [A], bus_voltage [V], temperature [degC]. Motor side, SI. Also the truth, which a log does not have:
+    true_lower and true_upper, the torque the motor could make at each row [N m]."""
     rng = np.random.default_rng(dyno.seed)
     set_w, command = _protocol(spec, dyno, rng)
     n = set_w.size
@@ -195,7 +200,7 @@ def run(spec, dyno: Dyno = Dyno()) -> dict[str, np.ndarray]:
     heat = np.cumsum(tau_guess**2)
     t_lo, t_hi = dyno.temperature
     temperature = t_lo + (t_hi - t_lo) * heat / heat[-1]
-    i = _electrical(spec, dyno, w, command, temperature)
+    i, i_lo, i_hi = _electrical(spec, dyno, w, command, temperature)
     tau = spec.kt * i
     j_rotor = spec.rotor_inertia or 0.0
     shaft = tau - j_rotor * np.gradient(w, dt)
@@ -222,4 +227,7 @@ def run(spec, dyno: Dyno = Dyno()) -> dict[str, np.ndarray]:
         "current": current,
         "bus_voltage": bus + 0.05 * rng.standard_normal(m),
         "temperature": thermistor,
+        # the truth, not logged: the motor's torque edges at each row [N m]
+        "true_lower": spec.kt * i_lo[rows],
+        "true_upper": spec.kt * i_hi[rows],
     }
