@@ -109,7 +109,7 @@ def scoreboard(spec, seeds: int) -> list[dict]:
                     value = data["model"].get(name)
                     error = None if truth is None or value is None else value / truth - 1
                     rmse, noise = data["envelope_rmse"], data["noise_level"]
-                    passed = (data["added"] == [] if truth is None else data["added"] == [name] and abs(error) <= 0.15)
+                    passed = data["added"] == [] if truth is None else data["added"] == [name] and abs(error) <= 0.15
                     passed = passed and data["explained"] and rmse["with_added"] <= 3 * noise
                     rows.append({
                         "seed": seed, "log_hz": hz, "hidden": name, "torque_cmd": command, "added": data["added"],
@@ -179,12 +179,19 @@ def main() -> None:
               f"({r['envelope_pass_s'] * 1e3:.0f} ms each); R_pack = {r['r_pack']:.4f} ohm")  # fmt: skip
     if board:
         print(f"\nhold protocol (tests/mor/holdrig.py), {report['hold_protocol_passed']} runs pass")
-        print("| seed | kHz | hidden | torque_cmd | added | fitted (error) | error spec -> final [N m] | noise [N m] "
-              "| explained | lag [rows] | s |")
+        print(
+            "| seed | kHz | hidden | torque_cmd | added | fitted (error) | error spec -> final [N m] | noise [N m] "
+            "| explained | lag [rows] | s |"
+        )
         print("|---|---|---|---|---|---|---|---|---|---|---|")
         for r in board:
-            fitted = "-" if r["value"] is None else f"{r['value']:.4g} ({r['error']:+.1%})" if r["error"] is not None \
+            fitted = (
+                "-"
+                if r["value"] is None
+                else f"{r['value']:.4g} ({r['error']:+.1%})"
+                if r["error"] is not None
                 else f"{r['value']:.4g}"
+            )
             lag = "-" if r["lag_rows"] is None else f"{r['lag_rows']:.1f}"
             cells = [r["seed"], f"{r['log_hz'] / 1000:g}", r["hidden"], "yes" if r["torque_cmd"] else "no",
                      ", ".join(r["added"]) or "-", fitted, f"{r['rmse_spec']:.3g} -> {r['rmse_final']:.3g}",

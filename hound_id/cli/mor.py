@@ -30,7 +30,7 @@ def mor(
         None, "--out", help="With --compare: write a motor spec YAML with the measured envelope (for saturate/export)."
     ),
     json_out: bool = typer.Option(
-        False, "--json", help="Print JSON (schema hound-id/mor/1, mor-robot/1 or mor-compare/1)."
+        False, "--json", help="Print JSON (schema hound-id/mor/1, mor-robot/1 or mor-compare/2)."
     ),
 ) -> None:
     """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot); with

@@ -1,24 +1,27 @@
 """``hound-id mor --compare``: a measured torque-speed log against the operating region, and what is missing.
 
 **Samples at the limit.** A log shows the envelope only where the motor was pushed to it. With a
-commanded-torque channel (``torque_cmd``) a sample is at its upper limit when the command
-exceeds the measured torque by more than :data:`CMD_GAP` of the torque limit (and at its lower
-limit the other way round). Without one, hound-id looks for a *wall* in each speed bin
+commanded-torque channel (``torque_cmd``) a sample is at its upper limit when the lagged command
+passes the measured torque, for a few rows, by more than anything seen inside the region; the lag,
+the gain and bias between command and torque, and the threshold are all measured on the log
+(:func:`command_limits`). Without one, hound-id looks for a *wall* in each speed bin
 (:func:`bin_count` bins): the margins r = tau - edge(omega) of samples driven into a limit pile up,
 so the top of the margin distribution is narrow, (q98 - q90) < :data:`WALL` x (q98 - q50) and
-below :data:`WALL_WIDTH` of the torque limit. Where an edge can fall steeply (:func:`_steep`) the
-linear drift of the top fifth of the margins is taken out first; such a wall needs two passes
-that drift alike (:func:`_passes_agree`). A wall of one pass must agree with the model or with
-walls seen in several passes nearby (:func:`_continuous`), and walls in fewer than three
-neighbouring bins are chance. The samples of a wall (margins above q90 - 2 (q98 - q90)) form the
-bin's cluster.
+below :data:`WALL_WIDTH` of the torque limit, or holds a large share of the bin (:data:`PILE`, a
+speed hold), and the bin's margins reach :data:`APPROACH` of the torque limit below it. Where an
+edge can fall steeply (:func:`_steep`) the linear drift of the top fifth of the margins is taken
+out first; such a wall needs two passes that drift alike (:func:`_passes_agree`). A wall of one
+pass must agree with the model or with walls seen in several passes nearby, or follow the speed
+as the edge does (:func:`_continuous`); walls need three neighbouring bins, or two passes that agree
+at one speed (:func:`_contiguous`). The samples of a wall form the bin's cluster.
 
 **Edge offsets.** For a model (the spec sheet plus effects with parameters), a bin's edge
 offset is the mean margin of its cluster against that model [N m], with its standard error
 (widened by sqrt((1 + rho)/(1 - rho)) for the lag-1 autocorrelation rho of consecutive samples).
 The *envelope error* is the RMS of the offsets over all wall bins, upper and lower; the *noise
 level* is the RMS of their standard errors. A bin whose offset is below -3 SE falls short of
-the model; above +3 SE the log spills over it.
+the model; above +3 SE the log spills over it. :func:`verdict` says whether the model explains
+the log, and flags bins off it and an inflated noise level.
 
 **What is missing.** Each candidate effect of :mod:`hound_id.mor.envelope` is fitted on top of
 the model (bounded scalar search of its parameter, the model's parameters refitted with it) and
@@ -45,7 +48,7 @@ from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, edge, effect_names, e
 from hound_id.mor.spec import MotorSpec
 
 Array = NDArray[np.float64]
-SCHEMA = "hound-id/mor-compare/1"
+SCHEMA = "hound-id/mor-compare/2"
 
 #: Channels of a comparison log; the first two are required.
 CHANNELS = ("torque", "velocity", "torque_cmd", "current", "temperature", "bus_voltage")
@@ -109,10 +112,11 @@ REFUTE = 0.05
 #: shows is contradicted by it.
 EVIDENCE_SIGMAS = 5.0
 #: A bin off the final model by more than OFF_SIGMAS standard errors and OFF_FLOOR of the torque limit is not explained;
-#: a noise level above INFLATED x the median bin's standard error is flagged.
+#: a noise level above INFLATED x that of the bins whose samples spread less than WIDE x the typical is flagged.
 OFF_SIGMAS = 5.0
 OFF_FLOOR = 0.01
-INFLATED = 2.0
+INFLATED = 1.5
+WIDE = 3.0
 #: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
 IMPLAUSIBLE = 2.0
 #: Accuracy of the polyline boundary, as a share of the torque limit.
@@ -1310,12 +1314,13 @@ def verdict(c: Comparison) -> dict[str, Any]:
     the noise level (:data:`EXPLAINED` x), no bin sits off it by more than :data:`OFF_SIGMAS` standard errors (the
     bin's, or the typical sample noise's if larger) and
     :data:`OFF_FLOOR` of the torque limit, and (against the spec sheet) no share of the samples lies past its edges.
-    A noise level inflated by a few bins (:data:`INFLATED` x the median bin's) would pass any model: then the error
-    must also be at the median bin's level."""
+    A noise level inflated by bins whose samples spread more than :data:`WIDE` x the typical sample noise (over
+    :data:`INFLATED` x the other bins' noise level) would pass any model: it is flagged, and the error must also be
+    at the other bins' level."""
     off, spec = c.final.offsets, c.inputs.spec
     flags: list[dict[str, Any]] = []
+    typical = off.noise
     if off.offset.size:
-        typical = math.sqrt(float(np.median(off.se**2)))
         # a bin's own spread is a noisy estimate of the noise (few independent samples): never below the typical one
         se = off.se * np.maximum(1.0, off.sample_noise / np.maximum(off.spread, 1e-30))
         far = (np.abs(off.offset) > OFF_SIGMAS * se) & (np.abs(off.offset) > OFF_FLOOR * spec.torque_limit)
@@ -1334,19 +1339,19 @@ def verdict(c: Comparison) -> dict[str, Any]:
                 f"({abs(off.offset[worst]) / max(se[worst], 1e-30):.0f} SE at {off.speeds[worst]:.4g} rad/s): the "
                 "model misses something there",
             })  # fmt: skip
-        if off.noise > INFLATED * typical:
-            wide = off.se > INFLATED * typical
-            flags.append({
-                "kind": "noise_inflated",
-                "bins": int(wide.sum()),
-                "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the median "
-                f"bin's {typical:.3g} N m, from {int(wide.sum())} bins at {_speeds(off.speeds[wide])} rad/s whose "
-                f"samples spread up to {float(np.max(off.spread[wide])):.3g} N m (sample noise "
-                f"{off.sample_noise:.3g} N m): samples counted at the limit that were not, or an edge that moves "
-                "within the bin",
-            })  # fmt: skip
-    else:
-        typical = 0.0
+        wide = off.spread > WIDE * off.sample_noise
+        if wide.any() and not wide.all():
+            typical = float(np.sqrt(np.mean(off.se[~wide] ** 2)))
+            if off.noise > INFLATED * typical:
+                flags.append({
+                    "kind": "noise_inflated",
+                    "bins": int(wide.sum()),
+                    "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the "
+                    f"{typical:.3g} N m of the other bins, from {int(wide.sum())} bins at "
+                    f"{_speeds(off.speeds[wide])} rad/s whose samples spread up to "
+                    f"{float(np.max(off.spread[wide])):.3g} N m (typical sample noise {off.sample_noise:.3g} N m): "
+                    "samples counted at the limit that were not, or an edge that moves within the bin",
+                })  # fmt: skip
     rmse, noise = off.rmse, max(off.noise, 1e-12)
     inflated = any(f["kind"] == "noise_inflated" for f in flags)
     explained = (
@@ -1366,7 +1371,7 @@ def _speeds(w: Array) -> str:
 
 
 def comparison_json(c: Comparison) -> dict[str, Any]:
-    """The ``hound-id/mor-compare/1`` JSON."""
+    """The ``hound-id/mor-compare/2`` JSON."""
     first, last = c.ladder[0], c.final
     before = c.baseline if c.baseline is not None else first.offsets
     return {

@@ -209,7 +209,7 @@ def test_loader_units_mapping_and_joint_side(tmp_path):
 def test_json_has_the_issue_fields():
     log, inputs = log_of(SPEC, {"bus_sag": 0.15})
     data = comparison_json(compare(log, inputs, add=["bus_sag"]))
-    assert data["schema"] == "hound-id/mor-compare/1"
+    assert data["schema"] == "hound-id/mor-compare/2"
     assert set(data["envelope_rmse"]) == {"model", "with_added"}
     assert data["envelope_rmse"]["with_added"] < data["envelope_rmse"]["model"]
     assert all(set(s) >= {"effect", "explained", "significant", "reason"} for s in data["suggestions"])

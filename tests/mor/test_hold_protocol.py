@@ -6,14 +6,13 @@ drive's current reply are one loop late, the noise is AR(1) with mains hum, the 
 hidden in turn, with and without the torque_cmd channel, at 1 and 2 kHz.
 """
 
-from functools import lru_cache
+from functools import cache
 
 import numpy as np
 import pandas as pd
 import pytest
 
 from hound_id.errors import SpecError
-
 from hound_id.mor.compare import EnvelopeLog, command_limits, compare, comparison_json
 from hound_id.mor.envelope import EnvelopeInputs
 from hound_id.mor.spec import load_motor_spec
@@ -32,7 +31,7 @@ CASES = [
 ]
 
 
-@lru_cache(maxsize=None)
+@cache
 def simulated(hidden: Hidden, seed: int, log_hz: float, amplitude: tuple[float, float] = (1.2, 2.2)):
     return run(SPEC, Dyno(hidden=hidden, seed=seed, log_hz=log_hz, amplitude=amplitude))
 
