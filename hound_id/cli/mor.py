@@ -187,8 +187,10 @@ def _mor_compare(
         console.print(
             f"no candidate effect is significant, but the model does not explain the log: envelope error "
             f"{final:.3g} N m ({final / max(data['noise_level'], 1e-12):.1f}x the noise level), "
-            f"{data['outside_fraction']:.1%} of the samples past the region. Check the units, log torque_cmd, "
-            "or suspect an effect hound-id does not model",
+            f"{data['outside_fraction']:.1%} of the samples past the region. Check the units"
+            + (", log torque_cmd" if data["limit_method"] == "wall" else "")
+            + ", log the channels the effects need (temperature, bus_voltage), or suspect an effect hound-id does "
+            "not model",
             highlight=False,
         )
     if any(k == "thermal_resistance" for k in data["model"]):

@@ -1334,7 +1334,8 @@ def verdict(c: Comparison) -> dict[str, Any]:
             flags.append({
                 "kind": "bins_off_model",
                 "bins": int(far.sum()),
-                "text": f"{int(far.sum())} bins sit off the model by more than {OFF_SIGMAS:g} standard errors and "
+                "text": f"{int(far.sum())} bin{'s' if far.sum() > 1 else ''} sit{'' if far.sum() > 1 else 's'} off "
+                f"the model by more than {OFF_SIGMAS:g} standard errors and "
                 f"{OFF_FLOOR:.1%} of the torque limit ({where}), up to {off.offset[worst]:+.3g} N m "
                 f"({abs(off.offset[worst]) / max(se[worst], 1e-30):.0f} SE at {off.speeds[worst]:.4g} rad/s): the "
                 "model misses something there",
@@ -1347,7 +1348,7 @@ def verdict(c: Comparison) -> dict[str, Any]:
                     "kind": "noise_inflated",
                     "bins": int(wide.sum()),
                     "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the "
-                    f"{typical:.3g} N m of the other bins, from {int(wide.sum())} bins at "
+                    f"{typical:.3g} N m of the other bins, from {int(wide.sum())} bin(s) at "
                     f"{_speeds(off.speeds[wide])} rad/s whose samples spread up to "
                     f"{float(np.max(off.spread[wide])):.3g} N m (typical sample noise {off.sample_noise:.3g} N m): "
                     "samples counted at the limit that were not, or an edge that moves within the bin",
