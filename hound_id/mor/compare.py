@@ -41,6 +41,7 @@ from pathlib import Path
 from typing import Any
 
 import numpy as np
+from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
 from hound_id.errors import DynoDataError, SpecError
@@ -309,25 +310,24 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     (where no plausible effect bounds the torque). There the measured torque follows the command: the lag (whole
     rows up to :data:`LAG_MAX` rows, refined to a tenth of a row) minimises the mean absolute difference between
     the torque and the lagged command (no lag when the rows are not in time order, :func:`time_ordered`), then a
-    straight line torque = gain x command + bias is fitted. A sample is
-    at its upper limit when the line through its lagged command exceeds its torque for :data:`PERSIST` rows or more
-    (and twice the lag; any one row in a table) by more than any shortfall that lasted as long inside the region
-    (the rotor's inertia torque while the speed ramps, a filter ringing), and by :data:`CMD_SIGMAS` robust noise
-    levels at least; the first rows of each such run,
-    while the filtered torque still settles
-    (more than 3 noise levels from the run's later median), are left out. The lower limit likewise."""
+    straight line torque = gain x command + bias is fitted. A sample is at its upper limit when the line through its
+    lagged command exceeds its torque for :data:`PERSIST` rows or more (and twice the lag; any one row in a table) by
+    more than any shortfall that lasted as long inside the region (the rotor's inertia torque while the speed ramps,
+    a filter ringing), and by :data:`CMD_SIGMAS` robust noise levels at least; the first rows of each such run, while
+    the filtered torque still settles (more than 3 noise levels from the run's later median), are left out. The
+    lower limit likewise."""
     assert log.torque_cmd is not None
     tau, cmd = log.torque, log.torque_cmd
     n = tau.size
     lo_s, hi_s = envelope(log.velocity, {}, _inputs_for(log, inputs, np.arange(n)))
     lo_s, hi_s = np.nan_to_num(lo_s, nan=0.0), np.nan_to_num(hi_s, nan=0.0)
 
-    def inside(c: Array, rows: slice) -> NDArray[np.bool_]:
-        return np.asarray((c < 0.5 * hi_s[rows]) & (c > 0.5 * lo_s[rows]))
+    def inside(c: Array) -> NDArray[np.bool_]:
+        return np.asarray((c < 0.5 * hi_s) & (c > 0.5 * lo_s))
 
     def misfit(lag: float) -> float:
         c = _lagged(cmd, lag)
-        keep = inside(c, slice(None))
+        keep = inside(c)
         return float(np.mean(np.abs(tau[keep] - c[keep]))) if keep.sum() >= MIN_SAMPLES else math.inf
 
     ordered = time_ordered(tau)
@@ -338,7 +338,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
         fine = np.arange(max(best - 1, 0), best + 1.0001, 0.1)
         lag = float(fine[int(np.argmin([misfit(float(d)) for d in fine]))])
     c = _lagged(cmd, lag)
-    keep = inside(c, slice(None))
+    keep = inside(c)
     if keep.sum() < MIN_SAMPLES:
         raise DynoDataError(
             f"{log.source}: torque_cmd is inside the region in only {int(keep.sum())} rows; the command cannot be "
@@ -353,13 +353,10 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
         )
     expected = gain * c + bias
     short = expected - tau  # positive: the torque falls short of the command (upper limit)
-    inner = short[keep]
-    noise = 1.4826 * float(np.median(np.abs(inner - np.median(inner))))
+    noise = _robust(short[keep])[1]
     floor = CMD_SIGMAS * noise
     persist = max(PERSIST, int(math.ceil(2 * lag)) + 1) if ordered else 1
     # the largest shortfall that lasted `persist` rows inside the region: a limit must beat what the region does
-    from numpy.lib.stride_tricks import sliding_window_view
-
     whole = sliding_window_view(keep, persist).all(axis=1)
     if not whole.any():
         whole = np.ones(n - persist + 1, dtype=bool)
@@ -368,7 +365,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     thr_up = max(float(np.max(lasting_up)), floor)
     thr_lo = max(float(np.max(lasting_lo)), floor)
 
-    def runs(mask: NDArray[np.bool_], sign: float) -> NDArray[np.bool_]:
+    def runs(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
         edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
         out = np.zeros(n, dtype=bool)
         for start, stop in zip(edges[::2], edges[1::2], strict=True):
@@ -385,8 +382,8 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
         return out
 
     return CommandLimits(
-        upper=runs(short > thr_up, 1.0),
-        lower=runs(-short > thr_lo, -1.0),
+        upper=runs(short > thr_up),
+        lower=runs(-short > thr_lo),
         lag=lag,
         gain=float(gain),
         bias=float(bias),
@@ -411,9 +408,14 @@ def _trimmed(members: NDArray[np.int64], margin_of: Any, width: float) -> NDArra
     if members.size < 3:
         return members
     m = margin_of(members)
-    centre = float(np.median(m))
-    spread = max(1.4826 * float(np.median(np.abs(m - centre))), 1e-3 * width)
-    return members[np.abs(m - centre) <= TRIM * spread]
+    centre, spread = _robust(m)
+    return members[np.abs(m - centre) <= TRIM * max(spread, 1e-3 * width)]
+
+
+def _robust(x: Array) -> tuple[float, float]:
+    """(median, 1.4826 MAD): the centre and the standard deviation of Gaussian noise, unmoved by a few outliers."""
+    centre = float(np.median(x))
+    return centre, 1.4826 * float(np.median(np.abs(x - centre)))
 
 
 def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int64]:
@@ -431,9 +433,8 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
         # noise either side
         band = top
         for _ in range(2):
-            centre = float(np.median(m[band]))
-            spread = max(1.4826 * float(np.median(np.abs(m[band] - centre))), 1e-3 * width)
-            band = np.abs(m - centre) <= BAND * spread
+            centre, spread = _robust(m[band])
+            band = np.abs(m - centre) <= BAND * max(spread, 1e-3 * width)
         return members[band]
     return np.array([], dtype=np.int64)
 
@@ -445,9 +446,14 @@ def bin_count(n: int) -> int:
 
 
 def find_walls(
-    log: EnvelopeLog, inputs: EnvelopeInputs, model: Mapping[str, float] | None = None, bins: int | None = None
+    log: EnvelopeLog,
+    inputs: EnvelopeInputs,
+    model: Mapping[str, float] | None = None,
+    bins: int | None = None,
+    commanded: CommandLimits | None = None,
 ) -> Walls:
-    """The samples at the limit in each speed bin, against ``model``'s edges (module docstring)."""
+    """The samples at the limit in each speed bin, against ``model``'s edges (module docstring). ``commanded``: the
+    log's :func:`command_limits`, which do not depend on the model (computed here when the log has a command)."""
     w = log.velocity
     bins = bins or bin_count(log.n)
     edges = np.linspace(float(w.min()), float(w.max()), bins + 1)
@@ -455,7 +461,8 @@ def find_walls(
     lo, hi = envelope(w, dict(model or {}), _inputs_for(log, inputs, np.arange(log.n)))
     upper, lower = [], []
     drifting: set[tuple[int, int]] = set()  # (side, bin) of walls found with their drift taken out
-    commanded = command_limits(log, inputs) if log.torque_cmd is not None else None
+    if commanded is None and log.torque_cmd is not None:
+        commanded = command_limits(log, inputs)
     width = WALL_WIDTH * inputs.spec.torque_limit
     for b in range(bins):
         members = np.flatnonzero(index == b)
@@ -678,9 +685,9 @@ def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, 
     """Whether the samples ``idx`` of a one-pass wall follow the speed as a limit does, not as a command's plateau.
     Where an edge is steep, a speed that wanders within the pass (a dyno's speed loop yielding to the torque) moves
     the torque at a limit along the edge, while a commanded plateau stays flat. Against the model's ``edge`` [N m]
-    (``side`` +1 upper, -1 lower),
-    the margins of a limit are flat in speed and those of a plateau fall with the edge's slope s: the margins' slope
-    must be within half of s of zero, and :data:`TRACK_SIGMAS` standard errors (AR(1) noise) away from -s."""
+    (``side`` +1 upper, -1 lower), the margins of a limit are flat in speed and those of a plateau fall with the
+    edge's slope s: the margins' slope must be within half of s of zero, and :data:`TRACK_SIGMAS` standard errors
+    (AR(1) noise) away from -s."""
     x, m = w[idx], margin[idx]
     if idx.size < MIN_WALL or np.ptp(x) <= 0:
         return False
@@ -1091,7 +1098,7 @@ def compare(
         chosen = next(s for s in ladder[-1].suggestions if s.effect == name)
         model = {**model, **chosen.refit, name: chosen.value}
         # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
-        again = find_walls(log, inputs, model)
+        again = find_walls(log, inputs, model, commanded=walls.commanded)
         refound = _bins(again) >= _bins(walls)
         if refound:
             walls = again
@@ -1312,19 +1319,19 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
 def verdict(c: Comparison) -> dict[str, Any]:
     """``explained`` and the ``flags`` that say why not: the model explains the log when its envelope error is at
     the noise level (:data:`EXPLAINED` x), no bin sits off it by more than :data:`OFF_SIGMAS` standard errors (the
-    bin's, or the typical sample noise's if larger) and
-    :data:`OFF_FLOOR` of the torque limit, and (against the spec sheet) no share of the samples lies past its edges.
-    A noise level inflated by bins whose samples spread more than :data:`WIDE` x the typical sample noise (over
-    :data:`INFLATED` x the other bins' noise level) would pass any model: it is flagged, and the error must also be
-    at the other bins' level."""
+    bin's, or the typical sample noise's if larger) and :data:`OFF_FLOOR` of the torque limit, and (against the spec
+    sheet) no share of the samples lies past its edges. A noise level inflated by bins whose samples spread more
+    than :data:`WIDE` x the typical sample noise (over :data:`INFLATED` x the other bins' noise level) would pass
+    any model: it is flagged, and the error must also be at the other bins' level."""
     off, spec = c.final.offsets, c.inputs.spec
     flags: list[dict[str, Any]] = []
-    typical = off.noise
+    typical, off_model, inflated = off.noise, False, False
     if off.offset.size:
         # a bin's own spread is a noisy estimate of the noise (few independent samples): never below the typical one
         se = off.se * np.maximum(1.0, off.sample_noise / np.maximum(off.spread, 1e-30))
         far = (np.abs(off.offset) > OFF_SIGMAS * se) & (np.abs(off.offset) > OFF_FLOOR * spec.torque_limit)
-        if far.any():
+        off_model = bool(far.any())
+        if off_model:
             worst = int(np.argmax(np.where(far, np.abs(off.offset) / np.maximum(se, 1e-30), -1.0)))
             where = "; ".join(
                 f"{name} edge at {_speeds(off.speeds[far & (off.side == s)])} rad/s"
@@ -1343,7 +1350,8 @@ def verdict(c: Comparison) -> dict[str, Any]:
         wide = off.spread > WIDE * off.sample_noise
         if wide.any() and not wide.all():
             typical = float(np.sqrt(np.mean(off.se[~wide] ** 2)))
-            if off.noise > INFLATED * typical:
+            inflated = off.noise > INFLATED * typical
+            if inflated:
                 flags.append({
                     "kind": "noise_inflated",
                     "bins": int(wide.sum()),
@@ -1353,12 +1361,11 @@ def verdict(c: Comparison) -> dict[str, Any]:
                     f"{float(np.max(off.spread[wide])):.3g} N m (typical sample noise {off.sample_noise:.3g} N m): "
                     "samples counted at the limit that were not, or an edge that moves within the bin",
                 })  # fmt: skip
-    rmse, noise = off.rmse, max(off.noise, 1e-12)
-    inflated = any(f["kind"] == "noise_inflated" for f in flags)
+    rmse = off.rmse
     explained = (
-        rmse <= EXPLAINED * noise
+        rmse <= EXPLAINED * max(off.noise, 1e-12)
         and (not inflated or rmse <= EXPLAINED * typical)
-        and not any(f["kind"] == "bins_off_model" for f in flags)
+        and not off_model
         and (bool(c.final.model) or c.outside["fraction"] <= OUTSIDE_OK)
         and c.outside_final <= OUTSIDE_OK
     )
@@ -1366,7 +1373,7 @@ def verdict(c: Comparison) -> dict[str, Any]:
 
 
 def _speeds(w: Array) -> str:
-    """Speeds [rad/s] as a short list ("-483, 12 to 40, 496")."""
+    """Speeds [rad/s] for a message: all of up to four ("-483, 12, 496"), else the range ("-483 to 496")."""
     values = sorted(float(x) for x in w)
     return ", ".join(f"{v:.4g}" for v in values) if len(values) <= 4 else f"{values[0]:.4g} to {values[-1]:.4g}"
 

@@ -6,6 +6,7 @@ drive's current reply are one loop late, the noise is AR(1) with mains hum, the 
 hidden in turn, with and without the torque_cmd channel, at 1 and 2 kHz.
 """
 
+import json
 from functools import cache
 
 import numpy as np
@@ -158,8 +159,6 @@ def test_the_cli_reads_a_hold_protocol_log(tmp_path):
     columns = "torque=shaft_torque,velocity=speed,current=iq,bus_voltage=vbus,temperature=winding"
     proc = run_cli("mor", "--spec", str(MOTOR), "--compare", str(path), "--columns", columns, "--auto", "--json")
     assert proc.returncode == 0, proc.stderr
-    import json
-
     data = json.loads(proc.stdout)
     assert data["added"] == ["bus_sag"] and data["explained"]
     assert data["limit_detection"]["lag_rows"] > 0.5 and data["limit_detection"]["persist_rows"] >= 3
