@@ -14,7 +14,6 @@ from pathlib import Path
 import numpy as np
 
 from hound_id import io
-from hound_id.errors import OutputError
 from hound_id.samples import samples_dir
 
 SCHEMA = "hound-id/demo/1"
@@ -287,13 +286,7 @@ STEPS: tuple[Callable[[Path], StepResult], ...] = (
 
 def run_demo(out: Path, on_step: Callable[[str], None] | None = None) -> list[StepResult]:
     """Run every demo step into ``out`` (created if missing) and write ``summary.json``."""
-    if out.exists() and not out.is_dir():
-        raise OutputError(f"{out}: exists and is not a folder; choose another --out", path=str(out))
-    if not out.parent.is_dir():
-        raise OutputError(
-            f"{out}: folder {out.parent} does not exist; create it or choose another --out", path=str(out)
-        )
-    out.mkdir(exist_ok=True)
+    io.make_folder(out)
     results = []
     for step in STEPS:
         if on_step is not None:

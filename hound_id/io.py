@@ -8,6 +8,8 @@ from __future__ import annotations
 
 import json
 import os
+import re
+import shutil
 import tempfile
 from collections.abc import Callable, Iterator
 from contextlib import contextmanager
@@ -35,18 +37,48 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         )
     if target.is_dir():
         raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
-    fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
-    os.close(fd)
-    tmp = Path(tmp_name)
-    os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
+    tmp: Path | None = None
     try:
+        fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
+        os.close(fd)
+        tmp = Path(tmp_name)
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
         yield tmp
         os.replace(tmp, target)
     except OSError as err:
-        raise OutputError(f"{target}: cannot write ({err.strerror or err})", path=str(target)) from err
+        if isinstance(err, OutputError):
+            raise
+        raise OutputError(
+            f"{target}: cannot write ({err.strerror or err}); check the folder's permissions and free space",
+            path=str(target),
+        ) from err
     finally:
-        if tmp.exists():
+        if tmp is not None and tmp.exists():
             tmp.unlink()
+
+
+_SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
+
+
+def file_stem(name: object, where: str) -> str:
+    """``name`` if it can safely become part of a file name, else a one-line :class:`SpecError`.
+
+    Names taken from input files (a robot's or a motor's ``name:``) become output file names;
+    a name holding a path separator, ``..`` or a leading dot could write outside the output
+    folder or hide the file, so only letters, digits and ``_ . + -`` are accepted.
+
+    Args:
+        name: The name as read from the file.
+        where: "file: field 'name'", for the message.
+    """
+    if not isinstance(name, str) or not name:
+        raise SpecError(f"{where}: found {name!r}, expected a name in text (for example hound-like)")
+    if not _SAFE_NAME.fullmatch(name) or ".." in name:
+        raise SpecError(
+            f"{where}: found {name!r}; the name becomes part of output file names, so use only letters, digits "
+            "and _ . + - (no path separators, no '..', at most 100 characters, starting with a letter or digit)"
+        )
+    return name
 
 
 def _umask() -> int:
@@ -78,6 +110,80 @@ def check_output(path: str | os.PathLike[str] | None, suffixes: tuple[str, ...],
         )
     if target.is_dir():
         raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(
+            f"{target}: folder {folder} is not writable; choose another output path or change its permissions",
+            path=str(target),
+        )
+
+
+def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
+    """Create the output folder ``path`` (its parent must exist) and check it can be written.
+
+    Raises:
+        OutputError: ``path`` is a file, its parent is missing, or it cannot be created or written.
+    """
+    folder = Path(path)
+    parent = folder.parent if str(folder.parent) else Path(".")
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
+    if not parent.is_dir():
+        raise OutputError(
+            f"{option} {folder}: folder {parent} does not exist; create it or choose another {option}",
+            path=str(folder),
+        )
+    try:
+        folder.mkdir(exist_ok=True)
+    except OSError as err:
+        raise OutputError(
+            f"{option} {folder}: cannot create the folder ({err.strerror or err}); choose another {option}",
+            path=str(folder),
+        ) from err
+    if not os.access(folder, os.W_OK | os.X_OK):
+        raise OutputError(
+            f"{option} {folder}: folder is not writable; choose another {option} or change its permissions",
+            path=str(folder),
+        )
+    return folder
+
+
+@contextmanager
+def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterator[Path]:
+    """Yield a temporary folder beside ``path``; on success move its files into ``path`` (created).
+
+    The files of one command appear together or not at all: a failure while writing (or
+    Ctrl-C) leaves ``path`` as it was. The staging folder sits at the same depth as ``path``,
+    so relative paths computed from ``path`` hold for files written into it.
+
+    Raises:
+        OutputError: ``path`` is a file, its parent is missing, or it cannot be created or written.
+    """
+    folder = Path(path)
+    parent = folder.resolve().parent  # "." and "out/.." have a parent too
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
+    if not parent.is_dir():
+        raise OutputError(
+            f"{option} {folder}: folder {parent} does not exist; create it or choose another {option}",
+            path=str(folder),
+        )
+    staging: Path | None = None
+    try:
+        staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=parent))
+        yield staging
+        make_folder(folder, option)
+        for item in sorted(staging.iterdir()):
+            os.replace(item, folder / item.name)
+    except OSError as err:
+        if isinstance(err, OutputError):
+            raise
+        raise OutputError(
+            f"{option} {folder}: cannot write ({err.strerror or err}); check the folder's permissions and free space",
+            path=str(folder),
+        ) from err
+    finally:
+        if staging is not None:
+            shutil.rmtree(staging, ignore_errors=True)
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:

@@ -50,13 +50,54 @@ def _root(
     """Identify and design the actuators of fast legged robots."""
 
 
-def main() -> None:
-    """Console entry point. Typer handles usage errors itself (exit 2); ours are caught here."""
+def main(argv: list[str] | None = None) -> None:
+    """Console entry point: every error, Typer's own usage errors included, is one line and exit 2.
+
+    Args:
+        argv: Arguments without the program name (``sys.argv[1:]`` when None).
+    """
     try:
-        app()
+        code = app(args=argv, prog_name="hound-id", standalone_mode=False)
     except HoundIdError as err:
         print(f"hound-id: error: {err}", file=sys.stderr)
         sys.exit(2)
     except KeyboardInterrupt:
         print("hound-id: interrupted", file=sys.stderr)
         sys.exit(130)
+    except Exception as err:
+        # click's exceptions, by name: Typer vendors click from 0.16 on, earlier releases import it
+        kinds = {kind.__name__ for kind in type(err).__mro__}
+        if "NoArgsIsHelpError" in kinds:  # a bare command: its help, as before
+            err.show()  # type: ignore[attr-defined]
+            sys.exit(2)
+        if "UsageError" in kinds:
+            command = _command_path(sys.argv[1:] if argv is None else argv)
+            message = err.format_message().replace("\n", " ").rstrip(".")  # type: ignore[attr-defined]
+            print(f"hound-id: error: {command}: {message}; see '{command} --help'", file=sys.stderr)
+            sys.exit(2)
+        if "ClickException" in kinds:
+            print(f"hound-id: error: {err.format_message()}", file=sys.stderr)  # type: ignore[attr-defined]
+            sys.exit(int(getattr(err, "exit_code", 1)))
+        if "Abort" in kinds:
+            print("hound-id: aborted", file=sys.stderr)
+            sys.exit(1)
+        raise
+    if isinstance(code, int) and code:  # typer.Exit(code) inside a command; 130 on Ctrl-C
+        if code == 130:
+            print("hound-id: interrupted", file=sys.stderr)
+        sys.exit(code)
+
+
+def _command_path(argv: list[str]) -> str:
+    """``hound-id dyno plan`` from the arguments: the words that name (sub-)commands."""
+    import typer.main
+
+    command: object = typer.main.get_command(app)
+    words = ["hound-id"]
+    for token in argv:
+        commands = getattr(command, "commands", None)
+        if not isinstance(commands, dict) or token not in commands:
+            break
+        command = commands[token]
+        words.append(token)
+    return " ".join(words)

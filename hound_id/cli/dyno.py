@@ -29,7 +29,9 @@ def fit_current(
     ),
     robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares (outliers left in the log)."),
     effects_file: Optional[list[Path]] = typer.Option(
-        None, "--effects-file", help="Python file registering your own effects (repeatable)."
+        None,
+        "--effects-file",
+        help="Python file registering your own effects (repeatable). It is executed: use only files you trust.",
     ),
     spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec the fitted Kt and peak torque override."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: fit, 20 % point, residuals before and after."),

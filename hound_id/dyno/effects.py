@@ -254,7 +254,11 @@ def parse_model(text: str) -> tuple[str, ...]:
 
 
 def load_effects_file(path: str | Path) -> list[str]:
-    """Import a user's Python file that calls :func:`register`; returns the names it added."""
+    """Import a user's Python file that calls :func:`register`; returns the names it added.
+
+    The file is executed as Python with the user's rights, like any import: load only files
+    you trust.
+    """
     p = Path(path)
     if not p.is_file():
         raise FitError(f"{p}: effects file not found")
@@ -267,6 +271,10 @@ def load_effects_file(path: str | Path) -> list[str]:
         spec.loader.exec_module(module)
     except FitError as err:
         raise FitError(f"{p}: {err}") from err
+    except SystemExit as err:  # sys.exit() or exit() in the file must not end hound-id silently
+        raise FitError(
+            f"{p}: the effects file called exit ({err.code!r}) while it was imported; remove the call"
+        ) from err
     except Exception as err:  # a user's file: report, do not crash
         raise FitError(f"{p}: importing it failed ({type(err).__name__}: {err})") from err
     added = sorted(set(REGISTRY) - before)

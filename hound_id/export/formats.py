@@ -70,7 +70,7 @@ class Written:
 
 
 def _stem(ex: Export) -> str:
-    return ex.robot.name
+    return io.file_stem(ex.robot.name, "robot field 'name'")  # a Robot built in code is checked here too
 
 
 def write_bundle(ex: Export, out: Path) -> Written:

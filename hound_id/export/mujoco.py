@@ -141,7 +141,7 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     spec.compile()
     xml = spec.to_xml()
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
-    path = out / f"{ex.robot.name}.xml"
+    path = out / f"{io.file_stem(ex.robot.name, 'robot field name')}.xml"
     io.write_text(path, xml)
     curved = [m["name"] for m in ex.bundle["motors"] if m.get("envelope")]
     if curved and ex.mujoco_actuator == "dcmotor":

@@ -7,6 +7,7 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
+from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import apply_fits, build_bundle, foot_from_json
 from hound_id.export.formats import FORMATS, Export
@@ -60,28 +61,12 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
     Every file is written into a temporary folder beside ``out`` first and moved in only when
     all formats succeeded, so a failing format leaves ``out`` as it was.
     """
-    import os
-    import shutil
-    import tempfile
-
     if out.exists() and not out.is_dir():
         raise SpecError(f"--out {out}: is a file; give a folder")
-    parent = out.resolve().parent
-    if not parent.is_dir():
-        raise SpecError(f"--out {out}: folder {parent} does not exist; create it or choose another --out")
     if any(f in ("mujoco", "urdf") for f in formats):
         ex.urdf()  # fail before writing anything
-    staging = Path(tempfile.mkdtemp(prefix=f".{out.name}.", dir=parent))  # same depth: relative paths hold
-    try:
+    with io.staged_folder(out) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}
-        try:
-            out.mkdir(exist_ok=True)
-        except OSError as err:
-            raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
-        for item in staging.iterdir():
-            os.replace(item, out / item.name)
-    finally:
-        shutil.rmtree(staging, ignore_errors=True)
     fitted = sorted({m["spec"] for m in ex.bundle["motors"] if m["fitted"]})
 
     def final(path: str) -> str:

@@ -231,17 +231,13 @@ def write_foot(report: FootReport, out: Path) -> dict[str, str]:
 
     Each file is written atomically. Returns the written paths by kind.
     """
-    if out.exists() and not out.is_dir():
-        raise SpecError(f"--out {out}: is a file; give a folder for the STL, URDF and JSON")
-    try:
-        out.mkdir(parents=True, exist_ok=True)
-    except OSError as err:
-        raise SpecError(f"--out {out}: cannot create the folder ({err.strerror or err})") from err
-    stl, urdf, js = out / STL_NAME, out / f"{Path(report.mount.path).stem}_light_foot.urdf", out / "foot.json"
-    io.write_with(stl, lambda handle: report.mesh.export(handle, file_type="stl"))
-    io.write_text(urdf, _patched(report.mount, report.design, report.requirements, out))  # mesh paths from out
-    files = {"stl": os.fspath(stl), "urdf": os.fspath(urdf), "json": os.fspath(js)}
-    io.write_json(js, foot_json(report, files))
+    names = {"stl": STL_NAME, "urdf": f"{Path(report.mount.path).stem}_light_foot.urdf", "json": "foot.json"}
+    files = {kind: os.fspath(out / name) for kind, name in names.items()}
+    with io.staged_folder(out) as stage:  # the three files appear together or not at all
+        io.write_with(stage / names["stl"], lambda handle: report.mesh.export(handle, file_type="stl"))
+        urdf = _patched(report.mount, report.design, report.requirements, out)  # mesh paths from out
+        io.write_text(stage / names["urdf"], urdf)
+        io.write_json(stage / names["json"], foot_json(report, files))
     return files
 
 

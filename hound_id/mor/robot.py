@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.errors import HoundIdError, RobotError, TransmissionError
-from hound_id.io import read_yaml
+from hound_id.io import file_stem, read_yaml
 from hound_id.mor.spec import MotorSpec, load_motor_spec
 from hound_id.mor.transmission import Transmission, from_matrix, from_ratios, hollow_shaft
 from hound_id.units import as_number
@@ -174,9 +174,7 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
     missing = [j for j in joints if j not in covered]
     if missing:
         raise _err(source, "field 'transmissions'", f"joints without a transmission: {', '.join(missing)}")
-    name = data["name"]
-    if not isinstance(name, str) or not name:
-        raise _err(source, "field 'name'", f"found {name!r}, expected text")
+    name = file_stem(data["name"], f"{source}: field 'name'")
     src = data.get("source")
     urdf = data.get("urdf")
     if urdf is not None:

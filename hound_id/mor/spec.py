@@ -33,7 +33,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.errors import SpecError, where
-from hound_id.io import read_yaml
+from hound_id.io import file_stem, read_yaml
 from hound_id.units import to_si
 
 SCHEMA = "hound-id/motor/1"
@@ -254,8 +254,9 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             field="pole_pairs",
         )
     name = data.get("name")
-    if not isinstance(name, str) or not name.strip():
+    if name is None or (isinstance(name, str) and not name.strip()):
         raise SpecError(f"{where(source, 'name')}: missing or empty; give the motor a name", field="name")
+    name = file_stem(name, where(source, "name"))
     src = data.get("source")
     if src is not None and not isinstance(src, str):
         raise SpecError(f"{where(source, 'source')}: found {src!r}, expected text", field="source")

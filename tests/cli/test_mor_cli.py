@@ -155,6 +155,6 @@ def test_outputs_are_checked_before_work_and_get_normal_permissions(tmp_path):
 
 def test_demo_refuses_bad_output_folders(tmp_path):
     (tmp_path / "afile").write_text("x")
-    assert_one_line_error(run_cli("demo", "--out", str(tmp_path / "afile")), "not a folder")
+    assert_one_line_error(run_cli("demo", "--out", str(tmp_path / "afile")), "is a file; give a folder")
     assert_one_line_error(run_cli("demo", "--out", str(tmp_path / "no" / "deeper")), "does not exist")
     assert not (tmp_path / "no").exists()
