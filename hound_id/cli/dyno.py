@@ -47,6 +47,9 @@ def fit_current(
     check_output(plot, (".png",), "plot")
     start_stop = parse_window(window)
     check_output(out, (".yaml", ".yml"), "fitted-motor")
+    from hound_id.mor.spec import load_motor_spec
+
+    sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet
     for path in effects_file or []:
         load_effects_file(path)
     names = list(parse_model(model))
@@ -87,12 +90,10 @@ def fit_current(
         time=signals.time if signals.timed else None,
     )
     warnings = _fit_warnings(report)
-    sheet = None
-    if spec is not None:
-        from hound_id.dyno.report import spec_checks
-        from hound_id.mor.spec import load_motor_spec
+    from hound_id.dyno.report import check_kt, spec_checks
 
-        sheet = load_motor_spec(spec)  # fail early on a bad sheet
+    check_kt(str(data), report["parameters"]["kt"]["value"], sheet, str(spec))
+    if sheet is not None:
         warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
     if out is not None:
         import yaml

@@ -104,6 +104,19 @@ UNITS: dict[str, str] = {
     "torque_cmd": "N*m",
     "current_cmd": "A",
 }
+#: Largest magnitude of each channel (SI) that any dynamometer can log; a value beyond is no
+#: measurement (an overflowed register, a garbage row) and is read as missing. A channel whose
+#: typical value lies beyond is in another unit or is the wrong column, and is refused.
+BEYOND: dict[str, float] = {
+    "current": 1e5,  # A
+    "torque": 1e6,  # N m
+    "velocity": 1e6,  # rad/s
+    "position": 1e9,  # rad: an angle counted up over days of running
+    "temperature": 1e4,  # degC
+    "bus_voltage": 1e5,  # V
+    "torque_cmd": 1e6,  # N m
+    "current_cmd": 1e5,  # A
+}
 #: The kinds of :class:`CleaningNote`.
 NOTE_KINDS: tuple[str, ...] = (
     "nan_rows",
@@ -466,6 +479,7 @@ def log_from_frame(
                 "time",
             )
         )
+    _beyond_reason(data, found, source, notes)
     good = _finite_rows(data, bad_cells, notes)
     # The cleaning steps carry only the core channels and the 1-based file row of each sample; the optional
     # channels are gathered once at the end (copying seven 1M-row arrays at every step is most of the run time).
@@ -652,6 +666,12 @@ def _numeric(
         start = series.min()
         seconds = (series - start).dt.total_seconds().to_numpy(dtype=np.float64, na_value=np.nan)
         return seconds, f"timestamps to seconds after {start}", None
+    if pd.api.types.is_bool_dtype(series):  # pandas counts booleans as numbers; no sensor logs True/False
+        raise DynoDataError(
+            f"{source}: column '{column}' holds true/false values (a {series.dtype} column); expected numbers for "
+            f"the {name} channel: map the right column with --columns {name}=<column>",
+            column=column,
+        )
     if pd.api.types.is_numeric_dtype(series):
         return series.to_numpy(dtype=np.float64, na_value=np.nan), None, None
     numbers = pd.to_numeric(series, errors="coerce")
@@ -784,6 +804,42 @@ def _check_varies(core: dict[str, NDArray[np.float64]], source: str) -> None:
             f"{source}: the torque channel holds one value ({float(x[0]):.6g} N m) on every row; expected a torque "
             "that varies: the sensor is not connected or not read, or --columns maps the wrong column",
             channel="torque",
+        )
+
+
+def _beyond_reason(
+    data: dict[str, NDArray[np.float64]], found: Mapping[str, str], source: str, notes: list[CleaningNote]
+) -> None:
+    """Values beyond :data:`BEYOND` become NaN (noted); a channel typically beyond it is refused."""
+    for name, values in list(data.items()):
+        limit = BEYOND.get(name)
+        if limit is None:
+            continue
+        with np.errstate(invalid="ignore"):
+            beyond = np.isfinite(values) & (np.abs(values) > limit)  # inf and NaN are noted as such
+        count = int(np.count_nonzero(beyond))
+        if not count:
+            continue
+        unit = UNITS[name].replace("*", " ")
+        finite = values[np.isfinite(values)]
+        typical = float(np.median(np.abs(finite))) if finite.size else 0.0
+        if typical > limit:
+            raise DynoDataError(
+                f"{source}: column '{found[name]}' ({name}): typical |value| {typical:.3g} {unit}, beyond the "
+                f"{limit:g} {unit} any dyno logs; expected a {name} in its unit: give the unit in the header "
+                f"('{name}[...]') or with --units {name}=..., or map the right column with --columns",
+                channel=name,
+            )
+        rows = np.flatnonzero(beyond) + 1
+        data[name] = np.where(beyond, np.nan, values)
+        notes.append(
+            CleaningNote(
+                "nan_rows",
+                0,
+                f"read {_plural(count, 'value')} of '{name}' beyond {limit:g} {unit} as missing (no dyno measures "
+                f"that: an overflowed register or a garbage row) at rows {_row_list(rows)}",
+                name,
+            )
         )
 
 

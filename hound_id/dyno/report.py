@@ -44,6 +44,58 @@ def summarize(
     return peak, comp, report
 
 
+#: A fitted Kt further than this factor from the sheet's is refused: the RMS/peak (1.41) and the
+#: phase/line (1.73) conventions together make 2.45; beyond that only a unit slip or a wrong
+#: column explains it, and no motor is that far off its own sheet.
+UNIT_FACTOR = 3.0
+
+
+def check_kt(source: str, kt: float, spec: Any = None, spec_path: str | None = None) -> None:
+    """Refuse a fitted Kt that only a wrong unit or column explains (one line, :class:`DynoDataError`).
+
+    Without a sheet the fitted Kt must lie in the span of real motors
+    (:data:`hound_id.mor.spec.PLAUSIBLE`); with one, within :data:`UNIT_FACTOR` of the sheet's.
+
+    Args:
+        source: The log, for the message.
+        kt: Fitted torque constant [N m/A].
+        spec: The motor's sheet (:class:`~hound_id.mor.spec.MotorSpec`), if given.
+        spec_path: Its file, for the message.
+    """
+    from hound_id.errors import DynoDataError
+    from hound_id.mor.spec import PLAUSIBLE
+
+    fix = (
+        "give each column's unit in the header (torque[mN*m], iq[A]) or with --units torque=mN*m,current=A, "
+        "check --columns, and fit again"
+    )
+    lo, hi, _ = PLAUSIBLE["kt"]
+    if spec is not None and kt > 0:
+        ratio = kt / spec.kt
+        if not 1 / UNIT_FACTOR <= ratio <= UNIT_FACTOR:
+            raise DynoDataError(
+                f"{source}: fitted Kt = {kt:.4g} N m/A is {ratio:.3g}x the sheet's {spec.kt:.4g} N m/A "
+                f"({spec_path}); no motor is that far off its sheet{_unit_hint(ratio)}: {fix}",
+                kt=kt,
+                ratio=ratio,
+            )
+    if not lo <= kt <= hi:
+        slip = "a torque in mN m read as N m or a current in A read as mA" if kt > hi else "the reverse slip"
+        raise DynoDataError(
+            f"{source}: fitted Kt = {kt:.4g} N m/A is outside {lo:g} to {hi:g} N m/A, the span of real motors "
+            f"({slip} does this): {fix}",
+            kt=kt,
+        )
+
+
+def _unit_hint(ratio: float) -> str:
+    """', a factor 1000: ...' when ``ratio`` is near a milli-unit slip, else ''."""
+    for factor in (1e3, 1e-3, 1e6, 1e-6):
+        if 0.5 < ratio / factor < 2:
+            return f" (about {factor:g}x: a torque in mN m read as N m, or a current in A read as mA, or the reverse)"
+    return ""
+
+
 def spec_checks(report: dict[str, Any], spec: Any) -> list[str]:
     """Warnings where a fit disagrees with the motor's spec sheet (a :class:`~hound_id.mor.spec.MotorSpec`)."""
     out = []

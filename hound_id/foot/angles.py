@@ -137,7 +137,15 @@ def contact_angles(
     touch, lift, lows, highs = [], [], [], []
     for leg in legs:
         theta = pitch + column(f"{leg}_HFE") + column(f"{leg}_KFE")
-        contact = column(f"{leg}_contact") > 0.5
+        flag = column(f"{leg}_contact")
+        odd = np.flatnonzero((flag != 0.0) & (flag != 1.0))
+        if odd.size:
+            raise DynoDataError(
+                f"{source}: column '{leg}_contact' data row {odd[0] + 1} is {flag[odd[0]]:g}, expected 1 (stance) "
+                "or 0 (flight); threshold a contact force or probability into a flag first",
+                column=f"{leg}_contact",
+            )
+        contact = flag > 0.5
         edges = np.diff(contact.astype(np.int8))
         starts = np.flatnonzero(edges == 1) + 1
         ends = np.flatnonzero(edges == -1) + 1
@@ -191,8 +199,9 @@ def gait_angles(path: str | Path, legs: Sequence[str] | None = None, margin_deg:
     frame = read_table(path)
     if legs is not None and not legs:
         raise SpecError("--legs: no leg named; give e.g. RR,RL or leave --legs out for every leg")
-    if legs is None:
-        legs = [str(c)[: -len("_contact")] for c in frame.columns if str(c).endswith("_contact")]
+    if legs is None:  # every leg any of its three columns names: one missing is an error, not a leg left out
+        suffixes = ("_HFE", "_KFE", "_contact")
+        legs = sorted({str(c)[: -len(x)] for c in frame.columns for x in suffixes if str(c).endswith(x)})
         if not legs:
             raise DynoDataError(
                 f"{path}: no '<leg>_contact' column; a gait log needs time, pitch and <leg>_HFE, <leg>_KFE, "

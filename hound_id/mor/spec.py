@@ -72,6 +72,22 @@ _OTHER_KEYS = (
 )
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
+#: key -> (lowest, highest, SI unit): the span of electric motors from a hobby servo to a
+#: 100 kW traction motor, with margin. A value outside is a unit slip (mN m read as N m,
+#: rpm/V as rad/s/V) or a typo, and would make the region's geometry degenerate.
+PLAUSIBLE: dict[str, tuple[float, float, str]] = {
+    "kt": (1e-4, 100.0, "N m/A"),
+    "kv": (0.1, 1e4, "rad/s/V"),
+    "resistance": (1e-4, 1e3, "ohm"),
+    "resistance_line_to_line": (1e-4, 1e3, "ohm"),
+    "bus_voltage": (0.5, 2000.0, "V"),
+    "peak_torque": (1e-4, 1e4, "N m"),
+    "max_current": (1e-3, 1e4, "A"),
+    "max_speed": (0.1, 1e5, "rad/s"),
+    "rotor_inertia": (1e-10, 10.0, "kg m^2"),
+    "inductance": (1e-8, 10.0, "H"),
+}
+
 
 @dataclass(frozen=True)
 class MotorSpec:
@@ -219,9 +235,17 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
                 )
             continue
         value = to_si(data[key], kind, source=source, field=key)
-        if value <= 0.0:
+        if not value > 0.0:
             raise SpecError(
                 f"{where(source, key)}: found {data[key]!r}, expected a positive value", field=key, found=data[key]
+            )
+        lo, hi, unit = PLAUSIBLE[key]
+        if not lo <= value <= hi:
+            raise SpecError(
+                f"{where(source, key)}: found {data[key]!r} = {value:.4g} {unit}, expected {lo:g} to {hi:g} {unit} "
+                "(the span of real motors); check the number and its unit",
+                field=key,
+                found=data[key],
             )
         values[key] = value
 

@@ -205,14 +205,27 @@ def _polled(tmp_path, name="rig.csv", **rig):
     return write(run(Rig(**rig)), tmp_path / name)
 
 
-def test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked(tmp_path):
+def test_a_kt_only_a_wrong_unit_or_side_explains_is_refused_and_nothing_is_written(tmp_path):
     from tests.dyno.polledrig import COLUMNS
 
     log, out = _polled(tmp_path), tmp_path / "fitted.yaml"
     proc = run_cli("fit-current", str(log), "--columns", COLUMNS, "--auto", "--spec", str(MOTOR), "--out", str(out))
+    # an output-side Kt of an AK80-9-like actuator against a direct-drive motor's sheet: 8x off, both named
+    assert_one_line_error(proc, "fitted Kt = 1.1", "the sheet's 0.138 N m/A", "--units")
+    assert not out.exists()
+
+
+def test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked(tmp_path):
+    from tests.dyno.polledrig import COLUMNS
+
+    log, out = _polled(tmp_path), tmp_path / "fitted.yaml"
+    sheet = tmp_path / "ak80.yaml"  # the actuator's own sheet, output side, Kt 1.35x off the fit
+    sheet.write_text(
+        "name: ak80\nkt: 0.85 N*m/A\nkv: 1.18 rad/s/V\nresistance: 0.2\nbus_voltage: 48\npeak_torque: 18\n"
+    )
+    proc = run_cli("fit-current", str(log), "--columns", COLUMNS, "--auto", "--spec", str(sheet), "--out", str(out))
     assert proc.returncode == 0, proc.stderr
-    # an output-side Kt of an AK80-9-like actuator against a direct-drive motor's sheet: far off, both named
-    assert "fitted Kt = 1.1" in proc.stderr and "the sheet's 0.138 N m/A" in proc.stderr
+    assert "fitted Kt = 1.1" in proc.stderr and "the sheet's 0.85 N m/A" in proc.stderr
     # k_sat = 0.01 N m/A^2 puts the 20 % point at 23 A, beyond the 10 A measured: marked, with the range
     written = yaml.safe_load(out.read_text())
     assert written["extrapolated"] == ["peak_torque"]
