@@ -117,6 +117,26 @@ def check_output(path: str | os.PathLike[str] | None, suffixes: tuple[str, ...],
         )
 
 
+def check_folder(path: str | os.PathLike[str] | None, option: str = "--out") -> None:
+    """Fail before any work if an output folder cannot be made or written (None: nothing to check)."""
+    if path is None:
+        return
+    folder = Path(path)
+    if folder.exists() and not folder.is_dir():
+        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
+    probe = folder if folder.is_dir() else folder.resolve().parent
+    if not probe.is_dir():
+        raise OutputError(
+            f"{option} {folder}: folder {probe} does not exist; create it or choose another {option}",
+            path=str(folder),
+        )
+    if not os.access(probe, os.W_OK | os.X_OK):
+        raise OutputError(
+            f"{option} {folder}: folder {probe} is not writable; choose another {option} or change its permissions",
+            path=str(folder),
+        )
+
+
 def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
     """Create the output folder ``path`` (its parent must exist) and check it can be written.
 
@@ -230,6 +250,8 @@ def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
         what: What the file should be ("motor spec", "robot"), for messages.
     """
     source = Path(path)
+    if source.is_dir():
+        raise SpecError(f"{source}: is a folder; expected a {what} YAML file", path=str(source))
     try:
         text = source.read_text(encoding="utf-8")
     except FileNotFoundError as err:

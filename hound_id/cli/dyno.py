@@ -9,8 +9,9 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
+from hound_id import io
 from hound_id.cli._render import console, err_console, print_json, save_figure, warn
-from hound_id.errors import FitError
+from hound_id.errors import FitError, HoundIdError
 from hound_id.io import check_output
 
 
@@ -66,12 +67,9 @@ def fit_current(
     )
     if window is not None:
         log = log.window(*start_stop)
-    for note in log.notes:
-        if note.kind in ("unit", "format", "window"):
-            if not json_out:
-                err_console.print(f"note: {note.message}", highlight=False, markup=False, soft_wrap=True)
-        else:
-            warn(note.message)
+    # Notes and warnings are printed once the command has succeeded: an error is then the only line.
+    notes = [n.message for n in log.notes if n.kind in ("unit", "format", "window")] if not json_out else []
+    log_warnings = [n.message for n in log.notes if n.kind not in ("unit", "format", "window")]
     signals = Signals.from_log(log)
     torque = log.torque
     result = _run(signals, torque, tuple(names), auto=auto, robust=robust)
@@ -98,10 +96,8 @@ def fit_current(
     if out is not None:
         import yaml
 
-        from hound_id import io
-
         motor = fitted_motor(report, out, spec, data.stem if sheet is None else None)
-        io.write_text(out, yaml.safe_dump(motor, sort_keys=False))
+        motor_text = yaml.safe_dump(motor, sort_keys=False)  # written after the plot: both or neither
         if "extrapolated" in motor:
             warnings.append(
                 f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
@@ -114,8 +110,6 @@ def fit_current(
                 "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
             )
     report["warnings"] = warnings
-    for w in warnings:
-        warn(w)
     if plot is not None:
         from hound_id.dyno.fit import fit_model
         from hound_id.dyno.plot import plot_fit
@@ -138,6 +132,17 @@ def fit_current(
         else:
             pairs = [("model: " + "+".join(fit.model), fit)]
         save_figure(plot_fit(signals, torque, fit, peak, pairs, cogging_order=order, diagnosis=diagnosis), plot)
+    if out is not None:
+        try:
+            io.write_text(out, motor_text)
+        except HoundIdError:
+            if plot is not None:
+                plot.unlink(missing_ok=True)
+            raise
+    for message in notes:
+        err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
+    for w in [*log_warnings, *warnings]:
+        warn(w)
     if json_out:
         report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
         print_json(report)

@@ -28,8 +28,10 @@ def export(
 ) -> None:
     """Export what hound-id identified to the formats trainers read."""
     from hound_id.export.run import export_robot, formats_from, prepare
+    from hound_id.io import check_folder
 
     names = formats_from(fmt)
+    check_folder(out)
     ex = prepare(robot, fit or [], foot, urdf, mujoco_actuator)
     report = export_robot(ex, names, out)
     if json_out:

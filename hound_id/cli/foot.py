@@ -11,7 +11,7 @@ from rich.table import Table
 
 from hound_id.cli._render import console, print_json, save_figure
 from hound_id.errors import SpecError
-from hound_id.io import check_output
+from hound_id.io import check_folder, check_output
 
 _LENGTH_HELP = "with a unit, e.g. '10 mm' (a plain number is metres)"
 
@@ -100,6 +100,7 @@ def foot(
         check_output(plot, (".png",), "plot")
     if not optimise and (out is not None or plot is not None):
         raise SpecError("foot: --out and --plot need --optimise (they write the new foot)")
+    check_folder(out)
     leg_path = leg if leg is not None else samples_dir() / "legs" / "hound_leg.urdf"
     if not (math.isfinite(knee_angle) and abs(knee_angle) <= 180):
         raise SpecError(f"--knee-angle: found {knee_angle} deg, expected a finite angle within +-180 deg")
@@ -160,14 +161,21 @@ def _requirements(
 
     if not all(math.isfinite(v) for v in (safety, roll, mass_weight, nominal_angle)) or mass_weight < 0:
         raise SpecError("foot: --safety, --roll, --mass-weight (>= 0) and --nominal-angle must be finite numbers")
+    if not 1.0 <= safety <= 10.0:
+        raise SpecError(f"--safety: found {safety:g}, expected a safety factor from 1 to 10 (1.5 is usual)")
+    if not 0.0 <= roll < 45.0:
+        raise SpecError(f"--roll: found {roll:g} deg, expected 0 to 45 deg")
     if abs(nominal_angle) >= 60:
         raise SpecError(f"--nominal-angle: found {nominal_angle:g} deg, expected a calf pitch within +-60 deg")
+    peak_force = to_si(grf, "force", field="--grf")
+    if not 0.0 < peak_force <= 1e5:
+        raise SpecError(f"--grf: found {grf!r}, expected a positive peak force up to 100 kN (e.g. '1.5 kN')")
     return FootRequirements(
         low=contact.low,
         high=contact.high,
         material=load_material(material),
         ground=load_material(ground, GROUNDS, "--ground"),
-        peak_force=to_si(grf, "force", field="--grf"),
+        peak_force=peak_force,
         safety=safety,
         roll=math.radians(roll),
         boss_radius=_length(boss_radius, "--boss-radius") or 0.0,
