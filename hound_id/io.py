@@ -46,15 +46,19 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         yield tmp
         os.replace(tmp, target)
     except OSError as err:
-        if isinstance(err, OutputError):
-            raise
-        raise OutputError(
-            f"{target}: cannot write ({err.strerror or err}); check the folder's permissions and free space",
-            path=str(target),
-        ) from err
+        raise _cannot_write(err, str(target)) from err
     finally:
         if tmp is not None and tmp.exists():
             tmp.unlink()
+
+
+def _cannot_write(err: OSError, what: str) -> OutputError:
+    """The one-line error for an OSError met while writing ``what`` (an OutputError is kept)."""
+    if isinstance(err, OutputError):
+        return err
+    return OutputError(
+        f"{what}: cannot write ({err.strerror or err}); check the folder's permissions and free space", path=what
+    )
 
 
 _SAFE_NAME = re.compile(r"[A-Za-z0-9][A-Za-z0-9_.+-]{0,99}")
@@ -144,14 +148,7 @@ def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
         OutputError: ``path`` is a file, its parent is missing, or it cannot be created or written.
     """
     folder = Path(path)
-    parent = folder.parent if str(folder.parent) else Path(".")
-    if folder.exists() and not folder.is_dir():
-        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
-    if not parent.is_dir():
-        raise OutputError(
-            f"{option} {folder}: folder {parent} does not exist; create it or choose another {option}",
-            path=str(folder),
-        )
+    check_folder(folder, option)
     try:
         folder.mkdir(exist_ok=True)
     except OSError as err:
@@ -180,13 +177,7 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
     """
     folder = Path(path)
     parent = folder.resolve().parent  # "." and "out/.." have a parent too
-    if folder.exists() and not folder.is_dir():
-        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
-    if not parent.is_dir():
-        raise OutputError(
-            f"{option} {folder}: folder {parent} does not exist; create it or choose another {option}",
-            path=str(folder),
-        )
+    check_folder(folder, option)
     staging: Path | None = None
     try:
         staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=parent))
@@ -195,12 +186,7 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
         for item in sorted(staging.iterdir()):
             os.replace(item, folder / item.name)
     except OSError as err:
-        if isinstance(err, OutputError):
-            raise
-        raise OutputError(
-            f"{option} {folder}: cannot write ({err.strerror or err}); check the folder's permissions and free space",
-            path=str(folder),
-        ) from err
+        raise _cannot_write(err, f"{option} {folder}") from err
     finally:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
