@@ -108,7 +108,7 @@ def test_simulate_record_fit_names_the_hidden_effect(tmp_path):
         )
         assert proc.returncode == 0, proc.stderr
         meta = json.loads(proc.stdout)
-        assert meta["schema"] == "hound-id/record/1" and meta["status"] == "complete"
+        assert meta["schema"] == "hound-id/record/2" and meta["status"] == "complete"
         assert meta["samples"] == len(pd.read_csv(out)) > 2000
     finally:
         stop(rig)
