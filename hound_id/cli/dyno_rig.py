@@ -53,12 +53,13 @@ def record_cmd(
     """
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.acquire import check_settings, record
+    from hound_id.dyno.acquire import check_free, check_settings, record
     from hound_id.dyno.rig import load_rig
     from hound_id.dyno.transport import RigReader
 
     check_output(out, (".csv",), "log")
     check_settings(rate, duration, flush)
+    check_free(out)
     _quiet_and_terminable()
     rig_spec = load_rig(rig)
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())

@@ -192,13 +192,7 @@ class CsvLog:
             fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError as err:
             os.close(fd)
-            pid = _recorder_pid(sidecar_path(path))
-            who = f"another recorder (PID {pid})" if pid is not None else "another recorder"
-            raise OutputError(
-                f"{path}: {who} is writing this file; stop it first or choose another --out",
-                path=str(path),
-                pid=pid,
-            ) from err
+            raise _locked(path) from err
         except OSError as err:
             os.close(fd)
             raise OutputError(
@@ -259,6 +253,36 @@ class CsvLog:
         fd, self._fd = self._fd, -1
         if fd >= 0:
             os.close(fd)
+
+
+def check_free(path: Path) -> None:
+    """Refuse at once an output another recorder is writing (before connecting to the rig).
+
+    A probe: the lock is taken and released; :class:`CsvLog` takes it for the run.
+
+    Raises:
+        OutputError: Another recorder holds the file; the message names its PID when known.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return  # no file yet (or unreadable): CsvLog reports what is wrong
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError as err:
+        raise _locked(path) from err
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _locked(path: Path) -> OutputError:
+    pid = _recorder_pid(sidecar_path(path))
+    who = f"another recorder (PID {pid})" if pid is not None else "another recorder"
+    return OutputError(
+        f"{path}: {who} is writing this file; stop it first or choose another --out", path=str(path), pid=pid
+    )
 
 
 def _recorder_pid(side: Path) -> int | None:
