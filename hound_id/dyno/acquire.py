@@ -332,6 +332,7 @@ class _State:
     open_reason: str = ""
     closing: Gap | None = None  # a gap closed by a sample; the ticks its reads held up are skipped next
     reading_since: float | None = None  # monotonic time a read in progress started
+    reading_due: float | None = None  # monotonic time its tick was due
 
     def _settle(self) -> None:
         if self.closing is not None and self.closing.ticks > 0:  # a read held up that cost no tick is no gap
@@ -386,12 +387,15 @@ class _State:
         reading = self.reading_since
         blocked = (now - reading) if (now is not None and reading is not None) else 0.0
         hung = blocked > self.stall_after
-        lost = self.lost + (int(blocked / self.period) if hung else 0)
+        lost = self.lost
         if self.open_start is not None or hung:
+            # the ticks due since the tick being read are not booked yet: the loop books them when the read ends
+            due = self.reading_due if self.reading_due is not None else 0.0
+            extra = int((now - due) / self.period) if (now is not None and reading is not None) else 0
+            lost += extra
             start = self.open_start if self.open_start is not None else (self.last_t or 0.0)
             reason = self.open_reason or f"a read has been blocked for {blocked:.1f} s"
-            ticks = self.open_ticks + (int(blocked / self.period) if hung else 0)
-            gaps.append(Gap(start, None if now is not None else stop_t, ticks, reason))
+            gaps.append(Gap(start, None if now is not None else stop_t, self.open_ticks + extra, reason))
         return gaps, lost
 
 
@@ -574,6 +578,7 @@ def record(
                 tick += skip
                 continue
             sample, error = None, ""
+            state.reading_due = due
             before = after = state.reading_since = time.monotonic()
             for _ in range(policy.retries + 1):
                 before = time.monotonic()

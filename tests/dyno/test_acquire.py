@@ -410,7 +410,9 @@ def test_sigkill_during_a_hung_peer_leaves_a_sidecar_with_the_open_gap(rig_proce
     frame = pd.read_csv(out)
     assert gap["start"] == pytest.approx(frame["time"].iloc[-1], abs=1e-5)  # the last good sample, on disk
     assert meta["duration"] - gap["start"] >= 0.6  # rewritten during the hang, not only after a good read
-    assert gap["ticks"] >= 0.6 * 200 and meta["samples"] == len(frame)
+    # every tick due since the last sample is in the gap, also those of the read still waiting for its timeout
+    assert gap["ticks"] == meta["failed_ticks"] >= 200 * (meta["duration"] - gap["start"]) - 2
+    assert meta["samples"] == len(frame)
 
 
 def assert_one_line(proc, *fragments):
