@@ -4,7 +4,7 @@ from __future__ import annotations
 
 import time
 from pathlib import Path
-from typing import Any, Optional
+from typing import Optional
 
 import typer
 from rich.table import Table
@@ -36,20 +36,30 @@ app = typer.Typer(
 @app.command("record")
 def record_cmd(
     rig: Path = typer.Option(..., "--rig", help="Rig YAML (devices and channels)."),
-    out: Path = typer.Option(..., "--out", help="CSV log to write (canonical columns, SI)."),
-    duration: Optional[float] = typer.Option(None, "--duration", help="Seconds to record (default: until Ctrl-C)."),
-    rate: float = typer.Option(500.0, "--rate", help="Sampling rate [Hz]."),
-    flush: float = typer.Option(0.25, "--flush", help="Longest time between flushes to disk [s]."),
-    json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON (schema hound-id/record/1)."),
+    out: Path = typer.Option(
+        ..., "--out", help="CSV log to write (canonical columns, SI); locked while recording, one recorder per file."
+    ),
+    duration: Optional[float] = typer.Option(
+        None, "--duration", help="Seconds to record, > 0 (default: until Ctrl-C)."
+    ),
+    rate: float = typer.Option(500.0, "--rate", help="Sampling rate [Hz], 0.01 to 10000."),
+    flush: float = typer.Option(0.25, "--flush", help="Longest time between writes to disk [s], 0.05 to 60."),
+    json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON (schema hound-id/record/2)."),
 ) -> None:
-    """Poll the rig at a fixed rate into a CSV that fit-current reads; Ctrl-C stops cleanly."""
+    """Poll the rig at a fixed rate into a CSV that fit-current reads; Ctrl-C stops cleanly.
+
+    Ticks the rig did not answer (refused, timed out, hung) are booked as gaps, ticks the loop was too late for
+    as missed. A full disk stops the run (status failed) with whole rows only in the file.
+    """
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.acquire import record
+    from hound_id.dyno.acquire import check_free, check_settings, record
     from hound_id.dyno.rig import load_rig
     from hound_id.dyno.transport import RigReader
 
     check_output(out, (".csv",), "log")
+    check_settings(rate, duration, flush)
+    check_free(out)
     _quiet_and_terminable()
     rig_spec = load_rig(rig)
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
@@ -63,7 +73,7 @@ def record_cmd(
             progress.update(
                 task,
                 completed=r.duration if duration else None,
-                info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed + r.failed} missed",
+                info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed} missed, {r.failed} in gaps",
             )
 
         result = record(
@@ -74,16 +84,12 @@ def record_cmd(
             duration=duration,
             flush_interval=flush,
             metadata={"rig": str(rig.resolve()), "rig_name": rig_spec.name},
+            live=lambda: {"transport_errors": reader.faults()},
             on_progress=on_progress,
         )
-        faults = reader.faults()
     import json
 
-    from hound_id import io
-
     meta = json.loads(result.sidecar.read_text())
-    meta["transport_errors"] = faults
-    io.write_json(result.sidecar, meta)
     if json_out:
         print_json(meta)
     else:
@@ -117,18 +123,36 @@ def simulate_rig_cmd(
     plan: Optional[Path] = typer.Option(None, "--plan", help="Test plan YAML (hound-id dyno plan)."),
     port: int = typer.Option(5020, "--port", help="Modbus TCP port on 127.0.0.1 (0: any free port)."),
     rig_out: Path = typer.Option(Path("sim-rig.yaml"), "--rig-out", help="Where to write the rig file."),
-    speedup: float = typer.Option(1.0, "--speedup", help="Play the plan this many times faster than real time."),
+    speedup: float = typer.Option(
+        1.0, "--speedup", help="Play the plan this many times faster than real time (0.001 to 1000)."
+    ),
     serial: bool = typer.Option(True, "--serial/--no-serial", help="Also stream lines on a pseudo-terminal."),
-    duration: Optional[float] = typer.Option(None, "--duration", help="Serve for this long [s] (default: Ctrl-C)."),
+    duration: Optional[float] = typer.Option(
+        None, "--duration", help="Serve for this long [s], > 0 (default: until Ctrl-C)."
+    ),
 ) -> None:
     """Serve a simulated motor and torque transducer over Modbus TCP (and a serial pty) on 127.0.0.1."""
+    import math
+
     import yaml
 
     from hound_id import io
-    from hound_id.dyno.rigsim import SimulatedRig
+    from hound_id.dyno.rigsim import SimulatedRig, check_speedup
     from hound_id.dyno.simulate import SimMotor, TestPlan
+    from hound_id.errors import DynoDataError
 
     check_output(rig_out, (".yaml", ".yml"), "rig")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise DynoDataError(
+            f"--duration: found {duration:g}, expected a positive number of seconds (leave it out to serve until "
+            "Ctrl-C)",
+            duration=duration,
+        )
+    if not 0 <= port <= 65535:
+        raise DynoDataError(f"--port: found {port}, expected 0 to 65535 (0: any free port)", port=port)
+    if seed < 0:
+        raise DynoDataError(f"--seed: found {seed}, expected an integer >= 0", seed=seed)
+    check_speedup(speedup, "--speedup")
     _quiet_and_terminable()
     names = tuple(e.strip() for e in effects.split(",") if e.strip())
     # A polled rig samples at most about 1 kHz: the default plan's current edges take 10 ms, so they are resolved
@@ -167,58 +191,50 @@ def plan_cmd(
     max_current: float = typer.Option(..., "--max-current", help="The application's maximum current [A]."),
     out: Path = typer.Option(Path("plan.yaml"), "--out", help="Plan YAML to write."),
     speeds: Optional[str] = typer.Option(None, "--speeds", help="Plateau speeds [rad/s], comma-separated."),
-    levels: Optional[int] = typer.Option(None, "--levels", help="Current step levels per sign."),
-    overdrive: Optional[float] = typer.Option(None, "--overdrive", help="Top level / max current (> 1)."),
-    plateau: Optional[float] = typer.Option(None, "--plateau", help="Current excitation per plateau [s]."),
-    pause: Optional[float] = typer.Option(None, "--pause", help="Zero-current pause after each plateau [s]."),
-    hold: Optional[float] = typer.Option(None, "--hold", help="Hold at max current to heat the winding [s]."),
-    transition: Optional[float] = typer.Option(None, "--transition", help="Speed change between plateaus [s]."),
-    rise: Optional[float] = typer.Option(None, "--rise", help="Duration of each current edge [s]."),
+    levels: Optional[int] = typer.Option(None, "--levels", help="Current step levels per sign (>= 1)."),
+    overdrive: Optional[float] = typer.Option(None, "--overdrive", help="Top level / max current (> 1; 1.3)."),
+    plateau: Optional[float] = typer.Option(None, "--plateau", help="Current excitation per plateau [s] (> 0)."),
+    pause: Optional[float] = typer.Option(None, "--pause", help="Zero-current pause after each plateau [s] (>= 0)."),
+    hold: Optional[float] = typer.Option(None, "--hold", help="Hold at max current to heat the winding [s] (>= 0)."),
+    transition: Optional[float] = typer.Option(None, "--transition", help="Speed change between plateaus [s] (> 0)."),
+    rise: Optional[float] = typer.Option(
+        None, "--rise", help="Duration of each current edge [s] (> 0, shorter than a step; 0.001)."
+    ),
     schedule_out: Optional[Path] = typer.Option(None, "--schedule", help="Also write the set-points as CSV."),
     json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON (schema hound-id/plan/1)."),
 ) -> None:
-    """Write a test plan under which every effect of the fit-current library is identifiable."""
-    import dataclasses
+    """Write a test plan under which every effect of the fit-current library is identifiable.
 
-    import yaml
-
-    from hound_id import io
-    from hound_id.dyno.plan import plan_mapping, schedule
-    from hound_id.dyno.simulate import TestPlan
-    from hound_id.tables import write_table
+    The plan lasts at most an hour. The YAML and the --schedule table are written all or nothing.
+    """
+    from hound_id.dyno.plan import make_plan, write_plan
 
     check_output(out, (".yaml", ".yml"), "plan")
     check_output(schedule_out, (".csv", ".parquet"), "schedule")
-    if not max_current > 0:
-        raise HoundIdError(f"--max-current: found {max_current}, expected a positive current in A")
-    changes: dict[str, Any] = {}
+    speed_list = None
     if speeds is not None:
         try:
-            changes["speeds"] = tuple(float(w) for w in speeds.split(","))
+            speed_list = [float(w) for w in speeds.split(",")]
         except ValueError as err:
             raise HoundIdError(f"--speeds: found {speeds!r}, expected numbers in rad/s such as -40,-2,2,40") from err
-    if levels is not None:
-        changes["current_levels"] = levels
-    for key, value in (
-        ("overdrive", overdrive),
-        ("plateau_time", plateau),
-        ("pause_time", pause),
-        ("hold_time", hold),
-        ("transition_time", transition),
-    ):
-        if value is not None:
-            changes[key] = value
-    plan = dataclasses.replace(TestPlan(), **changes)
-    data = plan_mapping(plan, max_current)
-    io.write_text(out, yaml.safe_dump(data, sort_keys=False))
-    if schedule_out is not None:
-        write_table(schedule(plan, max_current), schedule_out)
+    plan = make_plan(
+        max_current,
+        speeds=speed_list,
+        levels=levels,
+        overdrive=overdrive,
+        plateau=plateau,
+        pause=pause,
+        hold=hold,
+        transition=transition,
+        rise=rise,
+    )
+    data = write_plan(plan, max_current, out, schedule_out)
     if json_out:
         print_json(data)
         return
     console.print(
         f"plan written to {out}: {len(plan.speeds)} plateaus, {plan.duration:.0f} s, currents up to "
-        f"{plan.overdrive * max_current:.3g} A",
+        f"{plan.overdrive * max_current:.3g} A, edges of {plan.current_rise_time:g} s",
         highlight=False,
     )
     for key, why in data["why"].items():

@@ -2,41 +2,70 @@
 
 The recorder is transport-agnostic: it calls ``read_sample()`` once per tick of a
 monotonic clock at the requested rate, and writes each complete sample as one CSV row
-(``time`` in seconds since the start, then the rig's columns, SI units). Rows are
-flushed to the operating system at least every ``flush_interval`` seconds, so a SIGKILL
-loses at most that much; Ctrl-C (KeyboardInterrupt) or a stop request ends the run
-cleanly with everything recorded so far on disk.
+(``time`` in seconds since the start, then the rig's columns, SI units, LF line endings).
+A background writer appends the rows to the file and rewrites the sidecar on a timer
+(every ``flush_interval``, at least every :data:`SIDECAR_EVERY` seconds), whatever the
+reads are doing, so a SIGKILL loses at most a flush interval of rows and leaves a sidecar
+that describes the run up to then, an open gap included. Ctrl-C (KeyboardInterrupt) or a
+stop request ends the run cleanly with everything recorded so far on disk.
 
-Pacing: tick k is due at t0 + k / rate; its row is stamped with the middle of the read
-that produced it (the reads of several devices take a round trip each). A tick whose read starts more than one period
-late is not taken (the recorder never bunches samples to catch up); it is counted as
-missed. A read that fails (timeout, exception response, disconnect, malformed line)
-is retried by the :class:`RetryPolicy`; if it still fails, the tick is a gap: no row is
-written, the gap is recorded in the sidecar, and recording goes on unless the device has
-been failing for longer than ``give_up_after`` seconds.
+Ticks: tick k is due at t0 + k / rate; its row is stamped with the middle of the read that
+produced it (the reads of several devices take a round trip each). Every tick ends as one of:
 
-The sidecar ``<out>.meta.json`` (schema ``hound-id/record/1``) is rewritten atomically at
-the start, at every flush and at the end: rig file, start time, software version,
-requested and achieved rate, samples, missed ticks, gaps and faults, and the status
-(``recording``, ``complete``, ``interrupted``, ``failed``).
+* a **sample** (a row);
+* a **gap tick**: the reads gave no sample. A read that fails (refused connection, timeout,
+  exception response, malformed line) is retried by the :class:`RetryPolicy`; if it still
+  fails, a gap opens. A gap runs from the last good sample to the next good one
+  (:class:`Gap` ``start`` and ``end``), and every tick due in between is booked in it, also
+  the ticks skipped because a failing or hung read held the loop up. A read that succeeds
+  only after blocking longer than ``RetryPolicy.stall_after`` (a peer that hung and came
+  back) makes a gap too, from the previous sample to this one (stamped at the read's end).
+  Recording goes on unless the reads have been failing for longer than ``give_up_after``;
+* a **missed tick**: the loop was late (scheduling, a rate the link cannot sustain) while the
+  reads succeed. A tick whose read would start more than one period late is skipped, never
+  bunched to catch up.
+
+The sidecar ``<out>.meta.json`` (schema ``hound-id/record/2``) holds the rig file, start
+time, software version, the recorder's PID, requested and achieved rate, samples (rows on
+disk), missed ticks, gap ticks, gaps (an open gap has ``"end": null``) and faults, and the
+status (``recording``, ``complete``, ``interrupted``, ``failed``).
+
+Output safety: the CSV is locked (``flock``) for the whole run, so a second recorder on
+the same file is refused before it writes anything. A write error (disk full, file size
+limit) stops the run: the file is cut back to its last whole row, the sidecar says
+``failed``, and :class:`~hound_id.errors.OutputError` is raised with the counts.
 """
 
 from __future__ import annotations
 
-import csv
+import dataclasses
+import fcntl
+import json
 import math
 import os
+import stat
+import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
-from typing import Any, TextIO
+from typing import Any
 
 from hound_id import __version__, io
 from hound_id.errors import DynoDataError, HoundIdError, OutputError
 
-SCHEMA = "hound-id/record/1"
+SCHEMA = "hound-id/record/2"
+#: Sampling rates the recorder accepts [Hz]. A polled read is at least one request round trip
+#: (0.3-1 ms on loopback for the simulated rig's two devices, more on a bus) plus ~50 us of Python
+#: per tick, so a rig delivers at most a few kHz; 10 kHz leaves headroom. 0.01 Hz: one sample in 100 s.
+RATE_LIMITS: tuple[float, float] = (0.01, 10_000.0)
+#: Flush intervals the recorder accepts [s]: what a SIGKILL may lose, and the CSV write cadence.
+FLUSH_LIMITS: tuple[float, float] = (0.05, 60.0)
+#: The sidecar is rewritten at least this often, whatever the reads do [s].
+SIDECAR_EVERY = 0.5
+#: Faults kept in the sidecar (the newest).
+MAX_FAULTS = 50
 
 
 class ReadError(HoundIdError, OSError):
@@ -45,56 +74,32 @@ class ReadError(HoundIdError, OSError):
 
 @dataclass(frozen=True)
 class RetryPolicy:
-    """What the recorder does when a read fails."""
+    """What the recorder does when a read fails or hangs."""
 
     retries: int = 2
     """Immediate retries of a failed read within the same tick."""
     give_up_after: float = 5.0
     """Stop the run when reads have failed without a break for this long [s]."""
+    stall_after: float = 0.5
+    """A read that succeeds only after blocking this long is a hung peer, not a late loop: the ticks it held
+    up are a gap [s]. Above a device's usual timeout (0.2 s), which ends a hung request as a failure."""
 
 
 @dataclass(frozen=True)
 class Gap:
-    """A stretch of ticks without a sample."""
+    """A stretch of ticks without a sample, between two good samples."""
 
     start: float
-    """Time of the first missing tick since the start [s]."""
-    end: float
-    """Time of the last missing tick [s]."""
+    """Time of the last sample before the gap (0: the start of the run) [s]."""
+    end: float | None
+    """Time of the first sample after it (the stop time if none came; None while the gap is open) [s]."""
     ticks: int
-    """Ticks lost."""
+    """Ticks due in between that gave no sample."""
     reason: str
     """The last failure's message."""
 
     def to_dict(self) -> dict[str, Any]:
         return {"start": self.start, "end": self.end, "ticks": self.ticks, "reason": self.reason}
-
-
-@dataclass
-class _Progress:
-    samples: int = 0
-    last_t: float | None = None
-    max_interval: float = 0.0
-    missed: int = 0
-    failed: int = 0
-    gaps: list[Gap] = field(default_factory=list)
-    faults: list[str] = field(default_factory=list)
-    open_gap: tuple[float, float, int, str] | None = None
-
-    def fail(self, t: float, reason: str) -> None:
-        self.failed += 1
-        if self.open_gap is None:
-            self.open_gap = (t, t, 1, reason)
-        else:
-            start, _, n, _ = self.open_gap
-            self.open_gap = (start, t, n + 1, reason)
-        if not self.faults or self.faults[-1] != reason:
-            self.faults.append(reason)
-
-    def close_gap(self) -> None:
-        if self.open_gap is not None:
-            self.gaps.append(Gap(*self.open_gap))
-            self.open_gap = None
 
 
 @dataclass(frozen=True)
@@ -108,11 +113,11 @@ class RecordResult:
     status: str
     """complete, interrupted or failed."""
     samples: int
-    """Rows written."""
+    """Rows written to the file."""
     missed: int
-    """Ticks skipped because the loop was late."""
+    """Ticks skipped because the loop was late while reads succeeded."""
     failed: int
-    """Ticks lost to read failures."""
+    """Ticks lost in gaps (reads failing or hung)."""
     duration: float
     """Wall time from start to stop [s]."""
     achieved_rate: float
@@ -123,47 +128,331 @@ class RecordResult:
     """Why a failed run stopped."""
 
 
-class CsvLog:
-    """A CSV file written row by row and flushed at a fixed interval (crash-safe up to that interval)."""
+def check_settings(rate_hz: float, duration: float | None, flush_interval: float) -> None:
+    """Refuse a rate, duration or flush interval the recorder cannot honour (one line, the option named).
 
-    def __init__(self, path: Path, columns: Sequence[str], flush_interval: float) -> None:
-        io.check_output(path, (".csv",), "log")
-        self.path = path
-        self.columns = ["time", *columns]
-        self.flush_interval = flush_interval
-        try:
-            # A buffer larger than a flush interval's rows: rows reach the OS only whole, at our flushes.
-            self._file: TextIO = path.open("w", newline="", encoding="utf-8", buffering=1 << 20)
-        except OSError as err:
-            raise OutputError(f"{path}: cannot write ({err.strerror or err})", path=str(path)) from err
-        csv.writer(self._file).writerow(self.columns)
-        self._value_columns = self.columns[1:]
-        self._file.flush()
-        self._last_flush = time.monotonic()
+    Args:
+        rate_hz: Sampling rate [Hz], within :data:`RATE_LIMITS`.
+        duration: Seconds to record (None: until stopped); positive and finite.
+        flush_interval: Longest time between writes to disk [s], within :data:`FLUSH_LIMITS`.
 
-    def write(self, t: float, values: Mapping[str, float]) -> bool:
-        """Append one row; returns True when it flushed."""
-        # numbers only, so a plain join is valid CSV; repr keeps every digit of the float
-        self._file.write(f"{t:.6f}," + ",".join([repr(float(values[c])) for c in self._value_columns]) + "\n")
-        now = time.monotonic()
-        if now - self._last_flush >= self.flush_interval:
-            self.flush()
-            return True
-        return False
-
-    def flush(self) -> None:
-        self._file.flush()
-        self._last_flush = time.monotonic()
-
-    def close(self) -> None:
-        self._file.flush()
-        os.fsync(self._file.fileno())
-        self._file.close()
+    Raises:
+        DynoDataError: A value out of range; the message names the option and the range.
+    """
+    lo, hi = RATE_LIMITS
+    if not (isinstance(rate_hz, (int, float)) and lo <= rate_hz <= hi):
+        raise DynoDataError(
+            f"--rate: found {rate_hz:g} Hz, expected {lo:g} to {hi:g} Hz (a polled rig answers at most a few kHz); "
+            "choose a rate in that range",
+            rate_hz=rate_hz,
+        )
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise DynoDataError(
+            f"--duration: found {duration:g}, expected a positive number of seconds "
+            "(leave it out to record until Ctrl-C)",
+            duration=duration,
+        )
+    lo, hi = FLUSH_LIMITS
+    if not lo <= flush_interval <= hi:
+        raise DynoDataError(
+            f"--flush: found {flush_interval:g} s, expected {lo:g} to {hi:g} s between writes to disk",
+            flush_interval=flush_interval,
+        )
 
 
 def sidecar_path(out: Path) -> Path:
     """``run.csv`` -> ``run.csv.meta.json``."""
     return out.with_name(out.name + ".meta.json")
+
+
+class CsvLog:
+    """The CSV file of a run: locked against a second recorder, written in whole rows only, LF line endings.
+
+    The file is opened without truncation, locked with ``flock`` (a second recorder on the same
+    file is refused with the PID of the first), and only then emptied and given its header. The
+    lock is held until :meth:`close`.
+
+    Raises:
+        OutputError: The file cannot be created or written, or another recorder holds it.
+    """
+
+    def __init__(self, path: Path, columns: Sequence[str]) -> None:
+        io.check_output(path, (".csv",), "log")
+        self.path = path
+        self.columns = ["time", *columns]
+        self.rows = 0
+        """Whole rows in the file."""
+        try:
+            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        except OSError as err:
+            raise OutputError(
+                f"{path}: cannot write ({err.strerror or err}); choose another --out", path=str(path)
+            ) from err
+        try:
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError as err:
+            os.close(fd)
+            raise _locked(path) from err
+        except OSError as err:
+            os.close(fd)
+            raise OutputError(
+                f"{path}: cannot lock the file ({err.strerror or err}); record to a local disk", path=str(path)
+            ) from err
+        self._fd = fd
+        self._size = 0
+        try:
+            if stat.S_ISREG(os.fstat(fd).st_mode):
+                os.ftruncate(fd, 0)
+            # columns are checked names (no commas or quotes): a plain join is valid CSV
+            self._write(",".join(self.columns) + "\n", 1)
+        except OSError as err:
+            self.close()
+            raise OutputError(
+                f"{path}: cannot write the header ({err.strerror or err}); free space or choose another --out",
+                path=str(path),
+            ) from err
+        self.rows = 0
+
+    def append(self, rows: Sequence[str]) -> None:
+        """Write whole rows (each ending in a newline).
+
+        Raises:
+            OSError: The write failed (disk full, file size limit); the file was cut back to its last
+                whole row and :attr:`rows` counts the rows in it.
+        """
+        if rows:
+            self._write("".join(rows), len(rows))
+
+    def _write(self, text: str, n: int) -> None:
+        data = text.encode("utf-8")
+        view = memoryview(data)
+        done = 0
+        try:
+            while done < len(data):
+                done += os.write(self._fd, view[done:])
+        except OSError:
+            whole = data.rfind(b"\n", 0, done) + 1  # bytes up to the last complete row
+            self.rows += data.count(b"\n", 0, whole)
+            self._size += whole
+            if done > whole:  # cut the half row off
+                try:
+                    os.ftruncate(self._fd, self._size)
+                    os.lseek(self._fd, self._size, os.SEEK_SET)
+                except OSError:
+                    pass
+            raise
+        self.rows += n
+        self._size += len(data)
+
+    def sync(self) -> None:
+        """Make the rows durable (fsync)."""
+        os.fsync(self._fd)
+
+    def close(self) -> None:
+        """Close the file and release the lock (idempotent)."""
+        fd, self._fd = self._fd, -1
+        if fd >= 0:
+            os.close(fd)
+
+
+def check_free(path: Path) -> None:
+    """Refuse at once an output another recorder is writing (before connecting to the rig).
+
+    A probe: the lock is taken and released; :class:`CsvLog` takes it for the run.
+
+    Raises:
+        OutputError: Another recorder holds the file; the message names its PID when known.
+    """
+    try:
+        fd = os.open(path, os.O_RDONLY | os.O_CLOEXEC)
+    except OSError:
+        return  # no file yet (or unreadable): CsvLog reports what is wrong
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError as err:
+        raise _locked(path) from err
+    except OSError:
+        pass
+    finally:
+        os.close(fd)
+
+
+def _locked(path: Path) -> OutputError:
+    pid = _recorder_pid(sidecar_path(path))
+    who = f"another recorder (PID {pid})" if pid is not None else "another recorder"
+    return OutputError(
+        f"{path}: {who} is writing this file; stop it first or choose another --out", path=str(path), pid=pid
+    )
+
+
+def _recorder_pid(side: Path) -> int | None:
+    """The PID written in a running recorder's sidecar, if it is there."""
+    try:
+        pid = json.loads(side.read_text(encoding="utf-8")).get("pid")
+    except (OSError, ValueError, AttributeError):
+        return None
+    return pid if isinstance(pid, int) and not isinstance(pid, bool) else None
+
+
+def _write_sidecar(path: Path, data: Mapping[str, Any]) -> None:
+    """Atomic rewrite; on a full disk (no room for the temporary file) overwrite the old sidecar in place.
+
+    Raises:
+        OSError: Neither worked.
+    """
+    try:
+        io.write_json(path, data)
+    except OSError:
+        text = (json.dumps(data, indent=2) + "\n").encode("utf-8")
+        fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o666)
+        try:  # reuses the old file's blocks, so it fits when the new text is not much longer
+            os.pwrite(fd, text, 0)
+            os.ftruncate(fd, len(text))
+        finally:
+            os.close(fd)
+
+
+@dataclass
+class _State:
+    """Running totals, shared by the sampling loop and the writer thread (under ``lock``)."""
+
+    period: float
+    stall_after: float
+    lock: threading.Lock = field(default_factory=threading.Lock)
+    pending_rows: list[str] = field(default_factory=list)
+    taken: int = 0
+    last_t: float | None = None
+    max_interval: float = 0.0
+    missed: int = 0
+    lost: int = 0
+    gaps: list[Gap] = field(default_factory=list)
+    faults: list[str] = field(default_factory=list)
+    open_start: float | None = None  # an open gap: reads failing since the sample at this time
+    open_ticks: int = 0
+    open_reason: str = ""
+    closing: Gap | None = None  # a gap closed by a sample; the ticks its reads held up are skipped next
+    reading_since: float | None = None  # monotonic time a read in progress started
+    reading_due: float | None = None  # monotonic time its tick was due
+
+    def _settle(self) -> None:
+        if self.closing is not None and self.closing.ticks > 0:  # a read held up that cost no tick is no gap
+            self.gaps.append(self.closing)
+        self.closing = None
+
+    def fail(self, reason: str) -> None:
+        """A tick whose reads all failed."""
+        self._settle()
+        if self.open_start is None:
+            self.open_start, self.open_ticks = (self.last_t if self.last_t is not None else 0.0), 0
+        self.open_ticks += 1
+        self.lost += 1
+        self.open_reason = reason
+        if not self.faults or self.faults[-1] != reason:
+            self.faults.append(reason)
+            del self.faults[:-MAX_FAULTS]
+
+    def skip(self, n: int) -> None:
+        """``n`` ticks skipped because the loop is late: a gap's if a read failed or hung, else missed."""
+        if self.open_start is not None:
+            self.open_ticks += n
+            self.lost += n
+        elif self.closing is not None:
+            self.closing = dataclasses.replace(self.closing, ticks=self.closing.ticks + n)
+            self.lost += n
+            self._settle()
+        else:
+            self.missed += n
+
+    def take(self, t: float, row: str, held: str) -> None:
+        """A sample at ``t`` [s]; ``held`` says why its read held the loop up (failed attempts before it, or a
+        peer that hung and then answered), "" for a plain read."""
+        self._settle()
+        if self.open_start is not None or held:
+            start = self.open_start if self.open_start is not None else (self.last_t or 0.0)
+            # the gap ends here, but the ticks its reads held up are skipped next: they belong to it
+            self.closing = Gap(start, t, self.open_ticks, self.open_reason or held)
+            self.open_start, self.open_ticks, self.open_reason = None, 0, ""
+        if self.last_t is not None:
+            self.max_interval = max(self.max_interval, t - self.last_t)
+        self.last_t = t
+        self.pending_rows.append(row)
+        self.taken += 1
+
+    def all_gaps(self, now: float | None, stop_t: float) -> tuple[list[Gap], int]:
+        """(gaps, ticks lost in them): closed gaps, then the open one, whose ``end`` is None while recording
+        (``now`` given) and ``stop_t`` after. A read blocked for longer than ``stall_after`` shows as open."""
+        gaps = list(self.gaps)
+        if self.closing is not None and self.closing.ticks > 0:
+            gaps.append(self.closing)
+        reading = self.reading_since
+        blocked = (now - reading) if (now is not None and reading is not None) else 0.0
+        hung = blocked > self.stall_after
+        lost = self.lost
+        if self.open_start is not None or hung:
+            # the ticks due since the tick being read are not booked yet: the loop books them when the read ends
+            due = self.reading_due if self.reading_due is not None else 0.0
+            extra = int((now - due) / self.period) if (now is not None and reading is not None) else 0
+            lost += extra
+            start = self.open_start if self.open_start is not None else (self.last_t or 0.0)
+            reason = self.open_reason or f"a read has been blocked for {blocked:.1f} s"
+            gaps.append(Gap(start, None if now is not None else stop_t, self.open_ticks + extra, reason))
+        return gaps, lost
+
+
+class _Writer:
+    """Appends the pending rows to the CSV and rewrites the sidecar on a timer, in a background thread."""
+
+    def __init__(
+        self,
+        log: CsvLog,
+        state: _State,
+        sidecar: Callable[[], None],
+        flush_interval: float,
+        on_progress: Callable[[], None] | None,
+    ) -> None:
+        self.log, self.state, self.sidecar = log, state, sidecar
+        self.flush_interval = flush_interval
+        self.on_progress = on_progress
+        self.error: OSError | None = None
+        """The CSV write that failed (disk full): the run stops."""
+        self.crash: BaseException | None = None
+        """An unexpected error in the thread (a callback's): the run stops and it is raised."""
+        self.stop = threading.Event()
+        self._last_flush = time.monotonic()
+        self._thread = threading.Thread(target=self._run, name="record-writer", daemon=True)
+
+    def start(self) -> None:
+        self._thread.start()
+
+    def join(self) -> None:
+        self.stop.set()
+        self._thread.join()
+
+    def flush(self) -> None:
+        """Write the pending rows; a write error is kept in :attr:`error` and stops further writes."""
+        with self.state.lock:
+            rows, self.state.pending_rows = self.state.pending_rows, []
+        if rows and self.error is None:
+            try:
+                self.log.append(rows)
+            except OSError as err:
+                self.error = err
+        self._last_flush = time.monotonic()
+
+    def _run(self) -> None:
+        every = min(self.flush_interval, SIDECAR_EVERY)
+        try:
+            while not self.stop.wait(every):
+                if time.monotonic() - self._last_flush >= self.flush_interval - 1e-3:
+                    self.flush()
+                try:
+                    self.sidecar()
+                except OSError:
+                    pass  # the CSV is what matters; the next rewrite or the end tries again
+                if self.on_progress is not None:
+                    self.on_progress()
+        except BaseException as err:  # noqa: BLE001 - handed to the sampling loop, which raises it
+            self.crash = err
 
 
 def record(
@@ -176,6 +465,7 @@ def record(
     policy: RetryPolicy = RetryPolicy(),
     flush_interval: float = 0.25,
     metadata: Mapping[str, Any] | None = None,
+    live: Callable[[], Mapping[str, Any]] | None = None,
     on_progress: Callable[[RecordResult], None] | None = None,
     should_stop: Callable[[], bool] | None = None,
 ) -> RecordResult:
@@ -184,75 +474,93 @@ def record(
     Args:
         read_sample: Returns {column: SI value} for every column, or raises :class:`ReadError`.
         columns: Column order of the CSV (after ``time``).
-        out: CSV path (written as the run goes).
-        rate_hz: Sampling rate [Hz].
+        out: CSV path (written as the run goes; locked while recording).
+        rate_hz: Sampling rate [Hz], within :data:`RATE_LIMITS`.
         duration: Stop after this many seconds (None: until interrupted).
-        policy: Retries and when to give up.
-        flush_interval: Longest time between flushes [s] (what a SIGKILL can lose).
+        policy: Retries, when to give up, when a blocked read is a hung peer.
+        flush_interval: Longest time between writes of rows to disk [s] (what a SIGKILL can lose).
         metadata: Extra fields for the sidecar (rig file, ...).
-        on_progress: Called at every flush with the running totals.
+        live: Extra fields read at every sidecar rewrite (transport error counters); called from the
+            writer thread.
+        on_progress: Called with the running totals at every sidecar rewrite (from the writer thread).
         should_stop: Polled every tick; True ends the run as ``complete``.
+
+    Returns:
+        The run's totals; ``status`` is failed when reads failed for longer than ``give_up_after`` or
+        no sample was read.
+
+    Raises:
+        DynoDataError: A setting out of range (:func:`check_settings`).
+        OutputError: The CSV cannot be created, another recorder holds it, or a write failed during the
+            run (disk full): then the file holds whole rows only, the sidecar says ``failed``, and the
+            error carries ``rows`` and ``result``.
     """
-    if not (rate_hz > 0 and math.isfinite(rate_hz)):
-        raise DynoDataError(f"--rate: found {rate_hz}, expected a positive sampling rate in Hz")
-    if duration is not None and not duration > 0:
-        raise DynoDataError(f"--duration: found {duration}, expected a positive number of seconds")
-    if not flush_interval > 0:
-        raise DynoDataError(f"--flush: found {flush_interval}, expected a positive number of seconds")
-    log = CsvLog(out, columns, flush_interval)
+    check_settings(rate_hz, duration, flush_interval)
+    log = CsvLog(out, columns)
     side = sidecar_path(out)
     started = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
     period = 1.0 / rate_hz
-    progress = _Progress()
+    state = _State(period, policy.stall_after)
     status, message = "recording", ""
     t0 = time.monotonic()
-    first_failure: float | None = None
+    stop_t: float | None = None
 
-    def result(now: float) -> RecordResult:
+    def result(now: float, gaps: Sequence[Gap], lost: int) -> RecordResult:
         elapsed = max(now - t0, 1e-9)
-        gaps = (*progress.gaps, *([Gap(*progress.open_gap)] if progress.open_gap else []))
-        return RecordResult(
-            out,
-            side,
-            status,
-            progress.samples,
-            progress.missed,
-            progress.failed,
-            elapsed,
-            progress.samples / elapsed,
-            gaps,
-            message,
-        )
+        rows = log.rows
+        return RecordResult(out, side, status, rows, state.missed, lost, elapsed, rows / elapsed, tuple(gaps), message)
 
-    def write_sidecar(now: float) -> None:
-        r = result(now)
-        io.write_json(
-            side,
-            {
-                "schema": SCHEMA,
-                "status": r.status,
-                "message": r.message,
-                "software": f"hound-id {__version__}",
-                "started": started,
-                "rate_requested": rate_hz,
-                "rate_achieved": r.achieved_rate,
-                "duration": r.duration,
-                "samples": r.samples,
-                "missed_ticks": r.missed,
-                "longest_interval": progress.max_interval,
-                "failed_ticks": r.failed,
-                "gaps": [g.to_dict() for g in r.gaps],
-                "faults": progress.faults[-50:],
-                "columns": log.columns,
-                "flush_interval": flush_interval,
-                **dict(metadata or {}),
-            },
-        )
+    def snapshot() -> tuple[RecordResult, dict[str, Any]]:
+        now = time.monotonic()
+        with state.lock:
+            gaps, lost = state.all_gaps(None if stop_t is not None else now, now - t0 if stop_t is None else stop_t)
+            r = result(now, gaps, lost)
+            longest = state.max_interval
+            faults = list(state.faults)
+        data = {
+            "schema": SCHEMA,
+            "status": r.status,
+            "message": r.message,
+            "software": f"hound-id {__version__}",
+            "pid": os.getpid(),
+            "started": started,
+            "updated": datetime.now(timezone.utc).isoformat(timespec="milliseconds"),
+            "rate_requested": rate_hz,
+            "rate_achieved": r.achieved_rate,
+            "duration": r.duration,
+            "samples": r.samples,
+            "missed_ticks": r.missed,
+            "longest_interval": longest,
+            "failed_ticks": r.failed,
+            "gaps": [g.to_dict() for g in r.gaps],
+            "faults": faults,
+            "columns": log.columns,
+            "flush_interval": flush_interval,
+            **dict(metadata or {}),
+            **dict(live() if live is not None else {}),
+        }
+        return r, data
 
-    write_sidecar(t0)
+    def write_sidecar() -> None:
+        _write_sidecar(side, snapshot()[1])
+
+    def progress() -> None:
+        if on_progress is not None:
+            on_progress(snapshot()[0])
+
+    try:
+        write_sidecar()
+    except OSError as err:
+        log.close()
+        raise OutputError(
+            f"{side}: cannot write ({err.strerror or err}); choose another --out", path=str(side)
+        ) from err
+    writer = _Writer(log, state, write_sidecar, flush_interval, progress if on_progress is not None else None)
+    writer.start()
+    first_failure: float | None = None
     tick = 0
     try:
-        while True:
+        while writer.error is None and writer.crash is None:
             due = t0 + tick * period
             if duration is not None and due - t0 >= duration:
                 status = "complete"
@@ -265,48 +573,87 @@ def record(
                 time.sleep(due - now)
             elif now - due > period:  # late by more than a period: skip to the next tick due in the future
                 skip = int((now - due) / period)
-                progress.missed += skip
+                with state.lock:
+                    state.skip(skip)
                 tick += skip
                 continue
-            t = due - t0
             sample, error = None, ""
+            state.reading_due = due
+            before = after = state.reading_since = time.monotonic()
             for _ in range(policy.retries + 1):
                 before = time.monotonic()
                 try:
                     sample = read_sample()
-                    # stamp the row at the middle of the read that produced it, not at the tick it was due
-                    t = 0.5 * (before + time.monotonic()) - t0
+                    after = time.monotonic()
                     break
                 except ReadError as err:
                     error = str(err)
+            state.reading_since = None
             if sample is None:
-                progress.fail(t, error)
-                first_failure = first_failure if first_failure is not None else time.monotonic()
-                if time.monotonic() - first_failure > policy.give_up_after:
+                with state.lock:
+                    state.fail(error)
+                now = time.monotonic()
+                first_failure = first_failure if first_failure is not None else now
+                if now - first_failure > policy.give_up_after:
                     status = "failed"
                     message = f"reads failed for more than {policy.give_up_after:g} s; last error: {error}"
                     break
             else:
-                progress.close_gap()
                 first_failure = None
-                if progress.last_t is not None:
-                    progress.max_interval = max(progress.max_interval, t - progress.last_t)
-                progress.last_t = t
-                if log.write(t, sample):
-                    write_sidecar(time.monotonic())
-                    if on_progress is not None:
-                        on_progress(result(time.monotonic()))
-                progress.samples += 1
+                stalled = after - before > policy.stall_after
+                # the loop was held up by a hung read, or by attempts that failed before this one
+                held = f"a read blocked for {after - before:.2f} s" if stalled else error
+                # a row is stamped at the middle of its read; a hung peer answered at the end of it
+                t = (after if stalled else 0.5 * (before + after)) - t0
+                # numbers only, so a plain join is valid CSV; repr keeps every digit of the float
+                row = f"{t:.6f}," + ",".join([repr(float(sample[c])) for c in columns]) + "\n"
+                with state.lock:
+                    state.take(t, row, held)
             tick += 1
     except KeyboardInterrupt:
         status = "interrupted"
     finally:
-        progress.close_gap()
-        log.close()
-        if status == "complete" and progress.samples == 0:
+        writer.join()
+        writer.flush()
+        stop_t = time.monotonic() - t0
+        if writer.error is None:
+            try:
+                log.sync()
+            except OSError as err:
+                writer.error = err
+        write_error = writer.error
+        if write_error is not None:
             status = "failed"
-            message = "no sample was read" + (f"; last error: {progress.faults[-1]}" if progress.faults else "")
+            message = (
+                f"cannot write the log ({write_error.strerror or write_error}) after {log.rows} rows "
+                f"({stop_t:.1f} s); the file holds whole rows only"
+            )
+        elif status == "complete" and log.rows == 0:
+            status = "failed"
+            message = "no sample was read" + (f"; last error: {state.faults[-1]}" if state.faults else "")
         if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
             status, message = "failed", "the recorder stopped on an unexpected error"
-        write_sidecar(time.monotonic())
-    return result(time.monotonic())
+        final, data = snapshot()
+        try:
+            _write_sidecar(side, data)
+        except OSError as err:
+            if write_error is None:
+                write_error = err
+        log.close()
+    if writer.crash is not None:
+        raise writer.crash
+    if writer.error is not None:
+        raise OutputError(
+            f"{out}: {message}; free space on the disk (or choose another --out) and record again",
+            path=str(out),
+            rows=final.samples,
+            result=final,
+        ) from writer.error
+    if write_error is not None:
+        raise OutputError(
+            f"{side}: cannot write the sidecar ({getattr(write_error, 'strerror', None) or write_error}); "
+            f"the log {out} holds {final.samples} rows",
+            path=str(side),
+            result=final,
+        ) from write_error
+    return final

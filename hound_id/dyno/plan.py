@@ -21,14 +21,32 @@ controller to follow.
 from __future__ import annotations
 
 import dataclasses
+import math
+import os
+import tempfile
+from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
+from hound_id import io
 from hound_id.dyno.simulate import SimMotor, TestPlan
-from hound_id.errors import SpecError
+from hound_id.errors import DynoDataError, OutputError, SpecError
 from hound_id.io import read_yaml
 
 SCHEMA = "hound-id/plan/1"
+#: Longest plan [s]. simulate-rig and the set-point schedule sample a plan at 1 kHz: an hour is 3.6 M rows.
+MAX_PLAN_SECONDS = 3600.0
+#: Command-line option of each TestPlan field (for messages).
+OPTIONS: dict[str, str] = {
+    "speeds": "--speeds",
+    "current_levels": "--levels",
+    "overdrive": "--overdrive",
+    "plateau_time": "--plateau",
+    "pause_time": "--pause",
+    "hold_time": "--hold",
+    "transition_time": "--transition",
+    "current_rise_time": "--rise",
+}
 
 RATIONALE = {
     "speeds": "plateaus of both signs cover the four quadrants; +-2 rad/s reveals Coulomb and Stribeck friction, "
@@ -53,6 +71,152 @@ def plan_mapping(plan: TestPlan, max_current: float) -> dict[str, Any]:
     fields = {f.name: getattr(plan, f.name) for f in dataclasses.fields(plan)}
     fields["speeds"] = list(plan.speeds)
     return {"schema": SCHEMA, "max_current": max_current, "duration": plan.duration, **fields, "why": dict(RATIONALE)}
+
+
+def make_plan(
+    max_current: float,
+    *,
+    speeds: Sequence[float] | None = None,
+    levels: int | None = None,
+    overdrive: float | None = None,
+    plateau: float | None = None,
+    pause: float | None = None,
+    hold: float | None = None,
+    transition: float | None = None,
+    rise: float | None = None,
+) -> TestPlan:
+    """The default :class:`TestPlan` with the given parts changed; None keeps a default.
+
+    Args:
+        max_current: The application's maximum current [A], positive.
+        speeds: Plateau speeds [rad/s], finite.
+        levels: Current step levels per sign, >= 1.
+        overdrive: Top level / max current, > 1 (the plan measures beyond the application's range).
+        plateau: Current excitation per plateau [s], > 0.
+        pause: Zero-current pause after each plateau [s], >= 0.
+        hold: Hold at max current [s], >= 0.
+        transition: Speed change between plateaus [s], > 0.
+        rise: Duration of each current edge [s], > 0 and shorter than the shortest step.
+
+    Raises:
+        DynoDataError: A value out of range; the message names the option (``--rise``).
+    """
+    if not (math.isfinite(max_current) and max_current > 0):
+        raise DynoDataError(
+            f"--max-current: found {max_current:g}, expected a positive current in A", value=max_current
+        )
+    changes: dict[str, Any] = {}
+    if speeds is not None:
+        if not speeds or not all(math.isfinite(w) for w in speeds):
+            found = ",".join(f"{w:g}" for w in speeds)
+            raise DynoDataError(f"--speeds: found '{found}', expected finite speeds in rad/s such as -40,-2,2,40")
+        changes["speeds"] = tuple(float(w) for w in speeds)
+    if levels is not None:
+        if not levels >= 1:
+            raise DynoDataError(f"--levels: found {levels}, expected an integer >= 1", value=levels)
+        changes["current_levels"] = int(levels)
+    if overdrive is not None:
+        if not (math.isfinite(overdrive) and overdrive > 1):
+            raise DynoDataError(
+                f"--overdrive: found {overdrive:g}, expected a number > 1: the plan drives beyond the maximum "
+                "current to measure the saturation curve (1.3 by default)",
+                value=overdrive,
+            )
+        changes["overdrive"] = float(overdrive)
+    for name, value, positive in (
+        ("plateau_time", plateau, True),
+        ("pause_time", pause, False),
+        ("hold_time", hold, False),
+        ("transition_time", transition, True),
+        ("current_rise_time", rise, True),
+    ):
+        if value is None:
+            continue
+        if not (math.isfinite(value) and (value > 0 if positive else value >= 0)):
+            expected = "a positive number of seconds" if positive else "a number of seconds >= 0"
+            raise DynoDataError(f"{OPTIONS[name]}: found {value:g}, expected {expected}", value=value)
+        changes[name] = float(value)
+    try:
+        plan = TestPlan(**changes)
+    except DynoDataError as err:
+        text = err.message.replace("TestPlan: ", "").replace("TestPlan.", "")
+        for name, option in OPTIONS.items():
+            text = text.replace(f"{name} = ", f"{option} ").replace(name, option)
+        raise DynoDataError(text, **err.details) from err
+    if plan.duration > MAX_PLAN_SECONDS:
+        raise DynoDataError(
+            f"the plan lasts {plan.duration:g} s, expected at most {MAX_PLAN_SECONDS:g} s (it is sampled at 1 kHz); "
+            "shorten --plateau, --pause, --hold or --transition, or use fewer --speeds",
+            duration=plan.duration,
+        )
+    return plan
+
+
+def write_plan(plan: TestPlan, max_current: float, out: Path, schedule_out: Path | None = None) -> dict[str, Any]:
+    """Write the plan YAML and, optionally, its set-points table: all files or none.
+
+    Every file is written to a temporary file beside its target first; only when all are written
+    are they renamed into place, so a failure (a folder that cannot be written, a full disk)
+    leaves no output behind.
+
+    Args:
+        plan: The plan.
+        max_current: The application's maximum current [A].
+        out: Plan YAML path.
+        schedule_out: Set-points table (.csv or .parquet), or None.
+
+    Returns:
+        The plan mapping written (schema ``hound-id/plan/1``).
+
+    Raises:
+        OutputError: A file could not be written; nothing was left behind.
+    """
+    import yaml
+
+    from hound_id.tables import write_table
+
+    data = plan_mapping(plan, max_current)
+    staged: list[tuple[Path, Path]] = []
+    try:
+        tmp = _stage(out)
+        staged.append((tmp, out))
+        io.write_text(tmp, yaml.safe_dump(data, sort_keys=False))
+        if schedule_out is not None:
+            tmp = _stage(schedule_out)
+            staged.append((tmp, schedule_out))
+            write_table(schedule(plan, max_current), tmp)
+        for k, (tmp, target) in enumerate(staged):
+            try:
+                os.replace(tmp, target)
+            except OSError as err:
+                for _, done in staged[:k]:  # undo the renames before it: all or nothing
+                    done.unlink(missing_ok=True)
+                raise OutputError(f"{target}: cannot write ({err.strerror or err})", path=str(target)) from err
+    except OutputError as err:
+        message = err.message
+        for tmp, target in staged:  # name the file the user asked for, not its temporary stand-in
+            message = message.replace(str(tmp), str(target))
+        raise OutputError(f"{message}; no plan file was written", path=str(staged[-1][1] if staged else out)) from err
+    finally:
+        for tmp, _ in staged:
+            tmp.unlink(missing_ok=True)
+    return data
+
+
+def _stage(target: Path) -> Path:
+    """An empty temporary file beside ``target`` with the same suffix (so writers pick the same format)."""
+    folder = target.parent if str(target.parent) else Path(".")
+    try:
+        fd, name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=f".part{target.suffix}", dir=folder)
+    except OSError as err:
+        raise OutputError(
+            f"{target}: cannot write ({err.strerror or err}); choose a folder you can write to", path=str(target)
+        ) from err
+    os.close(fd)
+    mask = os.umask(0)
+    os.umask(mask)
+    os.chmod(name, 0o666 & ~mask)  # mkstemp makes 0600; outputs get the usual permissions
+    return Path(name)
 
 
 def load_plan(path: str | Path) -> tuple[TestPlan, float]:

@@ -59,7 +59,17 @@ if TYPE_CHECKING:  # pragma: no cover
 
     from pymodbus.server import ModbusTcpServer
 
-__all__ = ["CHANNELS", "CONSOLE_REGEX", "DEVICES", "RIG_SCHEMA", "SERIAL_BAUD", "RigChannel", "SimulatedRig"]
+__all__ = [
+    "CHANNELS",
+    "CONSOLE_REGEX",
+    "DEVICES",
+    "RIG_SCHEMA",
+    "SERIAL_BAUD",
+    "SPEEDUP_LIMITS",
+    "RigChannel",
+    "SimulatedRig",
+    "check_speedup",
+]
 
 #: Schema tag of the rig mapping (:meth:`SimulatedRig.rig_mapping`).
 RIG_SCHEMA = "hound-id/rig/1"
@@ -159,14 +169,20 @@ def encode_registers(device: str, values: Mapping[str, float]) -> list[int]:
     return list(struct.unpack(f">{n_words}H", struct.pack(fmt, *fields)))
 
 
-def _positive(value: object, what: str) -> float:
-    """``value`` as a positive finite float, or DynoDataError."""
+#: Playback speeds accepted [-]. Above 1000 a 60 s plan loops in under 60 ms, faster than a polled rig samples;
+#: the product with the clock must also stay finite.
+SPEEDUP_LIMITS: tuple[float, float] = (1e-3, 1e3)
+
+
+def check_speedup(value: object, what: str = "speedup") -> float:
+    """``value`` as a playback speed within :data:`SPEEDUP_LIMITS`, or DynoDataError naming ``what``."""
+    lo, hi = SPEEDUP_LIMITS
     try:
         x = float(value)  # type: ignore[arg-type]
     except (TypeError, ValueError) as err:
-        raise DynoDataError(f"{what}: found {value!r}, expected a positive number", value=value) from err
-    if not (math.isfinite(x) and x > 0):
-        raise DynoDataError(f"{what}: found {x}, expected a positive finite number", value=x)
+        raise DynoDataError(f"{what}: found {value!r}, expected a number from {lo:g} to {hi:g}", value=value) from err
+    if not lo <= x <= hi:
+        raise DynoDataError(f"{what}: found {x:g}, expected {lo:g} to {hi:g} (times faster than real time)", value=x)
     return x
 
 
@@ -204,7 +220,7 @@ class SimulatedRig:
         serial: bool = True,
         speedup: float = 1.0,
     ) -> None:
-        self._speedup = _positive(speedup, "speedup")
+        self._speedup = check_speedup(speedup)
         if isinstance(port, bool) or not isinstance(port, int) or not 0 <= port <= 65535:
             raise DynoDataError(f"port: found {port!r}, expected an integer in 0..65535 (0: any free port)", value=port)
         self._log = simulate(

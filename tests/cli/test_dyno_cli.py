@@ -5,6 +5,7 @@ import subprocess
 import sys
 import time
 
+import numpy as np
 import pandas as pd
 import pytest
 import yaml
@@ -108,7 +109,7 @@ def test_simulate_record_fit_names_the_hidden_effect(tmp_path):
         )
         assert proc.returncode == 0, proc.stderr
         meta = json.loads(proc.stdout)
-        assert meta["schema"] == "hound-id/record/1" and meta["status"] == "complete"
+        assert meta["schema"] == "hound-id/record/2" and meta["status"] == "complete"
         assert meta["samples"] == len(pd.read_csv(out)) > 2000
     finally:
         stop(rig)
@@ -169,3 +170,143 @@ def test_bad_rig_file_is_one_line(tmp_path):
         "rig.yaml",
     )
     assert not (tmp_path / "r.csv").exists()
+
+
+def run_cli_limited(*args, fsize):
+    """The command line with a file size limit: writes past ``fsize`` bytes fail (EFBIG), as on a full disk."""
+    import resource
+
+    def limit():
+        resource.setrlimit(resource.RLIMIT_FSIZE, (fsize, fsize))
+
+    env = dict(os.environ, COLUMNS="200", PYTHONDONTWRITEBYTECODE="1")
+    return subprocess.run(
+        [sys.executable, "-m", "hound_id", *args],
+        capture_output=True,
+        text=True,
+        env=env,
+        timeout=120,
+        preexec_fn=limit,
+    )
+
+
+def test_plan_applies_rise(tmp_path):
+    out, setpoints = tmp_path / "plan.yaml", tmp_path / "setpoints.csv"
+    proc = run_cli("dyno", "plan", "--max-current", "40", "--out", str(out), *SHORT_PLAN, "--rise", "0.02")
+    assert proc.returncode == 0, proc.stderr
+    assert "edges of 0.02 s" in proc.stdout
+    plan, _ = load_plan(out)
+    assert plan.current_rise_time == 0.02
+    run_cli(
+        "dyno",
+        "plan",
+        "--max-current",
+        "40",
+        "--out",
+        str(out),
+        *SHORT_PLAN,
+        "--rise",
+        "0.02",
+        "--schedule",
+        str(setpoints),
+    )
+    current = pd.read_csv(setpoints)["current"].to_numpy()
+    # the first edge (0 -> the top of the ramp's first leg is slow; the first step is fast): its samples between
+    # two levels last the rise time at the schedule's 1 kHz
+    steps = np.flatnonzero(np.abs(np.diff(current)) > 0.3)  # > 0.3 A per ms: only the edges of the steps
+    runs = np.split(steps, np.flatnonzero(np.diff(steps) > 1) + 1)
+    assert np.median([len(r) for r in runs]) == pytest.approx(20, abs=1)
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "fragment"),
+    [
+        ("--rise", "-0.01", "--rise: found -0.01, expected a positive number of seconds"),
+        ("--rise", "0", "--rise: found 0"),
+        ("--rise", "0.5", "expected more than --rise 0.5 s"),
+        ("--overdrive", "0.5", "--overdrive: found 0.5, expected a number > 1"),
+        ("--overdrive", "1", "--overdrive: found 1,"),
+        ("--overdrive", "inf", "--overdrive: found inf"),
+        ("--levels", "0", "--levels: found 0"),
+        ("--plateau", "nan", "--plateau: found nan"),
+        ("--pause", "-1", "--pause: found -1, expected a number of seconds >= 0"),
+        ("--speeds", "1,nan", "--speeds: found '1,nan'"),
+        ("--plateau", "1e6", "the plan lasts"),
+        ("--max-current", "-5", "--max-current: found -5"),
+    ],
+)
+def test_plan_options_out_of_range_are_one_line(tmp_path, option, value, fragment):
+    args = ["--max-current", "40", "--out", str(tmp_path / "p.yaml")]
+    if option == "--max-current":
+        args = args[2:]
+    assert_one_line_error(run_cli("dyno", "plan", *args, option, value), fragment)
+    assert list(tmp_path.iterdir()) == []
+
+
+def test_plan_outputs_are_all_or_nothing(tmp_path):
+    out, setpoints = tmp_path / "plan.yaml", tmp_path / "setpoints.csv"
+    # the YAML (2 kB) fits under the limit, the schedule (12 s at 1 kHz) does not
+    proc = run_cli_limited(
+        "dyno",
+        "plan",
+        "--max-current",
+        "40",
+        "--out",
+        str(out),
+        *SHORT_PLAN,
+        "--schedule",
+        str(setpoints),
+        fsize=20_000,
+    )
+    assert_one_line_error(proc, f"{setpoints}: cannot write", "File too large", "no plan file was written")
+    assert list(tmp_path.iterdir()) == []  # neither output, no temporary file
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "fragment"),
+    [
+        ("--duration", "-1", "--duration: found -1, expected a positive number of seconds"),
+        ("--duration", "0", "--duration: found 0"),
+        ("--duration", "nan", "--duration: found nan"),
+        ("--duration", "inf", "--duration: found inf"),
+        ("--speedup", "0", "--speedup: found 0, expected 0.001 to 1000"),
+        ("--speedup", "1e308", "--speedup: found 1e+308"),
+        ("--port", "70000", "--port: found 70000"),
+        ("--seed", "-1", "--seed: found -1"),
+    ],
+)
+def test_simulate_rig_options_out_of_range_are_one_line(tmp_path, option, value, fragment):
+    rig_file = tmp_path / "rig.yaml"
+    proc = run_cli("dyno", "simulate-rig", "--port", "0", "--rig-out", str(rig_file), "--no-serial", option, value)
+    assert_one_line_error(proc, fragment)
+    assert not rig_file.exists()
+
+
+@pytest.mark.parametrize(
+    ("option", "value", "fragment"),
+    [
+        ("--rate", "1e9", "--rate: found 1e+09 Hz, expected 0.01 to 10000 Hz"),
+        ("--rate", "0", "--rate: found 0 Hz"),
+        ("--rate", "nan", "--rate: found nan"),
+        ("--duration", "-1", "--duration: found -1"),
+        ("--flush", "0", "--flush: found 0 s"),
+    ],
+)
+def test_record_options_out_of_range_are_one_line_before_connecting(tmp_path, option, value, fragment):
+    rig_file = tmp_path / "rig.yaml"
+    rig_file.write_text(
+        yaml.safe_dump(
+            {
+                "schema": "hound-id/rig/1",
+                "name": "x",
+                "devices": {"d": {"type": "modbus_tcp", "host": "127.0.0.1", "port": 1}},
+                "channels": [
+                    {"column": "current", "device": "d", "register": 0, "dtype": "int16", "unit": "A"},
+                    {"column": "torque", "device": "d", "register": 1, "dtype": "int16", "unit": "N*m"},
+                ],
+            }
+        )
+    )
+    out = tmp_path / "r.csv"
+    assert_one_line_error(run_cli("dyno", "record", "--rig", str(rig_file), "--out", str(out), option, value), fragment)
+    assert not out.exists() and not (tmp_path / "r.csv.meta.json").exists()
