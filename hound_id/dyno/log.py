@@ -823,6 +823,13 @@ def _beyond_reason(
         unit = UNITS[name].replace("*", " ")
         finite = values[np.isfinite(values)]
         typical = float(np.median(np.abs(finite))) if finite.size else 0.0
+        if typical > limit and finite.size and float(np.ptp(finite)) == 0.0:
+            raise DynoDataError(
+                f"{source}: the {name} channel holds one value ({float(finite[0]):.6g} {unit}) on every row, beyond "
+                f"the {limit:g} {unit} any dyno logs: the sensor is not connected or not read, or --columns maps "
+                "the wrong column",
+                channel=name,
+            )
         if typical > limit:
             raise DynoDataError(
                 f"{source}: column '{found[name]}' ({name}): typical |value| {typical:.3g} {unit}, beyond the "
