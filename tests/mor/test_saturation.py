@@ -364,7 +364,7 @@ def test_joints_of_unclipped_groups_pass_exactly_and_others_follow_the_clip():
     out = ROBOT_SAT(tau, np.zeros((1, N)))
     groups = coupled_groups(ROBOT_SAT.A)
     touched = groups[:, knee] > 0  # motors of the knee's group
-    joints_touched = (groups[touched].sum(axis=0) > 0)
+    joints_touched = groups[touched].sum(axis=0) > 0
     assert joints_touched.sum() == 2
     assert out[0, 0] == 3.3 and np.all(out[0, ~joints_touched] == tau[0, ~joints_touched])
 
@@ -379,9 +379,7 @@ def test_nan_propagates_alike_in_numpy_and_torch(dtype, where):
     for j in range(N):
         tau, qd = rng.uniform(-50, 50, (2, N)), rng.uniform(-20, 20, (2, N))
         (tau if where == "tau" else qd)[0, j] = np.nan
-        results = [
-            to_numpy(ROBOT_SAT(to_backend(tau, b, dtype), to_backend(qd, b, dtype))) for b in ("numpy", "torch")
-        ]
+        results = [to_numpy(ROBOT_SAT(to_backend(tau, b, dtype), to_backend(qd, b, dtype))) for b in ("numpy", "torch")]
         group = groups[groups[:, j] > 0].sum(axis=0) > 0
         for out in results:
             assert np.all(np.isnan(out[0, group]))  # the NaN's coupled group at least
