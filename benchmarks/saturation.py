@@ -98,11 +98,11 @@ def main() -> None:
     results = {}
     results["numpy"] = timed(lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd))
 
-    try:
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is not None:  # torch is part of the test set-up
         import torch
-    except ImportError:  # pragma: no cover - torch is part of the test set-up
-        torch = None
-    if torch is not None:
+
         torch.set_num_threads(1)
         tt, tq = torch.from_numpy(tau), torch.from_numpy(qd)
         tc = [torch.from_numpy(c) for c in consts32]

@@ -36,6 +36,9 @@ _CACHE_SIZE = 16
 #: Inputs are capped at the dtype's largest finite value / (this x the largest column sum of the map
 #: they go through), so no product or partial sum of the maps can overflow (see :meth:`Saturation._caps`).
 HEADROOM = 4.0
+#: Commands whose motor torques are at most this many times the largest limit take the short path: the
+#: mapped correction added to the command, whose rounding is then as small as the limits' (see __call__).
+ORDINARY = 4.0
 
 
 def _is_torch(x: Any) -> bool:
@@ -47,13 +50,27 @@ def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
     return np.minimum(out, hi, out=out)
 
 
-def _ops(like: Any) -> tuple[Any, Any, Any, Any]:
-    """(matmul, subtract, clip, absolute) with ``out=`` in the array library of ``like``."""
+def _ops(like: Any) -> tuple[Any, Any, Any]:
+    """(matmul, subtract, clip) with ``out=`` in the array library of ``like``."""
     if _is_torch(like):
         import torch
 
-        return torch.matmul, torch.sub, torch.clamp, torch.abs
-    return np.matmul, np.subtract, _np_clip, np.absolute
+        return torch.matmul, torch.sub, torch.clamp
+    return np.matmul, np.subtract, _np_clip
+
+
+def _within(x: Any, bound: float) -> bool:
+    """Every element in [-bound, bound] (False with a NaN); numpy or torch on the CPU."""
+    if _is_torch(x):
+        import torch
+
+        if x.numel() == 0:
+            return True
+        if x.dtype not in (torch.float32, torch.float64):  # bfloat16 and such: no numpy view
+            low, high = torch.aminmax(x)
+            return bool(high <= bound) and bool(low >= -bound)
+        x = x.numpy()  # a view: numpy's reductions cost less than torch's per call
+    return x.size == 0 or bool(x.max() <= bound and x.min() >= -bound)
 
 
 def _largest(dtype: Any) -> float:
@@ -105,6 +122,8 @@ class _Constants(NamedTuple):
     """Largest |joint torque| the maps take without overflow (larger ones are capped to it)."""
     qd_cap: float
     """Largest |joint velocity| likewise."""
+    ordinary: float
+    """Largest |joint torque| of an ordinary command (:data:`ORDINARY`)."""
 
 
 @dataclass(frozen=True)
@@ -202,7 +221,23 @@ class Saturation:
         else:
             mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
             vecs = tuple(np.ascontiguousarray(np.broadcast_to(v.astype(like.dtype), shape)) for v in vectors)
-        consts = _Constants(*mats, *vecs, bool(np.isfinite(self.max_speed).any()), *self._caps(like.dtype))
+        tau_cap, qd_cap = self._caps(like.dtype)
+        colsum = max(1e-300, float(np.abs(self.A).sum(axis=0).max()))
+        consts = _Constants(
+            A=mats[0],
+            A_inv=mats[1],
+            speed_map=mats[2],
+            groups=mats[3],
+            stall=vecs[0],
+            neg_stall=vecs[1],
+            torque_limit=vecs[2],
+            neg_torque_limit=vecs[3],
+            wmax=vecs[4],
+            has_max_speed=bool(np.isfinite(self.max_speed).any()),
+            tau_cap=tau_cap,
+            qd_cap=qd_cap,
+            ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), self.torque_limit.max())) / colsum),
+        )
         self._remember(key, consts)
         return consts
 
@@ -338,28 +373,45 @@ class Saturation:
         return np.where(touched == 0, tau, clipped @ consts.A_inv)
 
     def _saturate_in_place(self, tau: Any, qd: Any, consts: _Constants) -> Any:
-        """The same clip with intermediates in reused per-thread buffers.
+        """The clip with intermediates in reused per-thread buffers (not under autograd).
 
         Large temporaries cost more in allocation (page faults) than in arithmetic on
-        the CPU, so only the returned array is new. Not used under autograd.
+        the CPU, so only the returned array is new.
+
+        Ordinary commands (motor torques within :data:`ORDINARY` times the limits, speeds below
+        the cap: checked on the CPU, where a check costs no device sync) take the short path of
+        :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one.
+        """
+        c = consts
+        if _is_torch(tau):
+            if tau.device.type != "cpu" or not _within(tau, c.ordinary) or not _within(qd, c.qd_cap):
+                return self._saturate_torch(tau, qd, consts)
+        elif not (_within(tau, c.ordinary) and _within(qd, c.qd_cap)):
+            return self._saturate_numpy(tau, qd, consts)
+        return self._saturate_ordinary(tau, qd, consts)
+
+    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """Clip, then add the clip's correction mapped back: tau + A^-T (clip(tau_m) - tau_m).
+
+        The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
+        for bit. Its rounding is eps times the command's size, which :data:`ORDINARY` keeps within a few
+        times the limits (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
 
         Clipping to the voltage band and then to the torque box equals clipping to
         their intersection whenever it is non-empty (interval projections compose),
         and gives the full braking torque past overspeed, as :func:`torque_interval`.
         """
         c = consts
-        matmul, subtract, clip, absolute = _ops(tau)
-        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
-        qd_in = _capped(qd, c.qd_cap, qd_in)
-        tau_in = _capped(tau, c.tau_cap, tau_in)
-        matmul(qd_in, c.speed_map, out=u)  # back-EMF damping * motor speed
-        matmul(tau_in, c.A, out=tau_m)
+        matmul, subtract, clip = _ops(tau)
+        u, v, tau_m = self._workspace(tau)[:3]
+        matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
+        matmul(tau, c.A, out=tau_m)
         subtract(c.neg_stall, u, out=v)  # lower voltage line
         subtract(c.stall, u, out=u)  # upper voltage line
         clip(tau_m, v, u, out=v)
         clip(v, c.neg_torque_limit, c.torque_limit, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
-            omega = qd_in @ c.A_inv.T
+            omega = qd @ c.A_inv.T
             if _is_torch(tau):
                 import torch
 
@@ -368,20 +420,69 @@ class Saturation:
             else:
                 np.minimum(v, 0.0, out=v, where=omega > c.wmax)
                 np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
-        subtract(v, tau_m, out=u)
-        absolute(u, out=u)
-        matmul(u, c.groups, out=tau_m)  # 0 exactly in the joints of groups whose motors all passed
-        w = matmul(v, c.A_inv, out=u)  # the clipped motor torques mapped back: tau_j = A^-T tau_m
-        if _is_torch(tau):
-            import torch
+        subtract(v, tau_m, out=v)  # motor-space correction, exactly 0 where nothing clipped
+        out = matmul(v, c.A_inv)
+        out += tau
+        return out
 
-            # lerp(a, b, s) is a + s (b - a) for s < 0.5 and b - (b - a)(1 - s) above: exactly a at s = 0
-            # and b at s = 1 (b - a is finite, a being capped); NaN stays NaN. Cheaper than where on CPU.
-            return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
-        return np.where(tau_m == 0, tau_in, w)
+    def _saturate_numpy(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """The exact path in numpy, for commands of any size: the inputs capped, the clipped motor torques
+        mapped back (tau_j = A^-T clip(tau_m)), the command kept in the joints of groups none of whose
+        motors clipped. The joints are picked without branches."""
+        c = consts
+        u, v, tau_m, pick, untouched = self._workspace(tau)
+        qd, tau = _capped(qd, c.qd_cap), _capped(tau, c.tau_cap)
+        np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
+        np.matmul(tau, c.A, out=tau_m)
+        omega = qd @ c.A_inv.T if c.has_max_speed else None
+        np.subtract(c.neg_stall, u, out=v)  # lower voltage line
+        np.subtract(c.stall, u, out=u)  # upper voltage line
+        _np_clip(tau_m, v, u, out=v)
+        _np_clip(v, c.neg_torque_limit, c.torque_limit, out=v)
+        if omega is not None:  # past the rated speed only braking torque passes
+            np.minimum(v, 0.0, out=v, where=omega > c.wmax)
+            np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
+        np.subtract(v, tau_m, out=u)
+        np.absolute(u, out=u)
+        np.matmul(u, c.groups, out=tau_m)  # 0 exactly in the joints of groups whose motors all passed
+        out = np.matmul(v, c.A_inv)  # the clipped motor torques mapped back: tau_j = A^-T tau_m
+        # out = tau * k + out * (1 - k), k = 1 where untouched: exact with k in {0, 1}, both finite;
+        # branch-free, unlike np.where, whose cost follows the pattern of the mask.
+        np.copyto(pick, np.equal(tau_m, 0.0, out=untouched))
+        np.multiply(tau, pick, out=v)
+        np.subtract(1.0, pick, out=pick)
+        np.multiply(out, pick, out=out)
+        return np.add(out, v, out=out)
+
+    def _saturate_torch(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """:meth:`_saturate_numpy` in torch, for every batch on a GPU (deciding would cost a device sync)."""
+        import torch
+
+        c = consts
+        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
+        torch.clamp(qd, -c.qd_cap, c.qd_cap, out=qd_in)
+        torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
+        torch.matmul(qd_in, c.speed_map, out=u)
+        torch.matmul(tau_in, c.A, out=tau_m)
+        torch.sub(c.neg_stall, u, out=v)
+        torch.sub(c.stall, u, out=u)
+        torch.clamp(tau_m, v, u, out=v)
+        torch.clamp(v, c.neg_torque_limit, c.torque_limit, out=v)
+        if c.has_max_speed:
+            omega = qd_in @ c.A_inv.T
+            torch.where(omega > c.wmax, torch.clamp(v, max=0.0), v, out=v)
+            torch.where(omega < -c.wmax, torch.clamp(v, min=0.0), v, out=v)
+        torch.sub(v, tau_m, out=u)
+        torch.abs(u, out=u)
+        torch.matmul(u, c.groups, out=tau_m)
+        w = torch.matmul(v, c.A_inv, out=u)
+        # lerp(a, b, s) is a + s (b - a) for s < 0.5 and b - (b - a)(1 - s) above: exactly a at s = 0 and
+        # b at s = 1 (b - a is finite, a being capped); NaN stays NaN. Cheaper than where on the CPU.
+        return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
 
     def _workspace(self, like: Any) -> tuple[Any, ...]:
-        """Five scratch arrays shaped like ``like``, private to the calling thread."""
+        """Scratch arrays shaped like ``like``, private to the calling thread: five in torch, four and a
+        boolean one in numpy."""
         key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
         hit = self._cache.get(key)
         if hit is None:
@@ -390,7 +491,7 @@ class Saturation:
 
                 hit = tuple(torch.empty_like(like) for _ in range(5))
             else:
-                hit = tuple(np.empty_like(like) for _ in range(5))
+                hit = (*(np.empty_like(like) for _ in range(4)), np.empty(like.shape, dtype=bool))
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 

@@ -69,7 +69,7 @@ def test_commands_inside_the_region_pass_unchanged(cmd):
     assert np.allclose(ROBOT_SAT(tau, qd), tau, rtol=1e-12, atol=1e-12)
 
 
-_cache = {}
+_cache: dict = {}
 
 
 def _regions():
@@ -453,3 +453,15 @@ def test_coupled_groups_of_the_sample_robot():
     groups = coupled_groups(ROBOT_SAT.A)
     assert groups.sum() == 4 * (1 + 4)  # per leg: HAA alone, HFE/KFE with both motors
     assert np.array_equal(groups, groups @ groups > 0)  # a partition
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+@settings(max_examples=120, deadline=None)
+@given(cmd=commands(scale_tau=1.0, scale_qd=QD_SCALE), size=st.floats(0.01, 1.5))
+def test_ordinary_commands_are_feasible_in_every_dtype(dtype, backend, cmd, size):
+    """Commands up to 1.5x the largest ordinary one (the short path, :data:`ORDINARY`, and just past it)."""
+    u_tau, qd = cmd
+    tau = u_tau * size * ROBOT_SAT._constants(np.zeros((1, N))).ordinary
+    out = ROBOT_SAT(to_backend(tau, backend, dtype), to_backend(qd, backend, dtype))
+    assert feasibility_error(ROBOT_SAT, out, qd.astype(dtype), dtype)[0] <= 1.0
