@@ -494,7 +494,9 @@ class TableBatches:
                 path=str(self.path),
                 row=data_row,
             )
-        found = re.search(r"In CSV column #(\d+): CSV conversion error to (\w+): invalid value '(.*)'", message)
+        found = re.search(
+            r"In CSV column #(\d+): (?:Row #\d+: )?CSV conversion error to (\w+): invalid value '(.*)'", message
+        )
         if found is None:
             return _unreadable(self.path, err)
         index, to_type, value = int(found.group(1)), found.group(2), found.group(3)

@@ -274,3 +274,21 @@ def test_long_log_plot_draws_a_thinned_sample(tmp_path):
     assert proc.returncode == 0, proc.stderr
     assert plot.read_bytes().startswith(PNG_MAGIC)
     assert "the plot draws every" in proc.stdout and "of 45000" in proc.stdout
+
+
+def test_a_passed_through_column_that_changes_type_late_is_read_again_wider(tmp_path):
+    """pyarrow types CSV columns from the first block (1 MB): a count that turns into a fraction, or an
+    empty column that fills with words, 25,000 rows in, makes the stream start again with a wider type."""
+    big = long_log(30_000)
+    big["step"] = np.arange(30_000).astype(object)
+    big.loc[25_000, "step"] = 0.5
+    big["note"] = ""
+    big.loc[26_000, "note"] = "fell"
+    big.to_csv(tmp_path / "late.csv", index=False)
+    out = tmp_path / "out.parquet"
+    proc = run_cli("saturate", str(tmp_path / "late.csv"), "--robot", str(ROBOT), "--out", str(out), "--json")
+    assert proc.returncode == 0, proc.stderr
+    written = pd.read_parquet(out)
+    assert written["step"].dtype == float and written.loc[25_000, "step"] == 0.5 and written["step"][29_999] == 29_999
+    assert written.loc[26_000, "note"] == "fell"
+    assert strict_json(proc.stdout)["rows"] == 30_000
