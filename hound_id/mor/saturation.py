@@ -8,6 +8,11 @@ space (tau_j = A^-T tau_m). With numpy arrays the work is numpy; with torch
 tensors (any device) it is torch operations only, so it runs on the GPU and keeps
 autograd intact.
 
+The result is feasible for every finite input, in float32 and float64: commands far
+past the limits have their clipped motor torques mapped back (not the command plus a
+mapped correction, whose rounding grows with the command), and inputs are capped
+where a product could overflow. See :meth:`Saturation.__call__`.
+
 Past a motor's overspeed the result is its full braking torque; past its rated
 ``max_speed`` only braking (or zero) torque passes. See the README.
 
@@ -37,7 +42,8 @@ _CACHE_SIZE = 16
 #: they go through), so no product or partial sum of the maps can overflow (see :meth:`Saturation._caps`).
 HEADROOM = 4.0
 #: Commands whose motor torques are at most this many times the largest limit take the short path: the
-#: mapped correction added to the command, whose rounding is then as small as the limits' (see __call__).
+#: mapped correction added to the command, whose rounding is then as small as the limits'
+#: (see :meth:`Saturation.__call__`).
 ORDINARY = 4.0
 
 
@@ -342,10 +348,19 @@ class Saturation:
         """Saturate joint torque commands [N m] at joint velocities [rad/s], shapes (..., n).
 
         Returns joint torques (same type, dtype and device as ``tau``) whose motor torques lie in
-        each motor's operating region at its current speed, for every finite input: the clipped
-        motor torques themselves are mapped back (tau_j = A^-T tau_m), so the result is as
-        accurate as the limits whatever the size of the command. The joints of a coupled group
-        none of whose motors was clipped pass bit for bit unchanged.
+        each motor's operating region at its current speed, for every finite input, to within a
+        few roundings of the limits (not of the command). Two paths give that:
+
+        * ordinary commands (motor torques within :data:`ORDINARY` times the largest limit, checked
+          on the CPU): the command plus the clip's correction mapped back, whose rounding is then
+          as small as the limits'; as before, so results are unchanged;
+        * larger ones, and every batch on a GPU (where the check would cost a device sync): the
+          clipped motor torques themselves mapped back, tau_j = A^-T clip(tau_m), with the inputs
+          capped (:meth:`_caps`) so that no product overflows.
+
+        Either way the joints of a coupled group none of whose motors was clipped pass unchanged.
+        Speeds are taken as the dtype holds them: past |qd| ~ overspeed / eps the motor speed of a
+        coupled joint is not resolved, and the clip uses the computed one.
 
         NaN propagates, in numpy and torch alike: a NaN command or speed gives NaN in every joint
         of its coupled group (and, through the matrix products of numpy's and torch's BLAS, of its
