@@ -359,15 +359,29 @@ class TableBatches:
         if layout.separator != ",":
             shown = "a tab" if layout.separator == chr(9) else repr(layout.separator)
             notes.insert(0, f"fields are separated by {shown}")
-        if layout.extra_fields:
+        first = self._first_row_fields()
+        if 0 < first < len(names) and not any(names[first:]):  # "a,b,c," over "1,2,3": the header's separator
+            names = names[:first]
+            notes.append("the header ends with a separator; its empty last name was dropped")
+        extra = layout.extra_fields
+        if extra:
             notes.append(
-                f"every row has {len(names) + layout.extra_fields} fields but the header names {len(names)} "
+                f"every row has {len(names) + extra} fields but the header names {len(names)} "
                 "(a trailing separator): the extra fields are empty or constant and were dropped"
             )
         self.notes = tuple(notes)
         names = _unique(names)
-        self._extra = tuple(f"field_{len(names) + k + 1}" for k in range(layout.extra_fields))
+        self._extra = tuple(f"field_{len(names) + k + 1}" for k in range(extra))
         return names
+
+    def _first_row_fields(self) -> int:
+        """Number of fields of the first data row (0 if there is none)."""
+        assert self.layout is not None
+        with open(self.path, encoding="utf-8", errors="replace", newline="") as handle:
+            for number, text in enumerate(handle):
+                if number >= self.layout.first_data_line and text.strip() and not text.lstrip().startswith("#"):
+                    return len(_split(text, self.layout.separator))
+        return 0
 
     def _pandas_names(self) -> list[str]:
         import pandas as pd

@@ -389,10 +389,10 @@ def saturate(
             j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"], f"{m['clipped_fraction']:.1%}"
         )
     console.print(table)
-    if log.sample is not None and len(log.sample.tau_cmd) < summary["rows"]:
+    if log.sample is not None and log.sample_step > 1:
         console.print(
-            f"the plot draws every {summary['rows'] // len(log.sample.tau_cmd)}th row or so "
-            f"({len(log.sample.tau_cmd)} of {summary['rows']})",
+            f"the plot draws one row in {log.sample_step} ({len(log.sample.tau_cmd)} of {summary['rows']}); "
+            "the figures above count every row",
             highlight=False,
         )
     for path, what in ((out, "table"), (plot, "plot")):

@@ -174,6 +174,17 @@ def test_a_trailing_comma_on_every_row_is_read_as_before(tmp_path):
     assert strict_json(proc.stdout) == plain
 
 
+def test_a_trailing_comma_on_the_header_only_is_read_as_before(tmp_path):
+    lines = LOG.read_text().splitlines()
+    lines[1] += ","
+    (tmp_path / "header.csv").write_text("\n".join(lines) + "\n")
+    proc = run_cli("saturate", str(tmp_path / "header.csv"), "--robot", str(ROBOT), "--json")
+    assert proc.returncode == 0, proc.stderr
+    assert strict_json(proc.stdout) == strict_json(
+        run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--json").stdout
+    )
+
+
 def test_a_leading_comma_is_refused_not_read_shifted(tmp_path):
     """Every row one field more than the header, at the front: before, each column silently got its
     left neighbour's values (qd_RR_KFE holding tau_RR_KFE)."""
@@ -273,7 +284,7 @@ def test_long_log_plot_draws_a_thinned_sample(tmp_path):
     proc = run_cli("saturate", str(tmp_path / "long.parquet"), "--robot", str(ROBOT), "--plot", str(plot))
     assert proc.returncode == 0, proc.stderr
     assert plot.read_bytes().startswith(PNG_MAGIC)
-    assert "the plot draws every" in proc.stdout and "of 45000" in proc.stdout
+    assert "the plot draws one row in 4 (11250 of 45000)" in proc.stdout
 
 
 def test_a_passed_through_column_that_changes_type_late_is_read_again_wider(tmp_path):

@@ -238,7 +238,8 @@ def test_torque_bounds_are_the_motor_intervals():
 # --- feasibility for every finite input (issue 14) ---------------------------------------------------------------
 
 DTYPES = [np.float32, np.float64]
-BACKENDS = ["numpy", "torch"]
+#: "torch-gpu": CPU tensors through the path GPU tensors take (torch operations only, always exact).
+BACKENDS = ["numpy", "torch", "torch-gpu"]
 #: Joint speeds the property tests draw [rad/s]: past every motor's overspeed, both ways.
 QD_SCALE = 120.0
 #: Worst mapping gain |A^-1| |A| (column sums): how much a rounding of the clipped motor torques can grow.
@@ -246,9 +247,20 @@ GAIN = float((np.abs(ROBOT_SAT.A_inv) @ np.abs(ROBOT_SAT.A)).sum(axis=0).max())
 
 
 def to_backend(x, backend, dtype, **kw):
-    if backend == "torch":
+    if backend.startswith("torch"):
         return torch.tensor(np.asarray(x, dtype=dtype), **kw)
     return np.asarray(x, dtype=dtype)
+
+
+def saturate(sat, tau, qd, backend, dtype, **kw):
+    """sat(tau, qd) in the backend; "torch-gpu" takes the GPU tensors' path on the CPU."""
+    from unittest import mock
+
+    import hound_id.mor.saturation as saturation
+
+    views = (lambda *a: None) if backend == "torch-gpu" else saturation._numpy_views
+    with mock.patch.object(saturation, "_numpy_views", views):
+        return sat(to_backend(tau, backend, dtype, **kw), to_backend(qd, backend, dtype))
 
 
 def to_numpy(x):
@@ -292,7 +304,7 @@ def huge_commands(draw, dtype, batch=6):
 @given(data=st.data())
 def test_saturated_torques_are_feasible_for_commands_up_to_1e30(dtype, backend, data):
     tau, qd = data.draw(huge_commands(dtype))
-    out = ROBOT_SAT(to_backend(tau, backend, dtype), to_backend(qd, backend, dtype))
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
     assert to_numpy(out).dtype == dtype
     assert feasibility_error(ROBOT_SAT, out, qd, dtype)[0] <= 1.0
 
@@ -305,11 +317,11 @@ def test_largest_finite_commands_and_speeds(dtype, backend):
     eye = np.eye(N)
     tau = np.vstack([eye * big, -eye * big, np.full((1, N), big), np.full((1, N), -big), np.full((1, N), np.inf)])
     qd = np.zeros_like(tau)
-    out = ROBOT_SAT(to_backend(tau, backend, dtype), to_backend(qd, backend, dtype))
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
     assert feasibility_error(ROBOT_SAT, out, qd, dtype)[0] <= 1.0
     # at the largest speeds every motor is far past overspeed: full braking torque, finite
     fast = np.vstack([np.full((1, N), big), np.full((1, N), -big)])
-    out = ROBOT_SAT(to_backend(fast * 0.0 + 1.0, backend, dtype), to_backend(fast, backend, dtype))
+    out = saturate(ROBOT_SAT, fast * 0.0 + 1.0, fast, backend, dtype)
     out64 = to_numpy(out).astype(np.float64)
     assert np.all(np.isfinite(out64))
     _, omega = ROBOT_SAT.motor_state(np.zeros((2, N)), fast.astype(np.float64))
@@ -325,7 +337,7 @@ def test_the_issue_examples(dtype, backend):
     expected = ROBOT_SAT(np.full((1, N), 100.0), np.zeros((1, N)))  # 86.94, 82.11, 72.45 N m ...
     for magnitude in (1e7, 1e8, 1e12, 1e16, 1e30):
         tau = np.full((1, N), magnitude)
-        out = ROBOT_SAT(to_backend(tau, backend, dtype), to_backend(np.zeros((1, N)), backend, dtype))
+        out = saturate(ROBOT_SAT, tau, np.zeros((1, N)), backend, dtype)
         assert np.allclose(to_numpy(out), expected, rtol=8 * np.finfo(dtype).eps * GAIN, atol=0), magnitude
 
 
@@ -338,9 +350,8 @@ def test_commands_inside_pass_bit_for_bit_in_every_dtype(dtype, backend, cmd):
     regions = _regions()
     T = np.array([j.inner_box.effort for j in regions.joints]) * 0.999
     W = np.array([j.inner_box.velocity for j in regions.joints]) * 0.999
-    tau = to_backend(u_tau * T, backend, dtype)
-    out = ROBOT_SAT(tau, to_backend(u_qd * W, backend, dtype))
-    assert np.array_equal(to_numpy(out), to_numpy(tau))
+    out = saturate(ROBOT_SAT, u_tau * T, u_qd * W, backend, dtype)
+    assert np.array_equal(to_numpy(out), (u_tau * T).astype(dtype))
 
 
 @settings(max_examples=150, deadline=None)
@@ -373,18 +384,18 @@ def test_joints_of_unclipped_groups_pass_exactly_and_others_follow_the_clip():
 @pytest.mark.parametrize("dtype", DTYPES)
 def test_nan_propagates_alike_in_numpy_and_torch(dtype, where):
     """NaN is not refused (a check would cost a device sync): it comes back NaN, never as a finite number,
-    and the same joints are NaN in numpy and torch."""
+    and the same joints are NaN in numpy and torch (CPU and GPU paths)."""
     rng = np.random.default_rng(7)
     groups = coupled_groups(ROBOT_SAT.A)
     for j in range(N):
         tau, qd = rng.uniform(-50, 50, (2, N)), rng.uniform(-20, 20, (2, N))
         (tau if where == "tau" else qd)[0, j] = np.nan
-        results = [to_numpy(ROBOT_SAT(to_backend(tau, b, dtype), to_backend(qd, b, dtype))) for b in ("numpy", "torch")]
+        results = [to_numpy(saturate(ROBOT_SAT, tau, qd, b, dtype)) for b in BACKENDS]
         group = groups[groups[:, j] > 0].sum(axis=0) > 0
         for out in results:
             assert np.all(np.isnan(out[0, group]))  # the NaN's coupled group at least
             assert not np.any(np.isnan(out[1]))  # other rows untouched
-        assert np.array_equal(np.isnan(results[0]), np.isnan(results[1]))
+        assert all(np.array_equal(np.isnan(results[0]), np.isnan(r)) for r in results[1:])
         # autograd path too
         t = torch.tensor(tau.astype(dtype), requires_grad=True)
         assert np.array_equal(np.isnan(to_numpy(ROBOT_SAT(t, torch.tensor(qd.astype(dtype))))), np.isnan(results[0]))
@@ -425,9 +436,9 @@ def test_general_path_is_feasible_too(dtype, backend, data):
     tau, qd = data.draw(huge_commands(dtype))
     for sat in (POLY_SAT, ROBOT_SAT):
         kw = {"requires_grad": True} if backend == "torch" and sat is ROBOT_SAT else {}
-        if backend == "numpy" and sat is ROBOT_SAT:
-            continue  # the in-place path, tested above
-        out = sat(to_backend(tau, backend, dtype, **kw), to_backend(qd, backend, dtype))
+        if backend != "torch" and sat is ROBOT_SAT:
+            continue  # the in-place paths, tested above
+        out = saturate(sat, tau, qd, backend, dtype, **kw)
         assert feasibility_error(sat, out, qd, dtype)[0] <= 1.0
 
 
@@ -463,5 +474,5 @@ def test_ordinary_commands_are_feasible_in_every_dtype(dtype, backend, cmd, size
     """Commands up to 1.5x the largest ordinary one (the short path, :data:`ORDINARY`, and just past it)."""
     u_tau, qd = cmd
     tau = u_tau * size * ROBOT_SAT._constants(np.zeros((1, N))).ordinary
-    out = ROBOT_SAT(to_backend(tau, backend, dtype), to_backend(qd, backend, dtype))
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
     assert feasibility_error(ROBOT_SAT, out, qd.astype(dtype), dtype)[0] <= 1.0
