@@ -1065,7 +1065,7 @@ def saturate_file(
 
     numeric = tuple(f"{p}_{j}" for p in ("tau", "qd") for j in robot.joints)
     copy_text = out is not None and Path(out).suffix.lower() == ".csv"  # CSV to CSV: cells copied as they are
-    table = TableBatches(path, numeric=numeric, text=copy_text, only=None if out is not None else numeric)
+    table = TableBatches(Path(path), numeric=numeric, text=copy_text, only=None if out is not None else numeric)
     sat = saturation_for(robot)
     while True:
         try:
