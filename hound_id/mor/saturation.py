@@ -808,7 +808,8 @@ class _Tally:
         self.violating += int(np.any(clipped, axis=1).sum())
         for i in range(len(self.joints)):
             self.max_clip[i] = max(self.max_clip[i], float(clip[:, i].max()))
-            total = float(clip[:, i].sum())
+            with np.errstate(over="ignore"):  # past the float range: kept scaled below
+                total = float(clip[:, i].sum())
             if math.isfinite(total):
                 self.sums[i].append(total)
             else:
