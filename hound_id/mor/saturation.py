@@ -186,8 +186,10 @@ class Saturation:
         """(torque cap, speed cap) for a dtype: |x| <= cap keeps every product and partial sum of
         x @ M below a quarter of the dtype's largest value, for each map M the input goes through.
 
-        Capping changes nothing a float can resolve: a command that large is outside every motor's
-        interval (it is clipped to the same edge), a speed that large is past overspeed.
+        Only inputs within a factor 4 x (column sum) of the float range are capped (float64: above
+        about 1e307; float32: about 1e37). Such a command is outside every motor's interval and stays
+        clipped to an edge; where coupled commands that large nearly cancel, the edge may differ from
+        the one exact arithmetic would pick. Such a speed is far past overspeed.
         """
         big = _largest(dtype) / HEADROOM
 
