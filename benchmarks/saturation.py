@@ -126,8 +126,9 @@ def main() -> None:
 def feasibility(args: argparse.Namespace) -> None:
     """Worst excess of the saturated motor torques past their intervals, relative to the torque limit.
 
-    Commands of 1e-3 to 1e30 N m (log-uniform, random signs) and, in each dtype, the largest finite
-    value in every joint; speeds uniform within +-120 rad/s (past every motor's overspeed). The
+    Commands of 1e-3 to 1e30 N m (log-uniform, random signs), within +-400 N m, within the largest
+    command the short path takes (uniform) and, in each dtype, the largest finite value in every
+    joint; speeds uniform within +-120 rad/s (past every motor's overspeed). The
     saturated torques are mapped to motor space and compared with the intervals in float64.
     """
     robot = load_robot(ROBOT)
@@ -143,8 +144,11 @@ def feasibility(args: argparse.Namespace) -> None:
     for dtype in (np.float32, np.float64):
         big = float(np.finfo(dtype).max)
         extreme = np.vstack([np.eye(sat.n) * big, -np.eye(sat.n) * big, np.full((1, sat.n), big)])
-        ordinary = rng.uniform(-1.0, 1.0, (rows, sat.n)) * 400.0  # the short path, mostly
-        for name, tau in (("huge", magnitude), ("ordinary", ordinary), ("dtype max", extreme)):
+        ordinary = rng.uniform(-1.0, 1.0, (rows, sat.n)) * 400.0  # the short path
+        bound = sat._constants(np.zeros((1, sat.n))).ordinary  # the largest command the short path takes
+        edge = rng.uniform(-1.0, 1.0, (rows, sat.n)) * bound
+        cases = (("huge", magnitude), ("ordinary", ordinary), (f"to {bound:.0f} N m", edge), ("dtype max", extreme))
+        for name, tau in cases:
             q = qd[: len(tau)].astype(dtype)
             lo_, hi_ = sat.torque_bounds(q.astype(np.float64))
             for backend in ("numpy", "torch"):
