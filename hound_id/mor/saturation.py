@@ -44,9 +44,9 @@ _CACHE_SIZE = 16
 #: Inputs are capped at the dtype's largest finite value / (this x the largest column sum of the map
 #: they go through), so no product or partial sum of the maps can overflow (see :meth:`Saturation._caps`).
 HEADROOM = 4.0
-#: Commands whose motor torques are at most this many times the largest limit take the short path: the
-#: mapped correction added to the command, whose rounding is then as small as the limits'
-#: (see :meth:`Saturation.__call__`).
+#: Commands whose joint torques keep every motor torque within this many times the largest stall torque
+#: (or torque limit) take the short path: the mapped correction added to the command, whose rounding is
+#: then a few tens of roundings of the limits at most (see :meth:`Saturation.__call__`).
 ORDINARY = 4.0
 
 
@@ -354,9 +354,9 @@ class Saturation:
         each motor's operating region at its current speed, for every finite input, to within a
         few roundings of the limits (not of the command). Two paths give that:
 
-        * ordinary commands (motor torques within :data:`ORDINARY` times the largest limit, checked
-          on the CPU): the command plus the clip's correction mapped back, whose rounding is then
-          as small as the limits'; as before, so results are unchanged;
+        * ordinary commands (motor torques within :data:`ORDINARY` times the largest stall torque,
+          checked on the CPU): the command plus the clip's correction mapped back, whose rounding
+          is then a few tens of roundings of the limits at most; as before, so results are unchanged;
         * larger ones, and every batch on a GPU (where the check would cost a device sync): the
           clipped motor torques themselves mapped back, tau_j = A^-T clip(tau_m), with the inputs
           capped (:meth:`_caps`) so that no product overflows.
@@ -396,7 +396,7 @@ class Saturation:
         Large temporaries cost more in allocation (page faults) than in arithmetic on
         the CPU, so only the returned array is new.
 
-        Ordinary commands (motor torques within :data:`ORDINARY` times the limits, speeds below
+        Ordinary commands (motor torques within :data:`ORDINARY` stall torques, speeds below
         the cap: checked on the CPU, where a check costs no device sync) take the short path of
         :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one. CPU
         tensors go through numpy views (:func:`_numpy_views`).
@@ -418,7 +418,7 @@ class Saturation:
 
         The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
         for bit. Its rounding is eps times the command's size, which :data:`ORDINARY` keeps within a few
-        times the limits (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
+        stall torques (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
 
         Clipping to the voltage band and then to the torque box equals clipping to
         their intersection whenever it is non-empty (interval projections compose),
