@@ -13,6 +13,7 @@ neighbours, so the script runs --processes fresh processes and reports the media
 ratio and the range.
 
 Run: .venv/bin/python benchmarks/saturation.py [--envs 4096] [--processes 5] [--json]
+     .venv/bin/python benchmarks/saturation.py --feasibility   # worst excess past the region, per dtype
 """
 
 from __future__ import annotations
@@ -61,7 +62,14 @@ def main() -> None:
     parser.add_argument("--raw-malloc", action="store_true", help="leave glibc's malloc thresholds alone")
     parser.add_argument("--processes", type=int, default=5, help="fresh processes to take the median over")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument(
+        "--feasibility",
+        action="store_true",
+        help="instead: the worst motor-torque excess over a sweep of command sizes",
+    )
     args = parser.parse_args()
+    if args.feasibility:
+        return feasibility(args)
     if not args.worker:
         return report(args)
     pinned = False if args.raw_malloc else pin_allocator()
@@ -98,11 +106,11 @@ def main() -> None:
     results = {}
     results["numpy"] = timed(lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd))
 
-    try:
+    import importlib.util
+
+    if importlib.util.find_spec("torch") is not None:  # torch is part of the test set-up
         import torch
-    except ImportError:  # pragma: no cover - torch is part of the test set-up
-        torch = None
-    if torch is not None:
+
         torch.set_num_threads(1)
         tt, tq = torch.from_numpy(tau), torch.from_numpy(qd)
         tc = [torch.from_numpy(c) for c in consts32]
@@ -113,6 +121,50 @@ def main() -> None:
         for k, (b, o) in results.items()
     }
     print(json.dumps({"allocator_pinned": pinned, "joints": sat.n, "results": figures}))
+
+
+def feasibility(args: argparse.Namespace) -> None:
+    """Worst excess of the saturated motor torques past their intervals, relative to the torque limit.
+
+    Commands of 1e-3 to 1e30 N m (log-uniform, random signs), within +-400 N m, within the largest
+    command the short path takes (uniform) and, in each dtype, the largest finite value in every
+    joint; speeds uniform within +-120 rad/s (past every motor's overspeed). The
+    saturated torques are mapped to motor space and compared with the intervals in float64.
+    """
+    robot = load_robot(ROBOT)
+    sat = saturation_for(robot)
+    rng = np.random.default_rng(0)
+    rows = 200_000
+    magnitude = 10.0 ** rng.uniform(-3, 30, (rows, sat.n)) * rng.choice([-1.0, 1.0], (rows, sat.n))
+    qd = rng.uniform(-120.0, 120.0, (rows, sat.n))
+    lo, hi = sat.torque_bounds(qd)
+    results = {}
+    import torch
+
+    for dtype in (np.float32, np.float64):
+        big = float(np.finfo(dtype).max)
+        extreme = np.vstack([np.eye(sat.n) * big, -np.eye(sat.n) * big, np.full((1, sat.n), big)])
+        ordinary = rng.uniform(-1.0, 1.0, (rows, sat.n)) * 400.0  # the short path
+        bound = sat._constants(np.zeros((1, sat.n))).ordinary  # the largest command the short path takes
+        edge = rng.uniform(-1.0, 1.0, (rows, sat.n)) * bound
+        cases = (("huge", magnitude), ("ordinary", ordinary), (f"to {bound:.0f} N m", edge), ("dtype max", extreme))
+        for name, tau in cases:
+            q = qd[: len(tau)].astype(dtype)
+            lo_, hi_ = sat.torque_bounds(q.astype(np.float64))
+            for backend in ("numpy", "torch"):
+                t = tau.astype(dtype)
+                out = sat(t, q) if backend == "numpy" else sat(torch.from_numpy(t), torch.from_numpy(q)).numpy()
+                tau_m = out.astype(np.float64) @ sat.A
+                excess = np.maximum(np.maximum(tau_m - hi_, lo_ - tau_m), 0.0) / sat.torque_limit
+                key = f"{np.dtype(dtype).name} {backend} {name}"
+                results[key] = {"worst_excess_over_limit": float(excess.max()), "finite": bool(np.isfinite(out).all())}
+    del lo, hi
+    if args.json:
+        print(json.dumps({"schema": "hound-id/bench-saturation-feasibility/1", "rows": rows, "results": results}))
+        return
+    print("worst motor torque past its interval, over the torque limit (float64 check of the saturated torques):")
+    for key, r in results.items():
+        print(f"  {key:28s} {r['worst_excess_over_limit']:.2e}  finite: {r['finite']}")
 
 
 def report(args: argparse.Namespace) -> None:

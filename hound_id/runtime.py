@@ -99,7 +99,12 @@ class Runtime:
         return self._consts[key]
 
     def saturate(self, tau_cmd: Any, qd: Any) -> Any:
-        """Joint torques [N m] after each motor's operating region, for (..., n_joints) commands and speeds."""
+        """Joint torques [N m] after each motor's operating region, for (..., n_joints) commands and speeds.
+
+        Feasible for every finite command, float32 or float64, numpy or torch (however large: the clipped
+        motor torques are mapped back); commands inside the region come back unchanged; a NaN command or
+        speed comes back NaN, nothing is raised (see :meth:`hound_id.mor.saturation.Saturation.__call__`).
+        """
         return self.clip(tau_cmd, qd)
 
     __call__ = saturate

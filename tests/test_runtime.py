@@ -172,3 +172,33 @@ def test_damaged_bundles_are_named(fitted):
     bundle["saturation"]["A"] = np.zeros((12, 12)).tolist()
     with pytest.raises(SpecError, match="singular"):
         hound_id.runtime.from_bundle(bundle)
+
+
+@pytest.mark.parametrize("dtype", [np.float32, np.float64])
+@pytest.mark.parametrize("backend", ["numpy", "torch"])
+def test_runtime_clip_is_feasible_for_any_finite_command(fitted, dtype, backend):
+    """The trainer's clip (in a simulator's breadth-first joint order) keeps every motor inside its region
+    for commands from 1 to the dtype's largest value, and passes commands inside it bit for bit."""
+    robot, _ = fitted
+    order = [f"{leg}_{j}" for j in ("HAA", "HFE", "KFE") for leg in ("FL", "FR", "RL", "RR")]
+    sat = hound_id.runtime.from_bundle(build_bundle(robot), joint_names=order)
+    rng = np.random.default_rng(11)
+    big = float(np.finfo(dtype).max)
+    magnitude = 10.0 ** rng.uniform(0, np.log10(big), (512, 12))
+    tau = (rng.choice([-1.0, 1.0], (512, 12)) * magnitude).astype(dtype)
+    tau[:12] = np.eye(12) * big
+    qd = rng.uniform(-100, 100, (512, 12)).astype(dtype)
+    small = rng.uniform(-1, 1, (64, 12)).astype(dtype)  # inside: the inner box is at least 1 N m everywhere
+    if backend == "torch":
+        out = sat.saturate(torch.from_numpy(tau), torch.from_numpy(qd)).numpy()
+        inside = sat.saturate(torch.from_numpy(small), torch.zeros(64, 12, dtype=torch.from_numpy(small).dtype))
+        inside = inside.numpy()
+    else:
+        out = sat.saturate(tau, qd)
+        inside = sat.saturate(small, np.zeros_like(small))
+    assert out.dtype == dtype and np.all(np.isfinite(out))
+    tau_m = out.astype(np.float64) @ sat.clip.A
+    lo, hi = sat.clip.torque_bounds(qd.astype(np.float64))
+    tol = 1e3 * np.finfo(dtype).eps * sat.clip.torque_limit
+    assert np.all(tau_m <= hi + tol) and np.all(tau_m >= lo - tol)
+    assert np.array_equal(inside, small)

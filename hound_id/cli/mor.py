@@ -2,6 +2,8 @@
 
 from __future__ import annotations
 
+import json
+import sys
 from pathlib import Path
 from typing import Optional
 
@@ -354,31 +356,27 @@ def saturate(
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: each motor's commands against its region."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/saturate/1)."),
 ) -> None:
-    """Saturate a log of joint torque commands exactly as the method does in training."""
+    """Saturate a log of joint torque commands exactly as the method does in training. The log is
+    streamed: memory stays bounded whatever its length."""
     from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import saturate_log
-    from hound_id.tables import SUFFIXES, read_table, write_table
+    from hound_id.mor.saturation import PLOT_ROWS, saturate_file
+    from hound_id.tables import SUFFIXES
 
     check_output(out, SUFFIXES, "table")
     check_output(plot, (".png",), "plot")
     rob = load_robot(robot)
-    frame = read_table(commands)
-    log = saturate_log(rob, frame, source=str(commands))
-    if out is not None:
-        result = frame.copy()
-        for i, joint in enumerate(log.joints):
-            result[f"tau_sat_{joint}"] = log.tau_sat[:, i]
-        write_table(result, out)
-    if plot is not None:
+    log = saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot is not None else 0)
+    if plot is not None and log.sample is not None:
         from hound_id.mor.plot import plot_log_saturation
         from hound_id.mor.region import operating_region
 
         regions = tuple(operating_region(rob.motor_specs[m]) for m in rob.motors)
-        save_figure(plot_log_saturation(log, regions), plot)
+        save_figure(plot_log_saturation(log.sample, regions), plot)
     summary = log.to_dict()
     if json_out:
         summary.update(out=str(out) if out else None, plot=str(plot) if plot else None)
-        print_json(summary)
+        # allow_nan=False: the summary is finite by construction, and NaN/Infinity are not JSON
+        sys.stdout.write(json.dumps(summary, indent=2, allow_nan=False) + "\n")
         return
     console.print(
         f"{summary['rows']} commands, {summary['violating_fraction']:.1%} outside some motor's region", highlight=False
@@ -391,6 +389,12 @@ def saturate(
             j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"], f"{m['clipped_fraction']:.1%}"
         )
     console.print(table)
+    if log.sample is not None and log.sample_step > 1:
+        console.print(
+            f"the plot draws one row in {log.sample_step} ({len(log.sample.tau_cmd)} of {summary['rows']}); "
+            "the figures above count every row",
+            highlight=False,
+        )
     for path, what in ((out, "table"), (plot, "plot")):
         if path is not None:
             console.print(f"{what} written to {path}", highlight=False)

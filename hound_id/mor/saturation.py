@@ -5,8 +5,15 @@ motor space through the transmissions (tau_m = A^T tau_j, omega_m = A^-1 qd),
 each motor's torque is clipped to its feasible interval at its speed
 (:func:`hound_id.mor.region.torque_interval`), and the result goes back to joint
 space (tau_j = A^-T tau_m). With numpy arrays the work is numpy; with torch
-tensors (any device) it is torch operations only, so it runs on the GPU and keeps
-autograd intact.
+tensors on a GPU, or under autograd, it is torch operations only, so it runs on the
+GPU and keeps autograd intact. Float CPU tensors without autograd are worked on by
+numpy through views of their memory (fewer microseconds per call for these small
+products), and the result comes back as a tensor.
+
+The result is feasible for every finite input, in float32 and float64: commands far
+past the limits have their clipped motor torques mapped back (not the command plus a
+mapped correction, whose rounding grows with the command), and inputs are capped
+where a product could overflow. See :meth:`Saturation.__call__`.
 
 Past a motor's overspeed the result is its full braking torque; past its rated
 ``max_speed`` only braking (or zero) torque passes. See the README.
@@ -18,9 +25,11 @@ for an uncoupled joint, and as the benchmark's baseline.
 
 from __future__ import annotations
 
+import math
+import os
 import threading
 from dataclasses import dataclass, field
-from typing import Any
+from typing import Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,6 +41,13 @@ from hound_id.mor.robot import Robot
 
 #: Cached operator sets (dtype, device, batch shape) kept per Saturation.
 _CACHE_SIZE = 16
+#: Inputs are capped at the dtype's largest finite value / (this x the largest column sum of the map
+#: they go through), so no product or partial sum of the maps can overflow (see :meth:`Saturation._caps`).
+HEADROOM = 4.0
+#: Commands whose joint torques keep every motor torque within this many times the largest stall torque
+#: (or torque limit) take the short path: the mapped correction added to the command, whose rounding is
+#: then a few tens of roundings of the limits at most (see :meth:`Saturation.__call__`).
+ORDINARY = 4.0
 
 
 def _is_torch(x: Any) -> bool:
@@ -43,13 +59,78 @@ def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
     return np.minimum(out, hi, out=out)
 
 
-def _ops(like: Any) -> tuple[Any, Any, Any]:
-    """(matmul, subtract, clip) with ``out=`` in the array library of ``like``."""
-    if _is_torch(like):
+def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
+    """numpy views of CPU float tensors (no copy), or None (GPU, other dtypes, tensors numpy cannot view).
+
+    On the CPU numpy does the same arithmetic as torch in fewer microseconds per call for these small
+    matrices, and the result is handed back as a tensor sharing its memory.
+    """
+    import torch
+
+    if tau.device.type != "cpu" or tau.dtype not in (torch.float32, torch.float64):
+        return None
+    try:
+        return tau.numpy(), qd.numpy()
+    except (RuntimeError, TypeError):  # e.g. a tensor with its negative or conjugate bit set
+        return None
+
+
+def _within(x: NDArray[Any], bound: float) -> bool:
+    """Every element in [-bound, bound] (False with a NaN)."""
+    return x.size == 0 or bool(x.max() <= bound and x.min() >= -bound)
+
+
+def _largest(dtype: Any) -> float:
+    """The largest finite value of a numpy or torch floating dtype."""
+    if type(dtype).__module__.startswith("torch"):
         import torch
 
-        return torch.matmul, torch.sub, torch.clamp
-    return np.matmul, np.subtract, _np_clip
+        return float(torch.finfo(dtype).max)
+    return float(np.finfo(dtype).max)
+
+
+def coupled_groups(A: NDArray[np.float64]) -> NDArray[np.float64]:
+    """0/1 matrix G (motors x joints): G[m, j] = 1 when motor m and joint j belong to one coupled group.
+
+    The groups are the connected parts of the graph joining joint j and motor m wherever A[j, m] or
+    A^-1[m, j] is non-zero: a clip of motor m can change only the joint torques of its group.
+    """
+    n = A.shape[0]
+    parent = list(range(2 * n))  # joints 0..n-1, motors n..2n-1
+
+    def root(k: int) -> int:
+        while parent[k] != k:
+            parent[k] = parent[parent[k]]
+            k = parent[k]
+        return k
+
+    pattern = (A != 0) | (np.linalg.inv(A).T != 0)
+    for j, m in zip(*np.nonzero(pattern), strict=True):
+        parent[root(int(j))] = root(n + int(m))
+    return np.array([[float(root(n + m) == root(j)) for j in range(n)] for m in range(n)])
+
+
+class _Constants(NamedTuple):
+    """What one call needs, in the array library, dtype, device and batch shape of its input."""
+
+    A: Any
+    A_inv: Any
+    speed_map: Any
+    """A^-T scaled by each motor's back-EMF damping: qd @ speed_map = damping * motor speed."""
+    groups: Any
+    """:func:`coupled_groups` of A."""
+    stall: Any
+    neg_stall: Any
+    torque_limit: Any
+    neg_torque_limit: Any
+    wmax: Any
+    has_max_speed: bool
+    tau_cap: float
+    """Largest |joint torque| the maps take without overflow (larger ones are capped to it)."""
+    qd_cap: float
+    """Largest |joint velocity| likewise."""
+    ordinary: float
+    """Largest |joint torque| of an ordinary command (:data:`ORDINARY`)."""
 
 
 @dataclass(frozen=True)
@@ -77,7 +158,7 @@ class Saturation:
     polylines: tuple[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None, ...] = ()
     """Per motor (speeds, lower, upper) edges of a measured envelope (``mor --compare --out``), or None.
     Where given, the motor's torque interval at speeds inside the polyline is interpolated from it."""
-    _cache: dict[Any, tuple[Any, ...]] = field(default_factory=dict, compare=False, repr=False)
+    _cache: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
     def from_robot(cls, robot: Robot) -> Saturation:
@@ -101,7 +182,24 @@ class Saturation:
         """Number of joints (= motors)."""
         return len(self.joints)
 
-    def _constants(self, like: Any) -> tuple[Any, ...]:
+    def _caps(self, dtype: Any) -> tuple[float, float]:
+        """(torque cap, speed cap) for a dtype: |x| <= cap keeps every product and partial sum of
+        x @ M below a quarter of the dtype's largest value, for each map M the input goes through.
+
+        Only inputs within a factor 4 x (column sum) of the float range are capped (float64: above
+        about 1e307; float32: about 1e37). Such a command is outside every motor's interval and stays
+        clipped to an edge; where coupled commands that large nearly cancel, the edge may differ from
+        the one exact arithmetic would pick. Such a speed is far past overspeed.
+        """
+        big = _largest(dtype) / HEADROOM
+
+        def cap(*maps: NDArray[np.float64]) -> float:
+            return big / max(1.0, *(float(np.abs(m).sum(axis=0).max()) for m in maps))
+
+        speed_map = self.A_inv.T * self.back_emf_damping[None, :]
+        return cap(self.A), cap(speed_map, self.A_inv.T)
+
+    def _constants(self, like: Any) -> _Constants:
         """Operators in the array library, dtype, device and batch shape of ``like`` (cached).
 
         Per-motor limits are stored expanded to the full batch shape: elementwise
@@ -113,11 +211,11 @@ class Saturation:
         key: Any = ("torch", like.dtype, like.device, shape) if torch_like else ("numpy", like.dtype, shape)
         hit = self._cache.get(key)
         if hit is not None:
-            return hit
+            return hit  # type: ignore[no-any-return]
         # u = qd @ speed_map is back_emf_damping * omega_m, folded into one product.
         speed_map = self.A_inv.T * self.back_emf_damping[None, :]
         wmax = self.max_speed * (1.0 + SPEED_TOLERANCE)
-        matrices = (self.A, self.A_inv, speed_map)
+        matrices = (self.A, self.A_inv, speed_map, coupled_groups(self.A))
         vectors = (self.stall_torque, -self.stall_torque, self.torque_limit, -self.torque_limit, wmax)
         if torch_like:
             import torch
@@ -132,17 +230,40 @@ class Saturation:
         else:
             mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
             vecs = tuple(np.ascontiguousarray(np.broadcast_to(v.astype(like.dtype), shape)) for v in vectors)
-        consts = (*mats, *vecs, bool(np.isfinite(self.max_speed).any()))
-        if len(self._cache) >= _CACHE_SIZE:
-            self._cache.pop(next(iter(self._cache)))
-        self._cache[key] = consts
+        tau_cap, qd_cap = self._caps(like.dtype)
+        colsum = max(1e-300, float(np.abs(self.A).sum(axis=0).max()))
+        consts = _Constants(
+            A=mats[0],
+            A_inv=mats[1],
+            speed_map=mats[2],
+            groups=mats[3],
+            stall=vecs[0],
+            neg_stall=vecs[1],
+            torque_limit=vecs[2],
+            neg_torque_limit=vecs[3],
+            wmax=vecs[4],
+            has_max_speed=bool(np.isfinite(self.max_speed).any()),
+            tau_cap=tau_cap,
+            qd_cap=qd_cap,
+            ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), self.torque_limit.max())) / colsum),
+        )
+        self._remember(key, consts)
         return consts
 
+    def _remember(self, key: Any, value: Any) -> None:
+        if len(self._cache) >= _CACHE_SIZE:
+            self._cache.pop(next(iter(self._cache)))
+        self._cache[key] = value
+
     def motor_state(self, tau: Any, qd: Any) -> tuple[Any, Any]:
-        """Motor torques [N m] and speeds [rad/s] for joint torques and velocities."""
+        """Motor torques [N m] and speeds [rad/s] for joint torques and velocities.
+
+        Exact to rounding for every finite input: where a product could overflow, the inputs are
+        scaled by a power of two first, so a motor torque beyond the dtype's range is ±inf, not NaN.
+        """
         tau, qd = self._check(tau, qd)
-        A, A_inv, *_ = self._constants(tau)
-        return tau @ A, qd @ A_inv.T
+        consts = self._constants(tau)
+        return _scaled_matmul(tau, consts.A, consts.tau_cap), _scaled_matmul(qd, consts.A_inv.T, consts.qd_cap)
 
     def _check(self, tau: Any, qd: Any) -> tuple[Any, Any]:
         if _is_torch(tau) != _is_torch(qd):
@@ -167,10 +288,11 @@ class Saturation:
         _, qd = self._check(qd, qd)
         return self._bounds(qd, self._constants(qd))
 
-    def _bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
+    def _bounds(self, qd: Any, consts: _Constants) -> tuple[Any, Any]:
+        qd = _capped(qd, consts.qd_cap)
         lo, hi = self._line_bounds(qd, consts)
         if self.polylines:
-            omega = qd @ consts[1].T
+            omega = qd @ consts.A_inv.T
             lo, hi = _polyline_bounds(self._polylines_like(qd), omega, lo, hi)
         return lo, hi
 
@@ -196,123 +318,245 @@ class Saturation:
                 ok = np.isfinite(lower) & np.isfinite(upper)
                 lines.append((float(speeds[0]), float(speeds[-1]), *(convert(a[ok]) for a in (speeds, lower, upper))))
             hit = tuple(lines)
-            if len(self._cache) >= _CACHE_SIZE:
-                self._cache.pop(next(iter(self._cache)))
-            self._cache[key] = hit
-        return hit
+            self._remember(key, hit)
+        return hit  # type: ignore[no-any-return]
 
-    def _line_bounds(self, qd: Any, consts: tuple[Any, ...]) -> tuple[Any, Any]:
-        _, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
-        u = qd @ speed_map  # back-EMF damping * motor speed
+    def _line_bounds(self, qd: Any, consts: _Constants) -> tuple[Any, Any]:
+        """The straight-line intervals at joint velocities ``qd`` (already capped)."""
+        c = consts
+        u = qd @ c.speed_map  # back-EMF damping * motor speed
         if _is_torch(qd):
             import torch
 
-            hi = torch.clamp(stall - u, neg_tl, tl)
-            lo = torch.clamp(neg_stall - u, neg_tl, tl)
-            if has_max_speed:
-                omega = qd @ A_inv.T
-                hi = torch.where(omega > wmax, torch.clamp(hi, max=0.0), hi)
-                lo = torch.where(omega < -wmax, torch.clamp(lo, min=0.0), lo)
+            hi = torch.clamp(c.stall - u, c.neg_torque_limit, c.torque_limit)
+            lo = torch.clamp(c.neg_stall - u, c.neg_torque_limit, c.torque_limit)
+            if c.has_max_speed:
+                omega = qd @ c.A_inv.T
+                hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
+                lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        hi = np.subtract(stall, u)
-        np.maximum(hi, neg_tl, out=hi)
-        np.minimum(hi, tl, out=hi)
-        lo = np.subtract(neg_stall, u, out=u)
-        np.maximum(lo, neg_tl, out=lo)
-        np.minimum(lo, tl, out=lo)
-        if has_max_speed:
-            omega = qd @ A_inv.T
-            hi = np.where(omega > wmax, np.minimum(hi, 0.0), hi)
-            lo = np.where(omega < -wmax, np.maximum(lo, 0.0), lo)
+        hi = np.subtract(c.stall, u)
+        np.maximum(hi, c.neg_torque_limit, out=hi)
+        np.minimum(hi, c.torque_limit, out=hi)
+        lo = np.subtract(c.neg_stall, u, out=u)
+        np.maximum(lo, c.neg_torque_limit, out=lo)
+        np.minimum(lo, c.torque_limit, out=lo)
+        if c.has_max_speed:
+            omega = qd @ c.A_inv.T
+            hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
+            lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
         return lo, hi
 
     def __call__(self, tau: Any, qd: Any) -> Any:
         """Saturate joint torque commands [N m] at joint velocities [rad/s], shapes (..., n).
 
-        Returns joint torques (same type, dtype and device as ``tau``) whose motor
-        torques lie in each motor's operating region at its current speed.
-        Commands already inside pass bit-for-bit unchanged.
+        Returns joint torques (same type, dtype and device as ``tau``) whose motor torques lie in
+        each motor's operating region at its current speed, for every finite input, to within a
+        few roundings of the limits (not of the command). Two paths give that:
+
+        * ordinary commands (motor torques within :data:`ORDINARY` times the largest stall torque,
+          checked on the CPU): the command plus the clip's correction mapped back, whose rounding
+          is then a few tens of roundings of the limits at most; as before, so results are unchanged;
+        * larger ones, and every batch on a GPU (where the check would cost a device sync): the
+          clipped motor torques themselves mapped back, tau_j = A^-T clip(tau_m), with the inputs
+          capped (:meth:`_caps`) so that no product overflows.
+
+        Either way the joints of a coupled group none of whose motors was clipped pass unchanged.
+        Speeds are taken as the dtype holds them: past |qd| ~ overspeed / eps the motor speed of a
+        coupled joint is not resolved, and the clip uses the computed one.
+
+        NaN propagates, in numpy and torch alike: a NaN command or speed gives NaN in every joint
+        of its coupled group (and, through the matrix products of numpy's and torch's BLAS, of its
+        row); nothing is raised, since a check would cost a device sync every step. ±inf commands
+        are clipped like any command beyond the limits; ±inf speeds are past overspeed.
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
-        A, A_inv = consts[0], consts[1]
-        if self.polylines:  # measured envelopes: the general path (interpolated bounds)
-            lo, hi = self._bounds(qd, consts)
-            tau_m = tau @ A
-            if _is_torch(tau):
-                import torch
-
-                return tau + (torch.clamp(tau_m, lo, hi) - tau_m) @ A_inv
-            return tau + (np.clip(tau_m, lo, hi) - tau_m) @ A_inv
-        if _is_torch(tau) and (tau.requires_grad or qd.requires_grad):
-            import torch
-
-            lo, hi = self._bounds(qd, consts)
-            tau_m = tau @ A
-            return tau + (torch.clamp(tau_m, lo, hi) - tau_m) @ A_inv
+        if self.polylines or (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
+            return self._saturate(tau, qd, consts)  # measured envelopes or autograd: the general path
         return self._saturate_in_place(tau, qd, consts)
 
-    def _saturate_in_place(self, tau: Any, qd: Any, consts: tuple[Any, ...]) -> Any:
-        """The same clip with intermediates in reused per-thread buffers.
+    def _saturate(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """The clip with fresh arrays (autograd flows through it)."""
+        lo, hi = self._bounds(qd, consts)
+        tau_m = _capped(tau, consts.tau_cap) @ consts.A
+        if _is_torch(tau):
+            import torch
+
+            clipped = torch.clamp(tau_m, lo, hi)
+            touched = torch.abs(clipped - tau_m) @ consts.groups
+            return torch.where(touched == 0, tau, clipped @ consts.A_inv)
+        clipped = np.clip(tau_m, lo, hi)
+        touched = np.abs(clipped - tau_m) @ consts.groups
+        return np.where(touched == 0, tau, clipped @ consts.A_inv)
+
+    def _saturate_in_place(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """The clip with intermediates in reused per-thread buffers (not under autograd).
 
         Large temporaries cost more in allocation (page faults) than in arithmetic on
-        the CPU, so only the returned array is new. Not used under autograd.
+        the CPU, so only the returned array is new.
+
+        Ordinary commands (motor torques within :data:`ORDINARY` stall torques, speeds below
+        the cap: checked on the CPU, where a check costs no device sync) take the short path of
+        :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one. CPU
+        tensors go through numpy views (:func:`_numpy_views`).
+        """
+        c = consts
+        if _is_torch(tau):
+            views = _numpy_views(tau, qd)
+            if views is None:
+                return self._saturate_torch(tau, qd, consts)
+            import torch
+
+            return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0])))
+        if not (_within(tau, c.ordinary) and _within(qd, c.qd_cap)):
+            return self._saturate_numpy(tau, qd, consts)
+        return self._saturate_ordinary(tau, qd, consts)
+
+    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """Clip, then add the clip's correction mapped back: tau + A^-T (clip(tau_m) - tau_m).
+
+        The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
+        for bit. Its rounding is eps times the command's size, which :data:`ORDINARY` keeps within a few
+        stall torques (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
 
         Clipping to the voltage band and then to the torque box equals clipping to
         their intersection whenever it is non-empty (interval projections compose),
         and gives the full braking torque past overspeed, as :func:`torque_interval`.
         """
-        A, A_inv, speed_map, stall, neg_stall, tl, neg_tl, wmax, has_max_speed = consts
-        matmul, subtract, clip = _ops(tau)
-        u, v, tau_m = self._workspace(tau)
-        matmul(qd, speed_map, out=u)  # back-EMF damping * motor speed
-        matmul(tau, A, out=tau_m)
-        subtract(neg_stall, u, out=v)  # lower voltage line
-        subtract(stall, u, out=u)  # upper voltage line
-        clip(tau_m, v, u, out=v)
-        clip(v, neg_tl, tl, out=v)
-        if has_max_speed:  # past the rated speed only braking torque passes
-            omega = qd @ A_inv.T
-            if _is_torch(tau):
-                import torch
-
-                torch.where(omega > wmax, torch.clamp(v, max=0.0), v, out=v)
-                torch.where(omega < -wmax, torch.clamp(v, min=0.0), v, out=v)
-            else:
-                np.minimum(v, 0.0, out=v, where=omega > wmax)
-                np.maximum(v, 0.0, out=v, where=omega < -wmax)
-        subtract(v, tau_m, out=v)  # motor-space correction, exactly 0 where nothing clipped
-        out = matmul(v, A_inv)
+        c = consts
+        u, v, tau_m = self._workspace(tau)[:3]
+        np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
+        np.matmul(tau, c.A, out=tau_m)
+        np.subtract(c.neg_stall, u, out=v)  # lower voltage line
+        np.subtract(c.stall, u, out=u)  # upper voltage line
+        _np_clip(tau_m, v, u, out=v)
+        _np_clip(v, c.neg_torque_limit, c.torque_limit, out=v)
+        if c.has_max_speed:  # past the rated speed only braking torque passes
+            omega = qd @ c.A_inv.T
+            np.minimum(v, 0.0, out=v, where=omega > c.wmax)
+            np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
+        np.subtract(v, tau_m, out=v)  # motor-space correction, exactly 0 where nothing clipped
+        out = np.matmul(v, c.A_inv)
         out += tau
         return out
 
-    def _workspace(self, like: Any) -> tuple[Any, Any, Any]:
-        """Three scratch arrays shaped like ``like``, private to the calling thread."""
+    def _saturate_numpy(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """The exact path in numpy, for commands of any size: the inputs capped, the clipped motor torques
+        mapped back (tau_j = A^-T clip(tau_m)), the command kept in the joints of groups none of whose
+        motors clipped. The joints are picked without branches."""
+        c = consts
+        u, v, tau_m, pick, untouched = self._workspace(tau)
+        qd, tau = _capped(qd, c.qd_cap), _capped(tau, c.tau_cap)
+        np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
+        np.matmul(tau, c.A, out=tau_m)
+        omega = qd @ c.A_inv.T if c.has_max_speed else None
+        np.subtract(c.neg_stall, u, out=v)  # lower voltage line
+        np.subtract(c.stall, u, out=u)  # upper voltage line
+        _np_clip(tau_m, v, u, out=v)
+        _np_clip(v, c.neg_torque_limit, c.torque_limit, out=v)
+        if omega is not None:  # past the rated speed only braking torque passes
+            np.minimum(v, 0.0, out=v, where=omega > c.wmax)
+            np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
+        np.subtract(v, tau_m, out=u)
+        np.absolute(u, out=u)
+        np.matmul(u, c.groups, out=tau_m)  # 0 exactly in the joints of groups whose motors all passed
+        out = np.matmul(v, c.A_inv)  # the clipped motor torques mapped back: tau_j = A^-T tau_m
+        # out = tau * k + out * (1 - k), k = 1 where untouched: exact with k in {0, 1}, both finite;
+        # branch-free, unlike np.where, whose cost follows the pattern of the mask.
+        np.copyto(pick, np.equal(tau_m, 0.0, out=untouched))
+        np.multiply(tau, pick, out=v)
+        np.subtract(1.0, pick, out=pick)
+        np.multiply(out, pick, out=out)
+        return np.add(out, v, out=out)
+
+    def _saturate_torch(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+        """:meth:`_saturate_numpy` in torch, for every batch on a GPU (deciding would cost a device sync)."""
+        import torch
+
+        c = consts
+        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
+        torch.clamp(qd, -c.qd_cap, c.qd_cap, out=qd_in)
+        torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
+        torch.matmul(qd_in, c.speed_map, out=u)
+        torch.matmul(tau_in, c.A, out=tau_m)
+        torch.sub(c.neg_stall, u, out=v)
+        torch.sub(c.stall, u, out=u)
+        torch.clamp(tau_m, v, u, out=v)
+        torch.clamp(v, c.neg_torque_limit, c.torque_limit, out=v)
+        if c.has_max_speed:
+            omega = qd_in @ c.A_inv.T
+            torch.where(omega > c.wmax, torch.clamp(v, max=0.0), v, out=v)
+            torch.where(omega < -c.wmax, torch.clamp(v, min=0.0), v, out=v)
+        torch.sub(v, tau_m, out=u)
+        torch.abs(u, out=u)
+        torch.matmul(u, c.groups, out=tau_m)
+        w = torch.matmul(v, c.A_inv, out=u)
+        # lerp(a, b, s) is a + s (b - a) for s < 0.5 and b - (b - a)(1 - s) above: exactly a at s = 0 and
+        # b at s = 1 (b - a is finite, a being capped); NaN stays NaN. Cheaper than where on the CPU.
+        return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
+
+    def _workspace(self, like: Any) -> tuple[Any, ...]:
+        """Scratch arrays shaped like ``like``, private to the calling thread: five in torch, four and a
+        boolean one in numpy."""
         key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
         hit = self._cache.get(key)
         if hit is None:
             if _is_torch(like):
                 import torch
 
-                hit = tuple(torch.empty_like(like) for _ in range(3))
+                hit = tuple(torch.empty_like(like) for _ in range(5))
             else:
-                hit = tuple(np.empty_like(like) for _ in range(3))
-            if len(self._cache) >= _CACHE_SIZE:
-                self._cache.pop(next(iter(self._cache)))
-            self._cache[key] = hit
-        return hit
+                hit = (*(np.empty_like(like) for _ in range(4)), np.empty(like.shape, dtype=bool))
+            self._remember(key, hit)
+        return hit  # type: ignore[no-any-return]
 
     def violation(self, tau: Any, qd: Any) -> Any:
         """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n)."""
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
         lo, hi = self._bounds(qd, consts)
-        tau_m = tau @ consts[0]
+        tau_m = _scaled_matmul(tau, consts.A, consts.tau_cap)
         if _is_torch(tau):
             import torch
 
             return torch.clamp(tau_m - hi, min=0.0) + torch.clamp(lo - tau_m, min=0.0)
         return np.maximum(tau_m - hi, 0.0) + np.maximum(lo - tau_m, 0.0)
+
+
+def _capped(x: Any, cap: float, out: Any = None) -> Any:
+    """``x`` clamped to [-cap, cap] (NaN stays NaN); numpy skips the copy when nothing is that large.
+
+    Torch always clamps: a check would cost a device sync.
+    """
+    if _is_torch(x):
+        import torch
+
+        return torch.clamp(x, -cap, cap, out=out)
+    if x.size == 0 or (x.max() <= cap and x.min() >= -cap):
+        return x
+    return np.clip(x, -cap, cap, out=out)
+
+
+def _scaled_matmul(x: Any, M: Any, cap: float) -> Any:
+    """x @ M without intermediate overflow for finite x: scaled by a power of two when |x| > cap."""
+    if x.numel() == 0 if _is_torch(x) else x.size == 0:
+        return x @ M
+    if x.max() <= cap and x.min() >= -cap:  # the usual case (False with a NaN)
+        return x @ M
+    if _is_torch(x):
+        import torch
+
+        finite = x[torch.isfinite(x)]
+        big = float(finite.abs().max()) if finite.numel() else 0.0
+    else:
+        finite = x[np.isfinite(x)]
+        big = float(np.abs(finite).max()) if finite.size else 0.0
+    if big <= cap:
+        return x @ M
+    scale = 2.0 ** math.ceil(math.log2(big / cap))
+    with np.errstate(over="ignore"):
+        return ((x / scale) @ M) * scale
 
 
 def polyline_of(envelope: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
@@ -446,6 +690,20 @@ def box_study(
     )
 
 
+#: Rows a log's plot draws at most: longer logs are thinned to every k-th row (k a power of two).
+PLOT_ROWS = 20_000
+#: A motor torque counts as clipped when it moved by more than this times max(1 N m, |command|).
+CLIP_TOLERANCE = 1e-9
+
+
+def motor_clipped(motor_torque_cmd: NDArray[np.float64], motor_torque_sat: NDArray[np.float64]) -> NDArray[np.bool_]:
+    """Whether each motor torque command was outside the region: it moved by more than
+    :data:`CLIP_TOLERANCE` relative, or it is beyond float range (±inf, from a finite command)."""
+    with np.errstate(invalid="ignore"):
+        tol = CLIP_TOLERANCE * np.maximum(1.0, np.abs(motor_torque_cmd))
+        return (np.abs(motor_torque_sat - motor_torque_cmd) > tol) | np.isinf(motor_torque_cmd)
+
+
 @dataclass(frozen=True)
 class LogSaturation:
     """A log of joint torque commands saturated by the MOR, with what was clipped."""
@@ -461,7 +719,7 @@ class LogSaturation:
     tau_sat: NDArray[np.float64]
     """Saturated joint torques [N m], shape (rows, n)."""
     motor_torque_cmd: NDArray[np.float64]
-    """Commanded motor torques [N m], shape (rows, n)."""
+    """Commanded motor torques [N m], shape (rows, n) (±inf where beyond float range)."""
     motor_torque_sat: NDArray[np.float64]
     """Saturated motor torques [N m], shape (rows, n)."""
     motor_speed: NDArray[np.float64]
@@ -470,30 +728,294 @@ class LogSaturation:
     @property
     def motor_clipped(self) -> NDArray[np.bool_]:
         """Whether each motor torque command was outside the region, shape (rows, n)."""
-        tol = 1e-9 * np.maximum(1.0, np.abs(self.motor_torque_cmd))
-        return np.abs(self.motor_torque_sat - self.motor_torque_cmd) > tol
+        return motor_clipped(self.motor_torque_cmd, self.motor_torque_sat)
 
     def to_dict(self) -> dict[str, Any]:
         """Summary, schema ``hound-id/saturate/1``."""
-        clipped = self.motor_clipped
-        clip = np.abs(self.tau_sat - self.tau_cmd)
+        tally = _Tally(self.joints, self.motors)
+        tally.add(self.tau_cmd, self.tau_sat, self.motor_clipped)
+        return tally.summary().to_dict()
+
+
+@dataclass(frozen=True)
+class LogSummary:
+    """What ``hound-id saturate`` reports on a log, gathered batch by batch (:func:`saturate_file`)."""
+
+    joints: tuple[str, ...]
+    """Joint order."""
+    motors: tuple[str, ...]
+    """Motor order."""
+    rows: int
+    """Number of commands (data rows)."""
+    violating_rows: int
+    """Commands with at least one motor outside its region."""
+    max_clip: tuple[float, ...]
+    """Per joint the largest |tau_sat - tau_cmd| [N m] (joint side)."""
+    mean_clip: tuple[float, ...]
+    """Per joint the mean |tau_sat - tau_cmd| [N m]."""
+    clipped_rows: tuple[int, ...]
+    """Per motor the number of commands it clipped."""
+    sample: LogSaturation | None = None
+    """Evenly spaced rows (every k-th, at most :data:`PLOT_ROWS`) for the plot; None when not asked for."""
+    sample_step: int = 1
+    """The k of :attr:`sample`: it holds rows 0, k, 2k, ..."""
+    notes: tuple[str, ...] = ()
+    """What the reader found in the file's layout (units row, title lines, separator)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """Summary, schema ``hound-id/saturate/1``: finite numbers only (valid JSON)."""
         return {
             "schema": "hound-id/saturate/1",
-            "rows": int(self.tau_cmd.shape[0]),
-            "violating_fraction": float(np.any(clipped, axis=1).mean()),
+            "rows": self.rows,
+            "violating_fraction": self.violating_rows / self.rows,
             "joints": [
-                {"joint": j, "max_clip": float(clip[:, i].max()), "mean_clip": float(clip[:, i].mean())}
+                {"joint": j, "max_clip": self.max_clip[i], "mean_clip": self.mean_clip[i]}
                 for i, j in enumerate(self.joints)
             ],
             "motors": [
-                {"motor": m, "clipped_fraction": float(clipped[:, i].mean())} for i, m in enumerate(self.motors)
+                {"motor": m, "clipped_fraction": self.clipped_rows[i] / self.rows} for i, m in enumerate(self.motors)
             ],
             "units": {"clip": "N m (joint side)"},
         }
 
 
+#: Chunk sums that overflow are kept scaled by this power of two (exact: a power-of-two scale).
+_SUM_SCALE = 2.0**-64
+
+
+class _Tally:
+    """The summary statistics of a log, added up batch by batch.
+
+    A single batch gives bit for bit what numpy gives on the whole arrays (``clip.mean()`` is
+    ``clip.sum() / n``); several batches differ from it only by rounding (the batch sums are
+    added exactly, with :func:`math.fsum`). Sums past the float range (commands near 1e308) are
+    kept scaled by a power of two, so the means stay finite.
+    """
+
+    def __init__(self, joints: tuple[str, ...], motors: tuple[str, ...]) -> None:
+        self.joints, self.motors = joints, motors
+        n = len(joints)
+        self.rows = 0
+        self.violating = 0
+        self.max_clip = [0.0] * n
+        self.sums: list[list[float]] = [[] for _ in range(n)]
+        self.scaled: list[list[float]] = [[] for _ in range(n)]
+        self.clipped = [0] * n
+
+    def add(self, tau_cmd: NDArray[np.float64], tau_sat: NDArray[np.float64], clipped: NDArray[np.bool_]) -> None:
+        if not len(tau_cmd):
+            return
+        clip = np.abs(tau_sat - tau_cmd)
+        self.rows += int(tau_cmd.shape[0])
+        self.violating += int(np.any(clipped, axis=1).sum())
+        for i in range(len(self.joints)):
+            self.max_clip[i] = max(self.max_clip[i], float(clip[:, i].max()))
+            with np.errstate(over="ignore"):  # past the float range: kept scaled below
+                total = float(clip[:, i].sum())
+            if math.isfinite(total):
+                self.sums[i].append(total)
+            else:
+                self.scaled[i].append(float((clip[:, i] * _SUM_SCALE).sum()))
+            self.clipped[i] += int(clipped[:, i].sum())
+
+    def _mean(self, i: int) -> float:
+        if not self.scaled[i]:
+            try:
+                return math.fsum(self.sums[i]) / self.rows
+            except OverflowError:
+                pass
+        scaled = math.fsum([s * _SUM_SCALE for s in self.sums[i]] + self.scaled[i])
+        return min((scaled / self.rows) / _SUM_SCALE, self.max_clip[i])
+
+    def summary(self, sample: LogSaturation | None = None, notes: tuple[str, ...] = (), step: int = 1) -> LogSummary:
+        return LogSummary(
+            joints=self.joints,
+            motors=self.motors,
+            rows=self.rows,
+            violating_rows=self.violating,
+            max_clip=tuple(self.max_clip),
+            mean_clip=tuple(self._mean(i) for i in range(len(self.joints))),
+            clipped_rows=tuple(self.clipped),
+            sample=sample,
+            sample_step=step,
+            notes=notes,
+        )
+
+
+class _Sample:
+    """Every k-th row of a log, k doubling whenever more than ``limit`` rows are kept."""
+
+    def __init__(self, limit: int) -> None:
+        self.limit, self.step, self.seen = limit, 1, 0
+        self.parts: list[tuple[NDArray[np.float64], ...]] = []
+
+    def add(self, *arrays: NDArray[np.float64]) -> None:
+        rows = len(arrays[0])
+        first = (-self.seen) % self.step  # the first row of this batch whose global index is a multiple of step
+        self.parts.append(tuple(a[first :: self.step] for a in arrays))
+        self.seen += rows
+        while sum(len(p[0]) for p in self.parts) > self.limit:
+            merged = tuple(np.concatenate(cols) for cols in zip(*self.parts, strict=True))
+            self.parts = [tuple(a[::2] for a in merged)]
+            self.step *= 2
+
+    def arrays(self) -> tuple[NDArray[np.float64], ...]:
+        return tuple(np.concatenate(cols) for cols in zip(*self.parts, strict=True))
+
+
+def _joint_arrays(
+    columns: Any, joints: tuple[str, ...], source: str, first_row: int = 0
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(tau, qd) arrays (rows, n) from columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s].
+
+    ``columns`` maps names to 1-D arrays (a DataFrame, a dict, or a pyarrow RecordBatch);
+    ``first_row`` is the number of data rows before these, for messages.
+
+    Raises:
+        TableError: A column is missing, holds text, booleans or a non-finite value.
+    """
+    from hound_id.errors import TableError
+
+    names = columns.schema.names if hasattr(columns, "schema") else columns
+    arrays = {}
+    for prefix in ("tau", "qd"):
+        stacked = []
+        for joint in joints:
+            name = f"{prefix}_{joint}"
+            if name not in names:
+                raise TableError(
+                    f"{source}: column '{name}' missing; expected tau_<joint> [N m] and qd_<joint> [rad/s] "
+                    f"for every joint ({', '.join(joints)})",
+                    column=name,
+                )
+            values = _numbers(columns[name], name, source, first_row)
+            bad = np.flatnonzero(~np.isfinite(values))
+            if bad.size:
+                row = first_row + int(bad[0]) + 1
+                raise TableError(
+                    f"{source}: column '{name}' data row {row} holds {values[bad[0]]}; "
+                    "expected a finite number (drop or fill such rows first)",
+                    column=name,
+                    row=row,
+                )
+            stacked.append(values)
+        arrays[prefix] = np.column_stack(stacked) if stacked else np.zeros((0, 0))
+    return arrays["tau"], arrays["qd"]
+
+
+def _numbers(column: Any, name: str, source: str, first_row: int) -> NDArray[np.float64]:
+    """A column as float64 (missing values NaN), or TableError naming the first cell that is not a number."""
+    from hound_id.errors import TableError
+
+    kind = "n"
+    if type(column).__module__.startswith("pyarrow"):
+        import pyarrow as pa
+
+        if pa.types.is_dictionary(column.type):
+            column = column.dictionary_decode()
+        kinds = (pa.types.is_floating, pa.types.is_integer, pa.types.is_null, pa.types.is_decimal)
+        if any(is_kind(column.type) for is_kind in kinds):
+            return _float64(column)
+        kind = "b" if pa.types.is_boolean(column.type) else "O"
+        if not (pa.types.is_string(column.type) or pa.types.is_large_string(column.type) or kind == "b"):
+            raise TableError(f"{source}: column '{name}' holds {column.type} values; expected numbers", column=name)
+        if kind == "O":
+            parsed = _parse_text(column)
+            if parsed is not None:
+                return parsed
+        column = column.to_pandas()
+    raw = np.asarray(column)
+    if raw.dtype.kind == "b" or kind == "b":
+        raise TableError(
+            f"{source}: column '{name}' holds booleans (true/false); expected numbers "
+            f"({'N m' if name.startswith('tau_') else 'rad/s'}); convert the column first",
+            column=name,
+        )
+    if raw.dtype.kind in "fiu":
+        return raw.astype(np.float64, copy=False)
+    import pandas as pd
+
+    series = pd.Series(raw)
+    numeric = pd.to_numeric(series, errors="coerce")
+    text = np.flatnonzero(numeric.isna().to_numpy() & series.notna().to_numpy())
+    if text.size:
+        row = first_row + int(text[0]) + 1
+        raise TableError(
+            f"{source}: column '{name}' data row {row} holds {series.iloc[text[0]]!r}; expected a number",
+            column=name,
+            row=row,
+        )
+    return numeric.to_numpy(dtype=float)
+
+
+#: Cells read as missing (NaN), as pandas reads them; compared lower case, spaces stripped.
+_MISSING = ("", "nan", "-nan", "na", "n/a", "<na>", "#na", "#n/a", "#n/a n/a", "null", "none", "1.#ind", "-1.#ind",
+            "1.#qnan", "-1.#qnan")  # fmt: skip
+
+
+def _parse_text(column: Any) -> NDArray[np.float64] | None:
+    """Numbers from a pyarrow text column (missing cells NaN), or None when a cell is not a number."""
+    import pyarrow as pa
+    import pyarrow.compute as pc
+
+    try:
+        return _float64(column)
+    except pa.ArrowInvalid:
+        pass
+    cells = pc.utf8_trim_whitespace(column)
+    missing = pc.fill_null(pc.is_in(pc.utf8_lower(cells), value_set=pa.array(_MISSING)), True)
+    try:
+        return _float64(pc.if_else(missing, pa.scalar(None, pa.string()), cells))
+    except pa.ArrowInvalid:
+        return None
+
+
+def _float64(column: Any) -> NDArray[np.float64]:
+    """A pyarrow array as float64 numbers, nulls as NaN (read from its buffers: to_numpy would load pandas)."""
+    import pyarrow as pa
+
+    values = column.cast(pa.float64())
+    validity, data = values.buffers()[:2]
+    start, end = values.offset, values.offset + len(values)
+    numbers = np.frombuffer(data, dtype=np.float64, count=end)[start:] if data is not None else np.zeros(len(values))
+    if values.null_count:
+        valid = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")[start:end].astype(bool)
+        numbers = np.where(valid, numbers, np.nan)
+    return numbers
+
+
+#: Rows :func:`saturate_file` hands the clip at a time: one batch shape (the last block padded with zeros),
+#: so the clip's per-shape constants and scratch arrays (about 1 MB) are made once, whatever the batches;
+#: and few enough that OpenBLAS multiplies them in one thread (it splits m x 12 x 12 products from about
+#: 1800 rows on): its waiting threads and pyarrow's reader threads made a 4096-row clip 25x slower on 2 cores.
+BLOCK_ROWS = 1024
+
+
+def _saturate_rows(
+    sat: Saturation, tau: NDArray[np.float64], qd: NDArray[np.float64], block: int = 0
+) -> tuple[NDArray[np.float64], ...]:
+    """(tau_sat, motor torque cmd, motor torque sat, motor speed) of rows, ``block`` rows at a time (0: all)."""
+    if block <= 0 or len(tau) == block:
+        tau_sat = sat(tau, qd)
+        tau_m, omega = sat.motor_state(tau, qd)
+        return tau_sat, tau_m, tau_sat @ sat.A, omega  # tau_sat is finite and within the limits: no overflow
+    results = [np.empty_like(tau) for _ in range(4)]
+    pad_tau, pad_qd = np.zeros((block, tau.shape[1])), np.zeros((block, tau.shape[1]))
+    for start in range(0, len(tau), block):
+        stop = min(len(tau), start + block)
+        t, q = tau[start:stop], qd[start:stop]
+        if stop - start < block:  # zeros are inside every region
+            pad_tau[: stop - start], pad_qd[: stop - start] = t, q
+            t, q = pad_tau, pad_qd
+        for out, part in zip(results, _saturate_rows(sat, t, q, block), strict=True):
+            out[start:stop] = part[: stop - start]
+    return tuple(results)
+
+
 def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSaturation:
     """Saturate a log with columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] for every joint.
+
+    The whole log in memory; :func:`saturate_file` streams a file of any length.
 
     Args:
         robot: The robot whose motors and transmissions apply.
@@ -503,47 +1025,8 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
     Raises:
         TableError: A column is missing or holds a non-finite value.
     """
-    import pandas as pd
-
-    from hound_id.errors import TableError
-
-    arrays = {}
-    for prefix in ("tau", "qd"):
-        stacked = []
-        for joint in robot.joints:
-            name = f"{prefix}_{joint}"
-            if name not in columns:
-                raise TableError(
-                    f"{source}: column '{name}' missing; expected tau_<joint> [N m] and qd_<joint> [rad/s] "
-                    f"for every joint ({', '.join(robot.joints)})",
-                    column=name,
-                )
-            raw = pd.Series(np.asarray(columns[name]))
-            numeric = pd.to_numeric(raw, errors="coerce")
-            text = np.flatnonzero(numeric.isna().to_numpy() & raw.notna().to_numpy())
-            if text.size:
-                raise TableError(
-                    f"{source}: column '{name}' data row {int(text[0]) + 1} holds {raw.iloc[text[0]]!r}; "
-                    "expected a number",
-                    column=name,
-                    row=int(text[0]) + 1,
-                )
-            values = numeric.to_numpy(dtype=float)
-            bad = np.flatnonzero(~np.isfinite(values))
-            if bad.size:
-                raise TableError(
-                    f"{source}: column '{name}' data row {int(bad[0]) + 1} holds {values[bad[0]]}; "
-                    "expected a finite number (drop or fill such rows first)",
-                    column=name,
-                    row=int(bad[0]) + 1,
-                )
-            stacked.append(values)
-        arrays[prefix] = np.column_stack(stacked)
-    sat = saturation_for(robot)
-    tau, qd = arrays["tau"], arrays["qd"]
-    tau_sat = sat(tau, qd)
-    tau_m, omega = sat.motor_state(tau, qd)
-    tau_m_sat, _ = sat.motor_state(tau_sat, qd)
+    tau, qd = _joint_arrays(columns, robot.joints, source)
+    tau_sat, tau_m, tau_m_sat, omega = _saturate_rows(saturation_for(robot), tau, qd)
     return LogSaturation(
         joints=robot.joints,
         motors=robot.motors,
@@ -554,3 +1037,86 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
         motor_torque_sat=frozen(tau_m_sat),
         motor_speed=frozen(omega),
     )
+
+
+def saturate_file(
+    robot: Robot, path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None, plot_rows: int = 0
+) -> LogSummary:
+    """Saturate a CSV or Parquet log of any length, batch by batch (``hound-id saturate``).
+
+    Memory is bounded by a batch (:data:`hound_id.tables.BATCH_ROWS` rows of Parquet or
+    :data:`hound_id.tables.CSV_BLOCK_BYTES` of CSV), not by the length of the log. The summary
+    equals :meth:`LogSaturation.to_dict` of the whole log (bit for bit within one batch, to
+    rounding beyond). Bad rows are named by their data row, counted over the whole file.
+
+    Args:
+        robot: The robot whose motors and transmissions apply.
+        path: The log: columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] for every joint.
+        out: If given, the log with ``tau_sat_<joint>`` [N m] columns added is written there (CSV or
+            Parquet by suffix), through a temporary file renamed at the end: an error part-way
+            leaves nothing behind.
+        plot_rows: Keep up to this many evenly spaced rows in :attr:`LogSummary.sample` (0: none).
+
+    Raises:
+        TableError: The file cannot be read, a column is missing, a cell is not a finite number,
+            a row has the wrong number of fields, or the table has no rows.
+        OutputError: ``out`` cannot be written.
+    """
+    from pathlib import Path
+
+    from hound_id.tables import TableBatches, TableRetype
+
+    numeric = tuple(f"{p}_{j}" for p in ("tau", "qd") for j in robot.joints)
+    copy_text = out is not None and Path(out).suffix.lower() == ".csv"  # CSV to CSV: cells copied as they are
+    table = TableBatches(Path(path), numeric=numeric, text=copy_text, only=None if out is not None else numeric)
+    sat = saturation_for(robot)
+    while True:
+        try:
+            return _saturate_batches(robot, sat, table, out, plot_rows)
+        except TableRetype:
+            continue  # a column's type was widened: read the file again with it
+
+
+def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_rows: int) -> LogSummary:
+    from contextlib import nullcontext
+
+    import pyarrow as pa
+
+    from hound_id.errors import TableError
+    from hound_id.tables import TableSink
+
+    source = str(table.path)
+    _joint_arrays({name: [] for name in table.names}, robot.joints, source)  # missing columns, before any work
+    tally = _Tally(robot.joints, robot.motors)
+    sample = _Sample(plot_rows) if plot_rows > 0 else None
+    sat_names = [f"tau_sat_{j}" for j in robot.joints]
+    with TableSink(out) if out is not None else nullcontext() as sink:
+        for batch in table:
+            tau, qd = _joint_arrays(batch, robot.joints, source, first_row=tally.rows)
+            tau_sat, tau_m, tau_m_sat, omega = _saturate_rows(sat, tau, qd, BLOCK_ROWS)
+            clipped = motor_clipped(tau_m, tau_m_sat)
+            if sample is not None:
+                sample.add(tau, qd, tau_sat, tau_m, tau_m_sat, omega)
+            if sink is not None:
+                for i, name in enumerate(sat_names):
+                    column = pa.array(tau_sat[:, i], type=pa.float64())
+                    k = batch.schema.get_field_index(name)
+                    batch = batch.set_column(k, name, column) if k >= 0 else batch.append_column(name, column)
+                sink.write(batch)
+            tally.add(tau, tau_sat, clipped)
+        if tally.rows == 0:
+            raise TableError(f"{source}: the table has no rows", path=source)
+    log = None
+    if sample is not None:
+        tau, qd, tau_sat, tau_m, tau_m_sat, omega = sample.arrays()
+        log = LogSaturation(
+            joints=robot.joints,
+            motors=robot.motors,
+            tau_cmd=frozen(tau),
+            qd=frozen(qd),
+            tau_sat=frozen(tau_sat),
+            motor_torque_cmd=frozen(tau_m),
+            motor_torque_sat=frozen(tau_m_sat),
+            motor_speed=frozen(omega),
+        )
+    return tally.summary(log, table.notes, sample.step if sample is not None else 1)

@@ -8,7 +8,7 @@ from hypothesis.extra.numpy import arrays
 from hound_id.errors import SaturationError
 from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot, robot_from_mapping
-from hound_id.mor.saturation import dc_motor_clip, saturation_for
+from hound_id.mor.saturation import coupled_groups, dc_motor_clip, saturation_for
 from hound_id.mor.spec import MotorSpec
 from tests.conftest import ROBOT, SMALL_MOTOR
 
@@ -69,7 +69,7 @@ def test_commands_inside_the_region_pass_unchanged(cmd):
     assert np.allclose(ROBOT_SAT(tau, qd), tau, rtol=1e-12, atol=1e-12)
 
 
-_cache = {}
+_cache: dict = {}
 
 
 def _regions():
@@ -233,3 +233,246 @@ def test_torque_bounds_are_the_motor_intervals():
     for m, motor in enumerate(robot.motors):
         want_lo, want_hi = torque_interval(omega[:, m], operating_region(robot.motor_specs[motor]))
         assert np.allclose(lo[:, m], want_lo) and np.allclose(hi[:, m], want_hi)
+
+
+# --- feasibility for every finite input (issue 14) ---------------------------------------------------------------
+
+DTYPES = [np.float32, np.float64]
+#: "torch-gpu": CPU tensors through the path GPU tensors take (torch operations only, always exact).
+BACKENDS = ["numpy", "torch", "torch-gpu"]
+#: Joint speeds the property tests draw [rad/s]: past every motor's overspeed, both ways.
+QD_SCALE = 120.0
+#: Worst mapping gain |A^-1| |A| (column sums): how much a rounding of the clipped motor torques can grow.
+GAIN = float((np.abs(ROBOT_SAT.A_inv) @ np.abs(ROBOT_SAT.A)).sum(axis=0).max())
+
+
+def to_backend(x, backend, dtype, **kw):
+    if backend.startswith("torch"):
+        return torch.tensor(np.asarray(x, dtype=dtype), **kw)
+    return np.asarray(x, dtype=dtype)
+
+
+def saturate(sat, tau, qd, backend, dtype, **kw):
+    """sat(tau, qd) in the backend; "torch-gpu" takes the GPU tensors' path on the CPU."""
+    from unittest import mock
+
+    import hound_id.mor.saturation as saturation
+
+    views = (lambda *a: None) if backend == "torch-gpu" else saturation._numpy_views
+    with mock.patch.object(saturation, "_numpy_views", views):
+        return sat(to_backend(tau, backend, dtype, **kw), to_backend(qd, backend, dtype))
+
+
+def to_numpy(x):
+    return x.detach().cpu().numpy() if isinstance(x, torch.Tensor) else np.asarray(x)
+
+
+def feasibility_error(sat, out, qd, dtype):
+    """Largest motor-torque excess past the motor's interval, in units of tolerance (<= 1 passes).
+
+    The saturated torques are mapped to motor space in float64, the interval taken at the float64
+    speeds of the given (dtype) velocities. The tolerance is relative to the limits, not to the input:
+    a few roundings of the clipped motor torques through A^-1 and back, and of the voltage line.
+    """
+    out64, qd64 = to_numpy(out).astype(np.float64), to_numpy(qd).astype(np.float64)
+    assert np.all(np.isfinite(out64)), "saturated torques must be finite"
+    tau_m = out64 @ sat.A
+    lo, hi = sat.torque_bounds(qd64)
+    u = np.abs(qd64 @ (sat.A_inv.T * sat.back_emf_damping))
+    scale = (1.0 + GAIN) * sat.torque_limit.max() + sat.stall_torque + u
+    tol = 16 * np.finfo(dtype).eps * scale
+    excess = np.maximum(tau_m - hi, lo - tau_m)
+    return float(np.max(excess / tol)), float(np.max(excess / sat.torque_limit))
+
+
+@st.composite
+def huge_commands(draw, dtype, batch=6):
+    """Commands from 1e-3 to 1e30 N m (and zeros) in every sign and joint; speeds within QD_SCALE."""
+    magnitude = st.one_of(
+        st.just(0.0),
+        st.builds(lambda m, e: m * 10.0**e, st.floats(1.0, 9.99), st.integers(-3, 30)),
+    )
+    signed = st.builds(lambda s, m: s * m, st.sampled_from([1.0, -1.0]), magnitude)
+    tau = np.array(draw(st.lists(signed, min_size=batch * N, max_size=batch * N))).reshape(batch, N)
+    qd = draw(arrays(np.float64, (batch, N), elements=unit)) * QD_SCALE
+    return tau.astype(dtype), qd.astype(dtype)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+@settings(max_examples=120, deadline=None)
+@given(data=st.data())
+def test_saturated_torques_are_feasible_for_commands_up_to_1e30(dtype, backend, data):
+    tau, qd = data.draw(huge_commands(dtype))
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
+    assert to_numpy(out).dtype == dtype
+    assert feasibility_error(ROBOT_SAT, out, qd, dtype)[0] <= 1.0
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_largest_finite_commands_and_speeds(dtype, backend):
+    """Commands and speeds at the dtype's largest finite value, both signs, in every joint, and inf."""
+    big = float(np.finfo(dtype).max)
+    eye = np.eye(N)
+    tau = np.vstack([eye * big, -eye * big, np.full((1, N), big), np.full((1, N), -big), np.full((1, N), np.inf)])
+    qd = np.zeros_like(tau)
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
+    assert feasibility_error(ROBOT_SAT, out, qd, dtype)[0] <= 1.0
+    # at the largest speeds every motor is far past overspeed: full braking torque, finite
+    fast = np.vstack([np.full((1, N), big), np.full((1, N), -big)])
+    out = saturate(ROBOT_SAT, fast * 0.0 + 1.0, fast, backend, dtype)
+    out64 = to_numpy(out).astype(np.float64)
+    assert np.all(np.isfinite(out64))
+    _, omega = ROBOT_SAT.motor_state(np.zeros((2, N)), fast.astype(np.float64))
+    tau_m = out64 @ ROBOT_SAT.A
+    braking = -np.sign(omega) * ROBOT_SAT.torque_limit
+    assert np.allclose(tau_m, braking, rtol=64 * np.finfo(dtype).eps * GAIN)
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_the_issue_examples(dtype, backend):
+    """Issue 14: a 1e7 N m command gave 86 N m instead of 86.94 in float32; 1e8 broke the limit; 1e12 gave 0."""
+    expected = ROBOT_SAT(np.full((1, N), 100.0), np.zeros((1, N)))  # 86.94, 82.11, 72.45 N m ...
+    for magnitude in (1e7, 1e8, 1e12, 1e16, 1e30):
+        tau = np.full((1, N), magnitude)
+        out = saturate(ROBOT_SAT, tau, np.zeros((1, N)), backend, dtype)
+        assert np.allclose(to_numpy(out), expected, rtol=8 * np.finfo(dtype).eps * GAIN, atol=0), magnitude
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+@settings(max_examples=60, deadline=None)
+@given(cmd=commands(scale_tau=1.0, scale_qd=1.0))
+def test_commands_inside_pass_bit_for_bit_in_every_dtype(dtype, backend, cmd):
+    u_tau, u_qd = cmd
+    regions = _regions()
+    T = np.array([j.inner_box.effort for j in regions.joints]) * 0.999
+    W = np.array([j.inner_box.velocity for j in regions.joints]) * 0.999
+    out = saturate(ROBOT_SAT, u_tau * T, u_qd * W, backend, dtype)
+    assert np.array_equal(to_numpy(out), (u_tau * T).astype(dtype))
+
+
+@settings(max_examples=150, deadline=None)
+@given(commands(scale_tau=400.0, scale_qd=150.0))
+def test_ordinary_commands_give_what_the_correction_formula_gave(cmd):
+    """For ordinary commands the new back-map (the clipped motor torques through A^-T) equals, to rounding,
+    the former one (the command plus the mapped correction)."""
+    tau, qd = cmd
+    lo, hi = ROBOT_SAT.torque_bounds(qd)
+    tau_m = tau @ ROBOT_SAT.A
+    former = tau + (np.clip(tau_m, lo, hi) - tau_m) @ ROBOT_SAT.A_inv
+    assert np.allclose(ROBOT_SAT(tau, qd), former, rtol=1e-12, atol=1e-11)
+
+
+def test_joints_of_unclipped_groups_pass_exactly_and_others_follow_the_clip():
+    """A clipped knee motor changes both joints of its hollow-shaft group, nothing else."""
+    tau = np.zeros((1, N))
+    knee = ROBOT_SAT.joints.index("FL_KFE")
+    tau[0, knee] = 1e6
+    tau[0, 0] = 3.3  # FL_HAA, its own group, not clipped
+    out = ROBOT_SAT(tau, np.zeros((1, N)))
+    groups = coupled_groups(ROBOT_SAT.A)
+    touched = groups[:, knee] > 0  # motors of the knee's group
+    joints_touched = groups[touched].sum(axis=0) > 0
+    assert joints_touched.sum() == 2
+    assert out[0, 0] == 3.3 and np.all(out[0, ~joints_touched] == tau[0, ~joints_touched])
+
+
+@pytest.mark.parametrize("where", ["tau", "qd"])
+@pytest.mark.parametrize("dtype", DTYPES)
+def test_nan_propagates_alike_in_numpy_and_torch(dtype, where):
+    """NaN is not refused (a check would cost a device sync): it comes back NaN, never as a finite number,
+    and the same joints are NaN in numpy and torch (CPU and GPU paths)."""
+    rng = np.random.default_rng(7)
+    groups = coupled_groups(ROBOT_SAT.A)
+    for j in range(N):
+        tau, qd = rng.uniform(-50, 50, (2, N)), rng.uniform(-20, 20, (2, N))
+        (tau if where == "tau" else qd)[0, j] = np.nan
+        results = [to_numpy(saturate(ROBOT_SAT, tau, qd, b, dtype)) for b in BACKENDS]
+        group = groups[groups[:, j] > 0].sum(axis=0) > 0
+        for out in results:
+            assert np.all(np.isnan(out[0, group]))  # the NaN's coupled group at least
+            assert not np.any(np.isnan(out[1]))  # other rows untouched
+        assert all(np.array_equal(np.isnan(results[0]), np.isnan(r)) for r in results[1:])
+        # autograd path too
+        t = torch.tensor(tau.astype(dtype), requires_grad=True)
+        assert np.array_equal(np.isnan(to_numpy(ROBOT_SAT(t, torch.tensor(qd.astype(dtype))))), np.isnan(results[0]))
+
+
+def _with_polylines(sat):
+    """The same robot with each motor's straight-line interval given as a measured polyline."""
+    import dataclasses
+
+    from hound_id.mor.region import torque_interval
+
+    lines = []
+    for m in range(sat.n):
+        region = SimpleRegion(sat, m)
+        w = np.linspace(-region.overspeed, region.overspeed, 41)
+        lo, hi = torque_interval(w, region)
+        lines.append((w, lo, hi))
+    return dataclasses.replace(sat, polylines=tuple(lines), _cache={})
+
+
+class SimpleRegion:
+    """What :func:`torque_interval` reads from a region, for motor m of a Saturation."""
+
+    def __init__(self, sat, m):
+        self.stall_torque = float(sat.stall_torque[m])
+        self.back_emf_damping = float(sat.back_emf_damping[m])
+        self.torque_limit = float(sat.torque_limit[m])
+        self.max_speed = None if not np.isfinite(sat.max_speed[m]) else float(sat.max_speed[m])
+        self.overspeed = (self.stall_torque + self.torque_limit) / self.back_emf_damping
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+@settings(max_examples=40, deadline=None)
+@given(data=st.data())
+def test_general_path_is_feasible_too(dtype, backend, data):
+    """Measured envelopes (polylines) and autograd take the allocating path: the same guarantee."""
+    tau, qd = data.draw(huge_commands(dtype))
+    for sat in (POLY_SAT, ROBOT_SAT):
+        kw = {"requires_grad": True} if backend == "torch" and sat is ROBOT_SAT else {}
+        if backend != "torch" and sat is ROBOT_SAT:
+            continue  # the in-place paths, tested above
+        out = saturate(sat, tau, qd, backend, dtype, **kw)
+        assert feasibility_error(sat, out, qd, dtype)[0] <= 1.0
+
+
+POLY_SAT = _with_polylines(ROBOT_SAT)
+
+
+def test_huge_commands_keep_finite_gradients():
+    t = torch.tensor(np.full((3, N), 1e30), requires_grad=True)
+    out = ROBOT_SAT(t, torch.zeros(3, N, dtype=torch.float64))
+    out.sum().backward()
+    assert torch.isfinite(t.grad).all() and torch.all(t.grad == 0)  # every motor clipped: no gradient
+
+
+def test_motor_state_and_violation_do_not_overflow():
+    big = np.finfo(np.float64).max
+    tau = np.array([[big, -big] * (N // 2)])
+    tau_m, _ = ROBOT_SAT.motor_state(tau, np.zeros_like(tau))
+    assert not np.any(np.isnan(tau_m))
+    assert np.all(ROBOT_SAT.violation(tau, np.zeros_like(tau)) > 0)
+
+
+def test_coupled_groups_of_the_sample_robot():
+    groups = coupled_groups(ROBOT_SAT.A)
+    assert groups.sum() == 4 * (1 + 4)  # per leg: HAA alone, HFE/KFE with both motors
+    assert np.array_equal(groups, groups @ groups > 0)  # a partition
+
+
+@pytest.mark.parametrize("backend", BACKENDS)
+@pytest.mark.parametrize("dtype", DTYPES)
+@settings(max_examples=120, deadline=None)
+@given(cmd=commands(scale_tau=1.0, scale_qd=QD_SCALE), size=st.floats(0.01, 1.5))
+def test_ordinary_commands_are_feasible_in_every_dtype(dtype, backend, cmd, size):
+    """Commands up to 1.5x the largest ordinary one (the short path, :data:`ORDINARY`, and just past it)."""
+    u_tau, qd = cmd
+    tau = u_tau * size * ROBOT_SAT._constants(np.zeros((1, N))).ordinary
+    out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
+    assert feasibility_error(ROBOT_SAT, out, qd.astype(dtype), dtype)[0] <= 1.0
