@@ -27,6 +27,9 @@ from hound_id.errors import TransmissionError
 
 #: Matrices with a condition number above this are treated as singular.
 MAX_CONDITION = 1e10
+#: Largest reduction (motor turns per joint turn) and largest speed-up (joint turns per motor
+#: turn) of any real gearbox, with margin: a worm drive reaches a few thousand, a step-up a few.
+MAX_REDUCTION, MAX_STEP_UP = 1e4, 100.0
 
 
 @dataclass(frozen=True)
@@ -108,7 +111,15 @@ def from_matrix(
             "every motor must drive an independent combination of joints",
             condition=cond,
         )
-    return Transmission(kind=kind, joints=j, motors=m, A=frozen(A), A_inv=frozen(np.linalg.inv(A)))
+    A_inv = np.linalg.inv(A)
+    if np.abs(A).max() > MAX_STEP_UP or np.abs(A_inv).max() > MAX_REDUCTION:
+        raise TransmissionError(
+            f"{what}: matrix {A.tolist()} turns a joint up to {np.abs(A).max():.3g} times per motor turn and a motor "
+            f"up to {np.abs(A_inv).max():.3g} times per joint turn; expected reductions up to {MAX_REDUCTION:g} and "
+            f"speed-ups up to {MAX_STEP_UP:g} (real gearboxes): check the ratios (motor turns per joint turn)",
+            condition=cond,
+        )
+    return Transmission(kind=kind, joints=j, motors=m, A=frozen(A), A_inv=frozen(A_inv))
 
 
 def from_ratios(

@@ -107,6 +107,17 @@ def robot_with(key: str, value: str | None) -> Callable[[Path], None]:
     return write
 
 
+def robot_ratio(ratio: str) -> Callable[[Path], None]:
+    """The sample robot with its first gear ratio (HAA, 9.0) replaced."""
+
+    def write(path: Path) -> None:
+        robot_with("schema", None)(path)
+        text_ = path.read_text().replace("ratios: [9.0]", f"ratios: [{ratio}]", 1)
+        path.write_text(text_)
+
+    return write
+
+
 def table(source: Path, change: Callable[[pd.DataFrame], pd.DataFrame], kind: str = "csv") -> Callable[[Path], None]:
     def write(path: Path) -> None:
         frame = change(pd.read_csv(source, comment="#"))
@@ -212,6 +223,10 @@ ROBOT_BAD = {
     "empty": (text(""), ("robot.yaml",)),
     "binary": (binary, ("robot.yaml",)),
     "urdf_missing": (robot_with("urdf", "nowhere.urdf"), ("'urdf'",)),
+    "ratio_huge": (robot_ratio("1e308"), ("transmissions[0]", "reductions up to")),
+    "ratio_tiny": (robot_ratio("1e-300"), ("transmissions[0]", "speed-ups up to")),
+    "ratio_zero": (robot_ratio("0"), ("transmissions[0]", "non-zero")),
+    "ratio_nan": (robot_ratio(".nan"), ("transmissions[0]",)),
 }
 for key, (make, names) in ROBOT_BAD.items():
     add(f"mor-robot-{key}", ("mor", "--robot", "robot.yaml"), names, **{"robot.yaml": make})
