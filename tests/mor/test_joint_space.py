@@ -4,6 +4,7 @@ import numpy as np
 import pytest
 from scipy.optimize import linprog
 
+from hound_id.errors import RobotError
 from hound_id.mor.joint_space import _group_constraints, robot_regions
 from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot
@@ -124,20 +125,27 @@ transmissions:
     assert (jr.inner_box.effort, jr.inner_box.velocity) == pytest.approx(region.inner_box, rel=1e-6)
 
 
-def test_extreme_gear_ratios_do_not_break_the_geometry(write_yaml):
-    text = f"""
+def test_extreme_gear_ratios_do_not_break_the_geometry_and_beyond_real_gearboxes_are_refused(write_yaml):
+    def robot(a: str, b: str) -> str:
+        return f"""
 name: extreme
 motor_specs: {{s: {SMALL_MOTOR}}}
 joints: [a, b]
 transmissions:
-  - {{type: matrix, joints: [a], motors: [ma], motor_spec: s, matrix: [[1e-9]]}}
-  - {{type: ratio, joints: [b], motors: [mb], motor_spec: s, ratios: [1e3]}}
+  - {{type: matrix, joints: [a], motors: [ma], motor_spec: s, matrix: [[{a}]]}}
+  - {{type: ratio, joints: [b], motors: [mb], motor_spec: s, ratios: [{b}]}}
 """
-    regions = robot_regions(load_robot(write_yaml("x.yaml", text)))
+
+    # the span's edges: a 10,000:1 reduction and a 1:100 speed-up
+    regions = robot_regions(load_robot(write_yaml("x.yaml", robot("1e-4", "1e-2"))))
     a, b = regions.joints
-    assert a.outer_box.effort == pytest.approx(2.4e9, rel=1e-9)
-    assert b.outer_box.effort == pytest.approx(2.4e3, rel=1e-9)
+    assert a.outer_box.effort == pytest.approx(2.4e4, rel=1e-9)
+    assert b.outer_box.effort == pytest.approx(2.4e-2, rel=1e-9)
     assert len(a.section) >= 4
+    with pytest.raises(RobotError, match="reductions up to 10000"):
+        load_robot(write_yaml("y.yaml", robot("1e-9", "9")))
+    with pytest.raises(RobotError, match="speed-ups up to 100"):
+        load_robot(write_yaml("z.yaml", robot("0.1", "1e-3")))
 
 
 def test_a_measured_envelope_shrinks_the_joint_boxes_to_its_corner(sample, measured):
