@@ -11,7 +11,7 @@ import os
 import re
 import shutil
 import tempfile
-from collections.abc import Callable, Iterator
+from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from pathlib import Path
 from typing import IO, Any
@@ -91,17 +91,30 @@ def _umask() -> int:
     return mask
 
 
-def check_output(path: str | os.PathLike[str] | None, suffixes: tuple[str, ...], what: str) -> None:
-    """Fail before any work if an output cannot be written: missing folder or wrong file type.
+def check_output(
+    path: str | os.PathLike[str] | None,
+    suffixes: tuple[str, ...],
+    what: str,
+    inputs: Sequence[str | os.PathLike[str] | None] = (),
+) -> None:
+    """Fail before any work if an output cannot be written: missing folder, wrong file type, or an input.
 
     Args:
         path: The output path (None: nothing to check).
         suffixes: Accepted suffixes, lower case with the dot (".png").
         what: What the file is, for the message.
+        inputs: The command's input files: writing the output onto one of them would destroy it.
     """
     if path is None:
         return
     target = Path(path)
+    for source in inputs:
+        if source is not None and target.exists() and Path(source).exists() and os.path.samefile(target, source):
+            raise OutputError(
+                f"{target}: is also an input of this command ({source}); writing it would destroy the input: "
+                "choose another output path",
+                path=str(target),
+            )
     if target.suffix.lower() not in suffixes:
         raise OutputError(
             f"{target}: {what} files end in {' or '.join(suffixes)}; found '{target.suffix or '(no suffix)'}'",

@@ -45,9 +45,10 @@ def fit_current(
     from hound_id.dyno.effects import Signals, load_effects_file, parse_model
     from hound_id.dyno.log import load_log, parse_mapping, parse_window
 
-    check_output(plot, (".png",), "plot")
+    sources = (data, spec, *(effects_file or []))
+    check_output(plot, (".png",), "plot", inputs=sources)
     start_stop = parse_window(window)
-    check_output(out, (".yaml", ".yml"), "fitted-motor")
+    check_output(out, (".yaml", ".yml"), "fitted-motor", inputs=sources)
     from hound_id.mor.spec import load_motor_spec
 
     sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet

@@ -54,6 +54,9 @@ def _angles(angles: str | None, gait: Path | None, legs: str | None, margin: flo
         return given_angles(attack, detach, margin)
     path = gait if gait is not None else samples_dir() / "gait" / "hound_running.csv"
     leg_list = [s.strip() for s in legs.split(",") if s.strip()] if legs is not None else None
+    if leg_list is not None and len(set(leg_list)) != len(leg_list):
+        twice = sorted({name for name in leg_list if leg_list.count(name) > 1})
+        raise SpecError(f"--legs: found {legs!r}, which names {', '.join(twice)} twice; name each leg once")
     return gait_angles(path, leg_list, margin)
 
 

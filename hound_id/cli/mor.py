@@ -73,8 +73,8 @@ def _mor_compare(
     from hound_id.mor.envelope import EnvelopeInputs
     from hound_id.mor.spec import load_motor_spec
 
-    check_output(plot, (".png",), "plot")
-    check_output(out, (".yaml", ".yml"), "motor spec")
+    check_output(plot, (".png",), "plot", inputs=(spec_path, log_path, robot_path))
+    check_output(out, (".yaml", ".yml"), "motor spec", inputs=(spec_path, log_path, robot_path))
     spec = load_motor_spec(spec_path)
     robot = None
     if robot_path is not None:
@@ -362,8 +362,8 @@ def saturate(
     from hound_id.mor.saturation import PLOT_ROWS, saturate_file
     from hound_id.tables import SUFFIXES
 
-    check_output(out, SUFFIXES, "table")
-    check_output(plot, (".png",), "plot")
+    check_output(out, SUFFIXES, "table", inputs=(commands, robot))
+    check_output(plot, (".png",), "plot", inputs=(commands, robot))
     rob = load_robot(robot)
     log = saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot is not None else 0)
     if plot is not None and log.sample is not None:

@@ -33,6 +33,8 @@ from hound_id.dyno.simulate import SimMotor, TestPlan
 from hound_id.errors import DynoDataError, OutputError, SpecError
 from hound_id.io import read_yaml
 
+#: Maximum currents a plan accepts [A]: a motor spec's max_current span (hound_id.mor.spec.PLAUSIBLE).
+MAX_CURRENT_SPAN = (1e-3, 1e4)
 SCHEMA = "hound-id/plan/1"
 #: Longest plan [s]. simulate-rig and the set-point schedule sample a plan at 1 kHz: an hour is 3.6 M rows.
 MAX_PLAN_SECONDS = 3600.0
@@ -101,9 +103,11 @@ def make_plan(
     Raises:
         DynoDataError: A value out of range; the message names the option (``--rise``).
     """
-    if not (math.isfinite(max_current) and max_current > 0):
+    if not (math.isfinite(max_current) and MAX_CURRENT_SPAN[0] <= max_current <= MAX_CURRENT_SPAN[1]):
         raise DynoDataError(
-            f"--max-current: found {max_current:g}, expected a positive current in A", value=max_current
+            f"--max-current: found {max_current:g}, expected {MAX_CURRENT_SPAN[0]:g} to {MAX_CURRENT_SPAN[1]:g} A "
+            "(the span of real motor drives); check the number and its unit",
+            value=max_current,
         )
     changes: dict[str, Any] = {}
     if speeds is not None:
@@ -229,8 +233,9 @@ def load_plan(path: str | Path) -> tuple[TestPlan, float]:
     if extra:
         raise SpecError(f"{path}: unknown key(s) {', '.join(sorted(extra))}; known: {', '.join(sorted(known))}")
     max_current = data.get("max_current")
-    if not isinstance(max_current, (int, float)) or isinstance(max_current, bool) or not max_current > 0:
-        raise SpecError(f"{path}: field 'max_current': found {max_current!r}, expected a positive current in A")
+    lo, hi = MAX_CURRENT_SPAN
+    if not isinstance(max_current, (int, float)) or isinstance(max_current, bool) or not lo <= max_current <= hi:
+        raise SpecError(f"{path}: field 'max_current': found {max_current!r}, expected {lo:g} to {hi:g} A")
     args = {k: v for k, v in data.items() if k in known}
     if "speeds" in args and isinstance(args["speeds"], list):
         args["speeds"] = tuple(args["speeds"])

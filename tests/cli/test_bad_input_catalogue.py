@@ -334,6 +334,12 @@ add("saturate-out-read-only", (*SATURATE[:1], str(COMMANDS), *SATURATE[2:], "--o
 add("saturate-out-suffix", (*SATURATE[:1], str(COMMANDS), *SATURATE[2:], "--out", "s.txt"), ("s.txt",))
 add("saturate-plot-folder", (*SATURATE[:1], str(COMMANDS), *SATURATE[2:], "--plot", "no/s.png"), ("no/s.png",))
 add("saturate-no-robot", ("saturate", str(COMMANDS)), ("--robot",))
+add("saturate-out-is-the-input", ("saturate", "IN.csv", *SATURATE[2:], "--out", "IN.csv"), ("IN.csv", "input"),
+    **{"IN.csv": table(COMMANDS, lambda f: f)})  # fmt: skip
+add("fit-out-is-the-spec", ("fit-current", str(DYNO), "--columns", DYNO_COLUMNS, "--spec", "m.yaml", "--out", "m.yaml"),
+    ("m.yaml", "input"), **{"m.yaml": yaml_edit(MOTOR, "name", "m")})  # fmt: skip
+add("compare-out-is-the-spec", ("mor", "--spec", "m.yaml", "--compare", str(ENVELOPE), "--columns", ENVELOPE_COLUMNS,
+    "--out", "m.yaml"), ("m.yaml", "input"), **{"m.yaml": yaml_edit(MOTOR, "name", "m")})  # fmt: skip
 
 # gait logs and foot options
 FOOT = ("foot", "--gait", "IN.csv")
@@ -353,6 +359,7 @@ for key, (make, names) in GAIT_BAD.items():
     add(f"foot-gait-{key}", FOOT, names, **{"IN.csv": make})
 FOOT_OPTIONS = {
     "legs_unknown": (("--legs", "XX"), ("XX",)),
+    "legs_twice": (("--legs", "FL,FL"), ("--legs", "FL")),
     "angles_text": (("--angles", "a,b"), ("--angles",)),
     "angles_one": (("--angles", "-30"), ("--angles",)),
     "margin_negative": (("--margin", "-5"), ("--margin",)),
@@ -405,6 +412,8 @@ PLAN = ("dyno", "plan", "--max-current", "40", "--out", "plan.yaml")
 PLAN_BAD = {
     "max_current_negative": (("dyno", "plan", "--max-current", "-1"), ("--max-current",)),
     "max_current_text": (("dyno", "plan", "--max-current", "x"), ("--max-current",)),
+    "max_current_huge": (("dyno", "plan", "--max-current", "1e200", "--schedule", "s.csv"), ("--max-current",)),
+    "max_current_tiny": (("dyno", "plan", "--max-current", "1e-300"), ("--max-current",)),
     "overdrive_below_one": ((*PLAN, "--overdrive", "0.5"), ("--overdrive",)),
     "rise_negative": ((*PLAN, "--rise", "-1"), ("--rise",)),
     "speeds_text": ((*PLAN, "--speeds", "a,b"), ("--speeds",)),
