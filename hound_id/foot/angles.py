@@ -101,6 +101,11 @@ def given_angles(attack_deg: float, detach_deg: float, margin_deg: float = 5.0) 
             "the calf pitch (REP-103, 0 = calf vertical) rises from touchdown (foot ahead, negative) to "
             "liftoff (foot behind, positive), e.g. --angles -30,25; swap or re-sign them"
         )
+    if max(abs(attack_deg), abs(detach_deg)) > 180:
+        raise SpecError(
+            f"--angles: found {attack_deg:g}, {detach_deg:g} deg; expected calf pitches within +-180 deg (0 = calf "
+            "vertical), e.g. -30,25"
+        )
     a, d, m = (math.radians(x) for x in (attack_deg, detach_deg, margin_deg))
     low, high = a - m, d + m
     _checked(low, high, m, "--angles")

@@ -188,7 +188,7 @@ def _fit_peak(spec: MotorSpec) -> str:
 
 
 def _suggest(key: str) -> str:
-    close = difflib.get_close_matches(key, KNOWN_KEYS, n=1)
+    close = [key.lower()] if key.lower() in KNOWN_KEYS else difflib.get_close_matches(key, KNOWN_KEYS, n=1)
     return f"did you mean '{close[0]}'?" if close else f"known keys: {', '.join(KNOWN_KEYS)}"
 
 
