@@ -124,11 +124,8 @@ def read_table_info(path: str | Path) -> Table:
     return Table(frame, notes)
 
 
-def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, ...]]:
-    import pandas as pd
-
-    if layout.plain:
-        return pd.read_csv(path, comment="#", index_col=False), ()
+def _unit_names(layout: CsvLayout) -> tuple[list[str], list[str]]:
+    """Column names with the units row folded in ("speed [rpm]"), and the note that says so."""
     names = list(layout.names)
     notes: list[str] = []
     if layout.units is not None:
@@ -137,6 +134,15 @@ def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, .
         pairs = [f"{n!r}: {u!r}" for n, u in zip(layout.names, cells, strict=False) if u]
         shown = ", ".join(pairs[:8]) + (f" and {len(pairs) - 8} more" if len(pairs) > 8 else "")
         notes.append(f"read the units row under the header (line {layout.header_line + 2}): {shown}")
+    return names, notes
+
+
+def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, ...]]:
+    import pandas as pd
+
+    if layout.plain:
+        return pd.read_csv(path, comment="#", index_col=False), ()
+    names, notes = _unit_names(layout)
     extra = [f"field_{len(names) + k + 1}" for k in range(layout.extra_fields)]
     frame = pd.read_csv(
         path,
@@ -345,14 +351,7 @@ class TableBatches:
     def _csv_names(self) -> list[str]:
         layout = self.layout
         assert layout is not None
-        names = list(layout.names)
-        notes: list[str] = []
-        if layout.units is not None:
-            cells = list(layout.units) + [""] * (len(names) - len(layout.units))
-            names = [f"{n} [{u}]" if u and "[" not in n else n for n, u in zip(names, cells, strict=False)]
-            pairs = [f"{n!r}: {u!r}" for n, u in zip(layout.names, cells, strict=False) if u]
-            shown = ", ".join(pairs[:8]) + (f" and {len(pairs) - 8} more" if len(pairs) > 8 else "")
-            notes.append(f"read the units row under the header (line {layout.header_line + 2}): {shown}")
+        names, notes = _unit_names(layout)
         if layout.title_lines:
             shown = "; ".join(repr(t[:60]) for t in layout.title_lines[:3])
             notes.insert(0, f"skipped {_count(len(layout.title_lines), 'line')} above the header: {shown}")

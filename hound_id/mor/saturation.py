@@ -1026,16 +1026,21 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
         TableError: A column is missing or holds a non-finite value.
     """
     tau, qd = _joint_arrays(columns, robot.joints, source)
-    tau_sat, tau_m, tau_m_sat, omega = _saturate_rows(saturation_for(robot), tau, qd)
+    return _log_saturation(robot, tau, qd, *_saturate_rows(saturation_for(robot), tau, qd))
+
+
+def _log_saturation(robot: Robot, *arrays: NDArray[np.float64]) -> LogSaturation:
+    """A :class:`LogSaturation` of read-only copies: tau, qd, tau_sat, tau_m, tau_m_sat, omega."""
+    tau, qd, tau_sat, tau_m, tau_m_sat, omega = (frozen(a) for a in arrays)
     return LogSaturation(
         joints=robot.joints,
         motors=robot.motors,
-        tau_cmd=frozen(tau),
-        qd=frozen(qd),
-        tau_sat=frozen(tau_sat),
-        motor_torque_cmd=frozen(tau_m),
-        motor_torque_sat=frozen(tau_m_sat),
-        motor_speed=frozen(omega),
+        tau_cmd=tau,
+        qd=qd,
+        tau_sat=tau_sat,
+        motor_torque_cmd=tau_m,
+        motor_torque_sat=tau_m_sat,
+        motor_speed=omega,
     )
 
 
@@ -1108,15 +1113,5 @@ def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_
             raise TableError(f"{source}: the table has no rows", path=source)
     log = None
     if sample is not None:
-        tau, qd, tau_sat, tau_m, tau_m_sat, omega = sample.arrays()
-        log = LogSaturation(
-            joints=robot.joints,
-            motors=robot.motors,
-            tau_cmd=frozen(tau),
-            qd=frozen(qd),
-            tau_sat=frozen(tau_sat),
-            motor_torque_cmd=frozen(tau_m),
-            motor_torque_sat=frozen(tau_m_sat),
-            motor_speed=frozen(omega),
-        )
+        log = _log_saturation(robot, *sample.arrays())
     return tally.summary(log, table.notes, sample.step if sample is not None else 1)
