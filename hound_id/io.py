@@ -29,14 +29,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         OutputError: The folder does not exist or the file cannot be written.
     """
     target = Path(path)
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise OutputError(
-            f"{target}: folder {folder} does not exist; create it or choose another output path",
-            path=str(target),
-        )
-    if target.is_dir():
-        raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
+    folder = _file_folder(target)
     tmp: Path | None = None
     try:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
@@ -120,17 +113,28 @@ def check_output(
             f"{target}: {what} files end in {' or '.join(suffixes)}; found '{target.suffix or '(no suffix)'}'",
             path=str(target),
         )
-    folder = target.parent if str(target.parent) else Path(".")
-    if not folder.is_dir():
-        raise OutputError(
-            f"{target}: folder {folder} does not exist; create it or choose another output path", path=str(target)
-        )
-    if target.is_dir():
+    _file_folder(target)
+
+
+def _file_folder(target: Path) -> Path:
+    """The folder an output file goes into, once it is known to exist and be writable, and ``target`` no folder."""
+    if target.is_dir():  # then its folder exists: the order of the checks does not matter
         raise OutputError(f"{target}: is a folder; give a file name", path=str(target))
+    folder = target.parent if str(target.parent) else Path(".")
+    _require_writable(folder, str(target), "output path", str(target))
+    return folder
+
+
+def _require_writable(folder: Path, who: str, instead: str, path: str) -> None:
+    """Raise unless ``folder`` exists and can be written; ``who`` opens the message, ``instead`` ends it.
+
+    ``path``: the output the error is about (its ``path`` attribute).
+    """
+    if not folder.is_dir():
+        raise OutputError(f"{who}: folder {folder} does not exist; create it or choose another {instead}", path=path)
     if not os.access(folder, os.W_OK | os.X_OK):
         raise OutputError(
-            f"{target}: folder {folder} is not writable; choose another output path or change its permissions",
-            path=str(target),
+            f"{who}: folder {folder} is not writable; choose another {instead} or change its permissions", path=path
         )
 
 
@@ -142,16 +146,7 @@ def check_folder(path: str | os.PathLike[str] | None, option: str = "--out") -> 
     if folder.exists() and not folder.is_dir():
         raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
     probe = folder if folder.is_dir() else folder.resolve().parent
-    if not probe.is_dir():
-        raise OutputError(
-            f"{option} {folder}: folder {probe} does not exist; create it or choose another {option}",
-            path=str(folder),
-        )
-    if not os.access(probe, os.W_OK | os.X_OK):
-        raise OutputError(
-            f"{option} {folder}: folder {probe} is not writable; choose another {option} or change its permissions",
-            path=str(folder),
-        )
+    _require_writable(probe, f"{option} {folder}", option, str(folder))
 
 
 def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
@@ -169,12 +164,7 @@ def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
             f"{option} {folder}: cannot create the folder ({err.strerror or err}); choose another {option}",
             path=str(folder),
         ) from err
-    if not os.access(folder, os.W_OK | os.X_OK):
-        raise OutputError(
-            f"{option} {folder}: folder is not writable; choose another {option} or change its permissions",
-            path=str(folder),
-        )
-    return folder
+    return folder  # writable: check_folder saw it, or its parent, writable
 
 
 @contextmanager
