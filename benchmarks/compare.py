@@ -7,11 +7,11 @@ In this process:
    :func:`hound_id.mor.envelope.feasible` (60 halvings, the earlier solver, kept here), on
    20,000 speeds with a sagging bus and inductance; the ratio is bisection / Illinois, and the
    largest difference between the two edges is printed;
-2. the whole comparison (:func:`hound_id.mor.compare.compare` with ``auto``) on a 100,000-row
+2. the whole comparison (:func:`hound_id.dyno.envelope.compare.compare` with ``auto``) on a 100,000-row
    log with a hidden 0.15 ohm pack, uniform and time-ordered (``simulate_trajectory``), against
    one evaluation of both edges at every row: the comparison costs this many envelope passes.
 
-3. the scoreboard of issue 13 on the independent dyno simulator of ``tests/mor/holdrig.py`` (speed
+3. the scoreboard of issue 13 on the independent dyno simulator of ``tests/dyno/envelope/holdrig.py`` (speed
    holds in random order, trapezoidal pulses to 1.2-2.2x the torque limit, a 300 Hz second-order
    transducer, one-loop-late command and current reply, AR(1) noise with mains hum, a winding that
    heats): each effect hidden in turn (and none), with and without ``torque_cmd``, over
@@ -80,9 +80,11 @@ def scoreboard(spec, seeds: int) -> list[dict]:
     """Issue 13's runs on the hold-protocol dyno (module docstring, 3)."""
     from rich.progress import Progress
 
-    from hound_id.mor.compare import EnvelopeLog, compare, comparison_json
+    from hound_id.dyno.envelope.compare import compare
+    from hound_id.dyno.envelope.report import comparison_json
+    from hound_id.dyno.logs import EnvelopeLog
     from hound_id.mor.envelope import EnvelopeInputs
-    from tests.mor.holdrig import Dyno, Hidden, run
+    from tests.dyno.envelope.holdrig import Dyno, Hidden, run
 
     cases = {
         "none": (Hidden(), None),
@@ -129,8 +131,10 @@ def main() -> None:
     parser.add_argument("--seeds", type=int, default=3, help="seeds of the hold-protocol scoreboard (0: skip it)")
     args = parser.parse_args()
 
-    from hound_id.mor.compare import EnvelopeLog, compare
-    from hound_id.mor.envelope import EnvelopeInputs, edge, envelope, simulate_log, simulate_trajectory
+    from hound_id.dyno.envelope.compare import compare
+    from hound_id.dyno.logs import EnvelopeLog
+    from hound_id.dyno.simulate.envelope import simulate_log, simulate_trajectory
+    from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
     from hound_id.mor.spec import load_motor_spec
 
     spec = load_motor_spec(ROOT / "data" / "samples" / "motors" / "hound_ilm85.yaml")
@@ -178,7 +182,7 @@ def main() -> None:
         print(f"compare --auto, 100,000 rows ({name}): {r['compare_s']:.1f} s = {r['ratio']:.0f} envelope passes "
               f"({r['envelope_pass_s'] * 1e3:.0f} ms each); R_pack = {r['r_pack']:.4f} ohm")  # fmt: skip
     if board:
-        print(f"\nhold protocol (tests/mor/holdrig.py), {report['hold_protocol_passed']} runs pass")
+        print(f"\nhold protocol (tests/dyno/envelope/holdrig.py), {report['hold_protocol_passed']} runs pass")
         print(
             "| seed | kHz | hidden | torque_cmd | added | fitted (error) | error spec -> final [N m] | noise [N m] "
             "| explained | lag [rows] | s |"

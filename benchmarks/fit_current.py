@@ -35,7 +35,7 @@ TARGET_S = 3.0
 
 
 def make_log(rows: int, path: Path) -> None:
-    from hound_id.dyno.simulate import TestPlan, simulate
+    from hound_id.dyno.simulate.current import TestPlan, simulate
 
     base = TestPlan()
     rate = 1000.0
@@ -54,10 +54,10 @@ def make_log(rows: int, path: Path) -> None:
 
 
 def worker(path: Path) -> dict[str, float]:
-    from hound_id.dyno.diagnose import diagnose
-    from hound_id.dyno.effects import Signals
-    from hound_id.dyno.fit import fit_model
-    from hound_id.dyno.log import load_log
+    from hound_id.dyno.current.diagnose import diagnose
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.fit import fit_model
+    from hound_id.dyno.logs import load_log
 
     def run() -> tuple[dict[str, float], object, object]:
         t0 = time.perf_counter()
@@ -96,7 +96,7 @@ def worker(path: Path) -> dict[str, float]:
     result = model.fit(torque, params, i=current)
     lm_s = time.perf_counter() - t0
     # the same model in hound-id, on all rows (lmfit has no held-out split): time the fit alone
-    from hound_id.dyno.fit import solve
+    from hound_id.dyno.current.fit import solve
 
     t0 = time.perf_counter()
     X = np.column_stack([current, -current * np.abs(current)])

@@ -62,9 +62,9 @@ def bare_rate(host: str, port: int, seconds: float) -> float:
 def recorder_rate(rig_mapping: dict, seconds: float, rate_hz: float, out: Path) -> tuple[float, int, int]:
     import pandas as pd
 
-    from hound_id.dyno.acquire import record
-    from hound_id.dyno.rig import rig_from_mapping
-    from hound_id.dyno.transport import RigReader
+    from hound_id.dyno.acquire.recorder import record
+    from hound_id.dyno.acquire.rig import rig_from_mapping
+    from hound_id.dyno.acquire.transport import RigReader
 
     rig = rig_from_mapping(rig_mapping, source="benchmark")
     with RigReader(rig) as reader:
@@ -309,7 +309,7 @@ def main() -> None:
 
     import yaml
 
-    from hound_id.dyno.acquire import RATE_LIMITS
+    from hound_id.dyno.acquire.recorder import RATE_LIMITS
 
     bare, ours, complete = [], [], True
     with tempfile.TemporaryDirectory() as tmp:

@@ -125,12 +125,12 @@ def step_fit_current(out: Path) -> StepResult:
     """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
     import yaml
 
-    from hound_id.dyno.diagnose import auto
-    from hound_id.dyno.effects import Signals
-    from hound_id.dyno.fit import fit_model
-    from hound_id.dyno.log import load_log
-    from hound_id.dyno.plot import plot_fit
-    from hound_id.dyno.report import fitted_motor, summarize
+    from hound_id.dyno.current.diagnose import auto
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.fit import fit_model
+    from hound_id.dyno.current.plot import plot_fit
+    from hound_id.dyno.current.report import fitted_motor, summarize
+    from hound_id.dyno.logs import load_log
 
     data = samples_dir() / "dyno" / "ilm85_dyno.csv"
     log = load_log(data, columns=DYNO_COLUMNS)
@@ -211,9 +211,11 @@ def step_compare(out: Path) -> StepResult:
     """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
     import yaml
 
-    from hound_id.mor.compare import compare, comparison_json, envelope_spec, load_envelope_log
+    from hound_id.dyno.envelope.compare import compare
+    from hound_id.dyno.envelope.plot import plot_compare
+    from hound_id.dyno.envelope.report import comparison_json, envelope_spec
+    from hound_id.dyno.logs import load_envelope_log
     from hound_id.mor.envelope import EnvelopeInputs
-    from hound_id.mor.plot import plot_compare
     from hound_id.mor.region import measured_region, operating_region
     from hound_id.mor.spec import load_motor_spec
 

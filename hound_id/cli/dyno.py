@@ -42,8 +42,8 @@ def fit_current(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/2)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
-    from hound_id.dyno.effects import Signals, load_effects_file, parse_model
-    from hound_id.dyno.log import load_log, parse_mapping, parse_window
+    from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model
+    from hound_id.dyno.logs import load_log, parse_mapping, parse_window
 
     sources = (data, spec, *(effects_file or []))
     check_output(plot, (".png",), "plot", inputs=sources)
@@ -75,7 +75,7 @@ def fit_current(
     torque = log.torque
     result = _run(signals, torque, tuple(names), auto=auto, robust=robust)
     fit, diagnosis, ladder, start = result
-    from hound_id.dyno.report import fitted_motor, summarize
+    from hound_id.dyno.current.report import fitted_motor, summarize
 
     peak, _, report = summarize(
         str(data),
@@ -89,7 +89,7 @@ def fit_current(
         time=signals.time if signals.timed else None,
     )
     warnings = _fit_warnings(report)
-    from hound_id.dyno.report import check_kt, spec_checks
+    from hound_id.dyno.current.report import check_kt, spec_checks
 
     check_kt(str(data), report["parameters"]["kt"]["value"], sheet, str(spec))
     if sheet is not None:
@@ -112,8 +112,8 @@ def fit_current(
             )
     report["warnings"] = warnings
     if plot is not None:
-        from hound_id.dyno.fit import fit_model
-        from hound_id.dyno.plot import plot_fit
+        from hound_id.dyno.current.fit import fit_model
+        from hound_id.dyno.current.plot import plot_fit
 
         order = fit.hypers.get("cogging_order") or next(
             (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.significant),
@@ -178,7 +178,7 @@ def _fit_warnings(report: dict) -> list[str]:  # type: ignore[type-arg]
 
 
 def _fit_or_none(signals, torque, model, robust):  # type: ignore[no-untyped-def]
-    from hound_id.dyno.fit import fit_model
+    from hound_id.dyno.current.fit import fit_model
 
     try:
         return fit_model(signals, torque, model, robust=robust)
@@ -189,9 +189,9 @@ def _fit_or_none(signals, torque, model, robust):  # type: ignore[no-untyped-def
 def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[no-untyped-def]
     from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.diagnose import auto as run_auto
-    from hound_id.dyno.diagnose import diagnose
-    from hound_id.dyno.fit import fit_model
+    from hound_id.dyno.current.diagnose import auto as run_auto
+    from hound_id.dyno.current.diagnose import diagnose
+    from hound_id.dyno.current.fit import fit_model
 
     with Progress(
         SpinnerColumn(),
@@ -276,7 +276,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
 
 def effects(json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/effects/1).")) -> None:
     """List the effects library: names, physics, parameters and units."""
-    from hound_id.dyno.effects import describe
+    from hound_id.dyno.current.effects import describe
 
     items = describe()
     if json_out:

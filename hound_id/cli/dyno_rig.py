@@ -53,9 +53,9 @@ def record_cmd(
     """
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.acquire import check_free, check_settings, record
-    from hound_id.dyno.rig import load_rig
-    from hound_id.dyno.transport import RigReader
+    from hound_id.dyno.acquire.recorder import check_free, check_settings, record
+    from hound_id.dyno.acquire.rig import load_rig
+    from hound_id.dyno.acquire.transport import RigReader
 
     check_output(out, (".csv",), "log")
     check_settings(rate, duration, flush)
@@ -137,8 +137,8 @@ def simulate_rig_cmd(
     import yaml
 
     from hound_id import io
-    from hound_id.dyno.rigsim import SimulatedRig, check_speedup
-    from hound_id.dyno.simulate import SimMotor, TestPlan
+    from hound_id.dyno.acquire.simulated_rig import SimulatedRig, check_speedup
+    from hound_id.dyno.simulate.current import SimMotor, TestPlan
     from hound_id.errors import DynoDataError
 
     check_output(rig_out, (".yaml", ".yml"), "rig")
@@ -158,7 +158,7 @@ def simulate_rig_cmd(
     # A polled rig samples at most about 1 kHz: the default plan's current edges take 10 ms, so they are resolved
     test_plan, motor = TestPlan(current_rise_time=0.01), SimMotor()
     if plan is not None:
-        from hound_id.dyno.plan import load_plan
+        from hound_id.dyno.acquire.plan import load_plan
 
         test_plan, max_current = load_plan(plan)
         motor = SimMotor(max_current=max_current)
@@ -207,7 +207,7 @@ def plan_cmd(
 
     The plan lasts at most an hour. The YAML and the --schedule table are written all or nothing.
     """
-    from hound_id.dyno.plan import make_plan, write_plan
+    from hound_id.dyno.acquire.plan import make_plan, write_plan
 
     check_output(out, (".yaml", ".yml"), "plan")
     check_output(schedule_out, (".csv", ".parquet"), "schedule")

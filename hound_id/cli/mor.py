@@ -68,9 +68,10 @@ def _mor_compare(
     json_out: bool,
     out: Path | None = None,
 ) -> None:
-    from hound_id.dyno.log import parse_mapping
-    from hound_id.mor.compare import compare, comparison_json, compensation_of, load_envelope_log
-    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.dyno.envelope.compare import compare
+    from hound_id.dyno.envelope.report import comparison_json
+    from hound_id.dyno.logs import load_envelope_log, parse_mapping
+    from hound_id.mor.envelope import EnvelopeInputs, compensation_of
     from hound_id.mor.spec import load_motor_spec
 
     check_output(plot, (".png",), "plot", inputs=(spec_path, log_path, robot_path))
@@ -97,7 +98,7 @@ def _mor_compare(
             "missing"
         )
     if plot is not None:
-        from hound_id.mor.plot import plot_compare
+        from hound_id.dyno.envelope.plot import plot_compare
 
         save_figure(plot_compare(result), plot)
     data["plot"] = str(plot) if plot else None
@@ -105,8 +106,8 @@ def _mor_compare(
     if out is not None:
         import yaml
 
+        from hound_id.dyno.envelope.report import envelope_spec
         from hound_id.io import write_text
-        from hound_id.mor.compare import envelope_spec
 
         write_text(out, yaml.safe_dump(envelope_spec(spec_path, out, result), sort_keys=False))
     if json_out:

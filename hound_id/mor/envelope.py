@@ -28,9 +28,9 @@ speed is an interval around the zero-voltage torque), vectorised over speeds.
 
 from __future__ import annotations
 
-import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -173,7 +173,7 @@ def bus_voltage(v0: float, r_x: Array | float, power: Array) -> Array:
     return np.asarray(np.where(disc >= 0.0, 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0))), -v0), dtype=float)
 
 
-def _current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
+def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
     linear = tau / inputs.spec.kt
     if scale == 0.0 or inputs.compensation is None:
         return linear
@@ -186,7 +186,7 @@ def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: Enve
     """Whether each (tau, omega) [N m, rad/s] satisfies every condition (module docstring)."""
     spec = inputs.spec
     p = _checked(params, inputs)
-    i = _current(tau, inputs, p.get("kt_saturation", 0.0))
+    i = motor_current(tau, inputs, p.get("kt_saturation", 0.0))
     resistance = spec.resistance * np.ones_like(omega)
     if "thermal_resistance" in p and inputs.temperature is not None:
         resistance = resistance * (1.0 + p["thermal_resistance"] * (inputs.temperature - T_SPEC))
@@ -270,12 +270,12 @@ def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
     i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
     scale = p.get("kt_saturation", 0.0)
     cap = np.array([spec.torque_limit])
-    if abs(_current(cap, inputs, scale)[0]) <= i_limit:
+    if abs(motor_current(cap, inputs, scale)[0]) <= i_limit:
         return spec.torque_limit
     lo, hi = np.array([0.0]), cap
     for _ in range(BISECTION_STEPS):
         mid = 0.5 * (lo + hi)
-        below = abs(_current(mid, inputs, scale)[0]) <= i_limit
+        below = abs(motor_current(mid, inputs, scale)[0]) <= i_limit
         lo, hi = (mid, hi) if below else (lo, mid)
     return float(lo[0])
 
@@ -294,7 +294,7 @@ def _voltage_margin(w: Array, p: Mapping[str, float], inputs: EnvelopeInputs):  
     def margin(tau: Array, idx: NDArray[np.int64] | None) -> Array:
         parts = (resistance, back_emf, quadrature)
         r, e, q = parts if idx is None else (x[idx] for x in parts)
-        i = _current(tau, inputs, scale)
+        i = motor_current(tau, inputs, scale)
         v_q = r * i + e
         power = v_q * i
         v_avail = bus_voltage(spec.bus_voltage, np.where(power > 0.0, sag, rise), power)
@@ -302,94 +302,6 @@ def _voltage_margin(w: Array, p: Mapping[str, float], inputs: EnvelopeInputs):  
         return np.asarray(v_avail - v_req)
 
     return margin
-
-
-def simulate_log(
-    inputs: EnvelopeInputs,
-    params: Mapping[str, float],
-    n: int = 20000,
-    noise: float = 0.02,
-    speed_fraction: float = 0.9,
-    seed: int = 0,
-    temperature_range: tuple[float, float] = (30.0, 90.0),
-) -> dict[str, Array]:
-    """A seeded log of a motor driven past its envelope with hidden effects (for tests and demos).
-
-    Speeds are uniform within ``speed_fraction`` of the no-load speed; commands are uniform over
-    1.5 x the torque limit; the realised torque is the command clipped to the true envelope plus
-    Gaussian sensor noise [N m]. Columns: velocity [rad/s], torque [N m], current [A],
-    temperature [degC] (a slow sweep over ``temperature_range``) and bus_voltage [V].
-    """
-    rng = np.random.default_rng(seed)
-    spec = inputs.spec
-    omega = rng.uniform(-speed_fraction, speed_fraction, n) * spec.bus_voltage * spec.kv
-    command = rng.uniform(-1.5, 1.5, n) * spec.torque_limit
-    return _realise(inputs, params, omega, command, noise * rng.standard_normal(n), temperature_range)
-
-
-def simulate_trajectory(
-    inputs: EnvelopeInputs,
-    params: Mapping[str, float],
-    n: int = 20000,
-    rate: float = 1000.0,
-    noise: float = 0.03,
-    correlation: float = 0.0,
-    speed_fraction: float = 0.95,
-    amplitude: float = 3.0,
-    period: float = 5.0,
-    band: float = 3.0,
-    seed: int = 0,
-    temperature_range: tuple[float, float] = (30.0, 90.0),
-) -> dict[str, Array]:
-    """A seeded time-ordered log, as a robot or a dyno sweep records it: the speed sweeps a triangle of ``period``
-    [s] to ``speed_fraction`` of the no-load speed, the torque command is a smooth random signal (40 sines of 0.05 to
-    ``band`` Hz) reaching ``amplitude`` x the torque limit, sampled at ``rate`` [Hz]. The realised torque is the command
-    clipped to the true envelope plus AR(1) sensor noise of standard deviation ``noise`` [N m] and lag-1
-    ``correlation`` (a filtered torque sensor). Columns as :func:`simulate_log`, plus time [s] and torque_cmd [N m].
-    """
-    rng = np.random.default_rng(seed)
-    spec = inputs.spec
-    t = np.arange(n) / rate
-    omega = speed_fraction * spec.bus_voltage * spec.kv * (2 / np.pi) * np.arcsin(np.sin(2 * np.pi * t / period))
-    command = np.zeros(n)
-    for _ in range(40):
-        command += np.sin(2 * np.pi * rng.uniform(0.05, band) * t + rng.uniform(0, 2 * np.pi))
-    command *= amplitude * spec.torque_limit / np.max(np.abs(command))
-    from scipy.signal import lfilter
-
-    white = rng.standard_normal(n) * math.sqrt(1 - correlation**2)
-    white[0] = rng.standard_normal()  # the stationary start
-    e = lfilter([1.0], [1.0, -correlation], white)  # AR(1): unit variance, lag-1 correlation as given
-    out = _realise(inputs, params, omega, command, noise * e, temperature_range)
-    return {"time": t, **out, "torque_cmd": command}
-
-
-def _realise(
-    inputs: EnvelopeInputs,
-    params: Mapping[str, float],
-    omega: Array,
-    command: Array,
-    sensor_noise: Array,
-    temperature_range: tuple[float, float],
-) -> dict[str, Array]:
-    """The log a motor with the hidden ``params`` records for commands at speeds (see :func:`simulate_log`)."""
-    spec = inputs.spec
-    n = omega.size
-    t_lo, t_hi = temperature_range
-    temperature = t_lo + (t_hi - t_lo) * 0.5 * (1 - np.cos(np.linspace(0, 2 * np.pi, n)))
-    truth = EnvelopeInputs(spec, temperature=temperature, compensation=inputs.compensation)
-    lo, hi = envelope(omega, params, truth)
-    tau = np.clip(command, lo, hi)
-    i = _current(tau, truth, params.get("kt_saturation", 0.0))
-    power = (spec.resistance * i + omega / spec.kv) * i
-    r_x = np.where(power > 0, params.get("bus_sag", 0.0), params.get("regen_rise", 0.0))
-    return {
-        "velocity": omega,
-        "torque": tau + sensor_noise,
-        "current": i,
-        "temperature": temperature,
-        "bus_voltage": bus_voltage(spec.bus_voltage, r_x, power),
-    }
 
 
 def effect_names(inputs: EnvelopeInputs) -> list[str]:
@@ -402,3 +314,53 @@ def effect_names(inputs: EnvelopeInputs) -> list[str]:
             continue
         names.append(name)
     return names
+
+
+#: Accuracy of the polyline boundary, as a share of the torque limit.
+POLYLINE_TOLERANCE = 0.002
+
+
+def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: float | None = None) -> dict[str, Any]:
+    """The model's edges as polylines over speed, refined until linear interpolation is within ``tolerance``
+    [N m] (default :data:`POLYLINE_TOLERANCE` x the torque limit) of the model at a quarter, half and three
+    quarters of every segment (``max_error`` is the largest miss found there).
+
+    Temperature-dependent effects are evaluated at the spec's reference temperature.
+    """
+    spec = inputs.spec
+    tol = tolerance if tolerance is not None else POLYLINE_TOLERANCE * spec.torque_limit
+    plain = {k: v for k, v in model.items() if "temperature" not in EFFECTS[k].requires}
+    ref = EnvelopeInputs(spec, compensation=inputs.compensation)
+    top = spec.bus_voltage * spec.kv
+    speeds = np.linspace(-top, top, 17)
+    for _ in range(14):  # split every segment whose interpolation misses the model at 1/4, 1/2 or 3/4 of it
+        lo, hi = envelope(speeds, plain, ref)
+        err = np.zeros(speeds.size - 1)
+        for f in (0.25, 0.5, 0.75):
+            probe = speeds[:-1] + f * np.diff(speeds)
+            plo, phi = envelope(probe, plain, ref)
+            miss = np.maximum(np.abs(hi[:-1] + f * np.diff(hi) - phi), np.abs(lo[:-1] + f * np.diff(lo) - plo))
+            err = np.maximum(err, np.nan_to_num(miss, nan=0.0))
+        bad = err > tol
+        if not bad.any():
+            break
+        speeds = np.sort(np.concatenate([speeds, (speeds[:-1] + 0.5 * np.diff(speeds))[bad]]))
+    else:  # refined to the limit: the edges of the last speeds
+        lo, hi = envelope(speeds, plain, ref)
+    return {
+        "speeds": speeds.tolist(),
+        "upper": hi.tolist(),
+        "lower": lo.tolist(),
+        "tolerance": tol,
+        "max_error": float(np.nanmax(err)) if err.size else 0.0,
+        "model": plain,
+        "units": "rad/s, N m (motor side)",
+    }
+
+
+def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]] | None:
+    """The current-compensation polynomial of a fitted spec (``fit-current --out``), if it has one."""
+    comp = (spec.fit or {}).get("compensation")
+    if not comp:
+        return None
+    return tuple(int(p) for p in comp["powers"]), tuple(float(c) for c in comp["coefficients"])

@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 
@@ -14,7 +14,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
 
-def _figure(rows: int, cols: int, size: tuple[float, float]) -> Figure:
+def new_figure(rows: int, cols: int, size: tuple[float, float]) -> Figure:
     import matplotlib
 
     matplotlib.use("Agg")
@@ -29,13 +29,13 @@ def _panels(n: int) -> Figure:
     """A grid of n small panels, three to a row, spare ones hidden."""
     cols = min(3, n)
     rows = -(-n // cols)
-    fig = _figure(rows, cols, (4.2 * cols, 3.4 * rows))
+    fig = new_figure(rows, cols, (4.2 * cols, 3.4 * rows))
     for ax in fig.axes[n:]:
         ax.set_visible(False)
     return fig
 
 
-def _style_panel(ax, title: str, side: str) -> None:  # type: ignore[no-untyped-def]
+def style_panel(ax, title: str, side: str) -> None:  # type: ignore[no-untyped-def]
     ax.axhline(0, color="0.5", lw=0.6)
     ax.axvline(0, color="0.5", lw=0.6)
     ax.set_title(title, fontsize=8)
@@ -63,7 +63,7 @@ def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -
     motoring quadrants (1 and 3) lie outside the region. With ``sheet`` (the region is a
     measured envelope) the spec sheet's region is drawn dashed.
     """
-    fig = _figure(1, 1, (7.5, 7.0))
+    fig = new_figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
     v = region.vertices
     label = "measured envelope (MOR)" if sheet is not None else "operating region (MOR)"
@@ -132,7 +132,7 @@ def plot_robot(regions: RobotRegions) -> Figure:
         _box(ax, jr.inner_box.effort, jr.inner_box.velocity, color="tab:green", ls=":", lw=1.6, label="inner box")
         tag = " (coupled)" if jr.coupled else ""
         title = f"{jr.joint}{tag}: inner {jr.inner_box.effort:.3g} N m / {jr.inner_box.velocity:.3g} rad/s"
-        _style_panel(ax, title, "joint")
+        style_panel(ax, title, "joint")
     fig.axes[0].legend(fontsize=6, loc="lower left")
     fig.suptitle(f"{regions.robot}: joint-space operating regions", fontsize=11)
     return fig
@@ -148,70 +148,7 @@ def plot_log_saturation(log: LogSaturation, regions: tuple[OperatingRegion, ...]
         ax.plot(*_closed(v).T, color="0.4", lw=1.0)
         ax.plot(log.motor_torque_cmd[:, i], log.motor_speed[:, i], color="tab:red", lw=0.9, label="command")
         ax.plot(log.motor_torque_sat[:, i], log.motor_speed[:, i], color="tab:blue", lw=1.1, ls="--", label="saturated")
-        _style_panel(ax, f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", "motor")
+        style_panel(ax, f"{log.motors[i]}: {clipped[:, i].mean():.0%} clipped", "motor")
     fig.axes[0].legend(fontsize=6, loc="lower left")
     fig.suptitle("torque commands against each motor's operating region", fontsize=11)
     return fig
-
-
-def plot_compare(comparison: Any) -> Figure:
-    """A measured log on the spec sheet's region (left) and the edge offsets per speed before and after
-    the added effects (right); see :mod:`hound_id.mor.compare`."""
-    from hound_id.mor.compare import outside_mask
-    from hound_id.mor.envelope import envelope
-
-    c = comparison
-    log, inputs = c.log, c.inputs
-    fig = _figure(1, 2, (12.5, 5.2))
-    ax, off = fig.axes
-    rng = np.random.default_rng(0)
-    show = rng.choice(log.n, size=min(log.n, 6000), replace=False)
-    ax.scatter(log.torque[show], log.velocity[show], s=2, color="0.7", label="log", rasterized=True)
-    walls = np.concatenate([*c.walls.upper, *c.walls.lower]) if c.walls.upper else np.array([], dtype=int)
-    if walls.size:
-        ax.scatter(log.torque[walls], log.velocity[walls], s=3, color="tab:blue", label="at the limit")
-    out = outside_mask(log, inputs, c.ladder[0].offsets.sample_noise)
-    if out.any():
-        ax.scatter(
-            log.torque[out], log.velocity[out], s=6, color="tab:red", label=f"outside the region ({out.mean():.1%})"
-        )
-    top = float(np.max(np.abs(log.velocity))) * 1.05
-    w = np.linspace(-top, top, 400)
-    lo, hi = envelope(w, {}, _reference(inputs))
-    ax.plot(hi, w, color="k", lw=1.5, label="spec sheet region")
-    ax.plot(lo, w, color="k", lw=1.5)
-    if c.final.model:
-        plain = {k: v for k, v in c.final.model.items() if k != "thermal_resistance"}
-        lo2, hi2 = envelope(w, plain, _reference(inputs))
-        label = "with " + " + ".join(c.final.model)
-        ax.plot(hi2, w, color="tab:orange", lw=1.5, ls="--", label=label)
-        ax.plot(lo2, w, color="tab:orange", lw=1.5, ls="--")
-    _style_panel(ax, f"{inputs.spec.name}: {log.source} ({log.side})", "motor")
-    ax.legend(fontsize=7, loc="center")  # the edges, where the region is wrong, stay clear
-    first = c.baseline if c.baseline is not None else c.ladder[0].offsets
-    last = c.final.offsets
-    series = [(first, "k", "spec sheet")] + ([(last, "tab:orange", "with added")] if c.final.model else [])
-    for offsets_, colour, name in series:
-        for side, marker in ((1, "^"), (-1, "v")):
-            sel = offsets_.side == side
-            edge = "upper" if side == 1 else "lower"
-            off.errorbar(
-                offsets_.speeds[sel], offsets_.offset[sel], yerr=3 * offsets_.se[sel], fmt=marker, ms=4,
-                color=colour, capsize=2, label=f"{name}, {edge} edge",
-            )  # fmt: skip
-    off.axhline(0, color="0.4", lw=0.8)
-    off.set_xlabel("motor speed [rad/s]", fontsize=8)
-    off.set_ylabel("edge offset: measured - model [N m] (+-3 SE)", fontsize=8)
-    off.set_title(
-        f"envelope error {first.rmse:.3g} -> {last.rmse:.3g} N m (noise level {last.noise:.2g} N m)", fontsize=8
-    )
-    off.tick_params(labelsize=7)
-    off.grid(alpha=0.3)
-    off.legend(fontsize=7)
-    return fig
-
-
-def _reference(inputs: Any) -> Any:
-    from hound_id.mor.envelope import EnvelopeInputs
-
-    return EnvelopeInputs(inputs.spec, compensation=inputs.compensation)

@@ -4,7 +4,7 @@ For each bad input the real entry point (``hound_id.cli.main``, in this process 
 exit 2 with exactly one line on stderr that names the file, field, row or option, print no
 traceback, and leave no file behind. The inputs that should be accepted give the right numbers.
 Commands that import user code or hold global state (effects files, the recorder) have their
-cases in subprocesses elsewhere (tests/cli/test_fit_cli.py, tests/dyno/test_acquire.py); a few
+cases in subprocesses elsewhere (tests/cli/test_fit_cli.py, tests/dyno/acquire/test_recorder.py); a few
 are repeated here through ``run_cli``.
 """
 

@@ -10,7 +10,7 @@ import pandas as pd
 import pytest
 import yaml
 
-from hound_id.dyno.plan import load_plan
+from hound_id.dyno.acquire.plan import load_plan
 from tests.cli.test_mor_cli import assert_one_line_error
 from tests.conftest import run_cli
 

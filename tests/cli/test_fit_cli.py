@@ -6,7 +6,7 @@ import pytest
 import yaml
 
 from hound_id.demo import DYNO_COLUMNS
-from hound_id.dyno.simulate import simulate
+from hound_id.dyno.simulate.current import simulate
 from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
 from tests.conftest import MOTOR, SAMPLES, run_cli
 
@@ -90,7 +90,7 @@ def test_user_effect_file(canonical_log, tmp_path):
     effects = tmp_path / "my_effects.py"
     effects.write_text(
         "import numpy as np\n"
-        "from hound_id.dyno.effects import Effect, Parameter, register\n"
+        "from hound_id.dyno.current.effects import Effect, Parameter, register\n"
         "register(Effect(name='slope_with_time', physics='a drift of the torque gain over the test',\n"
         "    parameters=(Parameter('k_time', 'N m/A/s'),), regressors=lambda s, h: s.current * s.time))\n"
     )
@@ -165,7 +165,7 @@ def test_logs_that_identify_nothing_are_refused(tmp_path):
 def test_a_user_effect_with_the_wrong_shape_is_one_line(canonical_log, tmp_path):
     effects = tmp_path / "bad_effect.py"
     effects.write_text(
-        "from hound_id.dyno.effects import Effect, Parameter, register\n"
+        "from hound_id.dyno.current.effects import Effect, Parameter, register\n"
         "register(Effect(name='two_params_user', physics='x',\n"
         "    parameters=(Parameter('a_user', 'N m'), Parameter('b_user', 'N m')), regressors=lambda s, h: s.current))\n"
     )
@@ -199,14 +199,14 @@ def test_effects_table_keeps_units():
 
 
 def _polled(tmp_path, name="rig.csv", **rig):
-    from tests.dyno.polledrig import Rig, Truth, run, write
+    from tests.dyno.acquire.polledrig import Rig, Truth, run, write
 
     rig.setdefault("truth", Truth(coulomb=0.25, k_sat=0.01))
     return write(run(Rig(**rig)), tmp_path / name)
 
 
 def test_a_kt_only_a_wrong_unit_or_side_explains_is_refused_and_nothing_is_written(tmp_path):
-    from tests.dyno.polledrig import COLUMNS
+    from tests.dyno.acquire.polledrig import COLUMNS
 
     log, out = _polled(tmp_path), tmp_path / "fitted.yaml"
     proc = run_cli("fit-current", str(log), "--columns", COLUMNS, "--auto", "--spec", str(MOTOR), "--out", str(out))
@@ -216,7 +216,7 @@ def test_a_kt_only_a_wrong_unit_or_side_explains_is_refused_and_nothing_is_writt
 
 
 def test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked(tmp_path):
-    from tests.dyno.polledrig import COLUMNS
+    from tests.dyno.acquire.polledrig import COLUMNS
 
     log, out = _polled(tmp_path), tmp_path / "fitted.yaml"
     sheet = tmp_path / "ak80.yaml"  # the actuator's own sheet, output side, Kt 1.35x off the fit
@@ -235,7 +235,7 @@ def test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked(tmp_pa
 
 
 def test_window_option_and_its_errors(tmp_path):
-    from tests.dyno.polledrig import COLUMNS
+    from tests.dyno.acquire.polledrig import COLUMNS
 
     log = _polled(tmp_path, motor_off_at=40.0)
     flagged = run_cli("fit-current", str(log), "--columns", COLUMNS, "--json")
@@ -256,13 +256,13 @@ def test_window_option_and_its_errors(tmp_path):
 
 
 def test_the_plot_drops_missing_channels_and_shows_the_blocks(tmp_path):
-    from hound_id.dyno.curve import peak_torque
-    from hound_id.dyno.diagnose import diagnose
-    from hound_id.dyno.effects import Signals
-    from hound_id.dyno.fit import fit_model
-    from hound_id.dyno.log import load_log, parse_mapping
-    from hound_id.dyno.plot import plot_fit
-    from tests.dyno.polledrig import COLUMNS
+    from hound_id.dyno.current.curve import peak_torque
+    from hound_id.dyno.current.diagnose import diagnose
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.fit import fit_model
+    from hound_id.dyno.current.plot import plot_fit
+    from hound_id.dyno.logs import load_log, parse_mapping
+    from tests.dyno.acquire.polledrig import COLUMNS
 
     path = _polled(tmp_path, motor_off_at=40.0)
     for columns, absent in (

@@ -93,7 +93,8 @@ def test_out_is_refused_when_the_model_does_not_explain_the_log(tmp_path):
 
     import numpy as np
 
-    from hound_id.mor.envelope import EnvelopeInputs, simulate_log
+    from hound_id.dyno.simulate.envelope import simulate_log
+    from hound_id.mor.envelope import EnvelopeInputs
     from hound_id.mor.spec import load_motor_spec
 
     spec = load_motor_spec(MOTOR)

@@ -3,9 +3,9 @@ from __future__ import annotations
 import dataclasses
 from functools import lru_cache
 
-from hound_id.dyno.effects import Signals
-from hound_id.dyno.log import log_from_frame
-from hound_id.dyno.simulate import SimMotor, TestPlan, simulate
+from hound_id.dyno.current.effects import Signals
+from hound_id.dyno.logs import log_from_frame
+from hound_id.dyno.simulate.current import SimMotor, TestPlan, simulate
 
 # Rigs differ across tests so the method does not hinge on one protocol: sample rate, motor size, sweep shape.
 RIGS = (

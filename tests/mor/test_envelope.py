@@ -3,8 +3,9 @@
 import numpy as np
 import pytest
 
+from hound_id.dyno.simulate.envelope import simulate_log
 from hound_id.errors import SpecError
-from hound_id.mor.envelope import COPPER_ALPHA, EFFECTS, EnvelopeInputs, effect_names, envelope, feasible, simulate_log
+from hound_id.mor.envelope import COPPER_ALPHA, EFFECTS, EnvelopeInputs, effect_names, envelope, feasible
 from hound_id.mor.region import operating_region, torque_interval
 from hound_id.mor.spec import load_motor_spec
 from tests.conftest import MOTOR, SMALL_MOTOR

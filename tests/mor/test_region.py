@@ -136,8 +136,7 @@ def write_envelope_spec(path, effects, motor=MOTOR):
     """A motor spec with a measured envelope (as ``mor --compare --out`` writes it) for hidden ``effects``."""
     import yaml
 
-    from hound_id.mor.compare import polyline
-    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.mor.envelope import EnvelopeInputs, polyline
 
     line = polyline(effects, EnvelopeInputs(load_motor_spec(motor)))
     envelope = {k: line[k] for k in ("speeds", "lower", "upper", "tolerance")}

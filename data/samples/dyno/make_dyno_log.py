@@ -1,6 +1,6 @@
 """Regenerate ilm85_dyno.csv: a simulated, deliberately dirty dynamometer log.
 
-Simulated with hound_id.dyno.simulate (seed 7, 500 Hz, the default test plan with 10 ms
+Simulated with hound_id.dyno.simulate.current (seed 7, 500 Hz, the default test plan with 10 ms
 current edges) on a Hound-like 85 mm motor with these effects hidden besides the
 quadratic saturation: offset, Coulomb friction, cogging (24 per revolution), thermal Kt
 drift and a 5 ms torque-channel delay. Then made to look like a real rig's export:
@@ -16,7 +16,7 @@ from pathlib import Path
 
 import numpy as np
 
-from hound_id.dyno.simulate import TestPlan, simulate
+from hound_id.dyno.simulate.current import TestPlan, simulate
 
 HERE = Path(__file__).resolve().parent
 EFFECTS = ("linear", "saturation", "offset", "coulomb", "cogging", "thermal", "delay")

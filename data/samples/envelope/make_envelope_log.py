@@ -2,7 +2,7 @@
 
 The file stands in for a robot or dyno log in which the motor was driven past its limits, for
 ``hound-id mor --spec ../motors/hound_ilm85.yaml --compare ilm85_sag_log.csv``. It is simulated
-(hound_id.mor.envelope.simulate_log), not recorded.
+(hound_id.dyno.simulate.envelope.simulate_log), not recorded.
 
 Sourced: the 20S2P Li-ion pack charged to 81 V (the paper). Assumed: the pack's internal
 resistance, 0.15 ohm (20 cells in series at about 15 mohm each, two strings in parallel,
@@ -30,7 +30,8 @@ SEED = 7
 
 
 def main(out_dir: Path = HERE) -> Path:
-    from hound_id.mor.envelope import EnvelopeInputs, simulate_log
+    from hound_id.dyno.simulate.envelope import simulate_log
+    from hound_id.mor.envelope import EnvelopeInputs
     from hound_id.mor.spec import load_motor_spec
 
     spec = load_motor_spec(HERE.parent / "motors" / "hound_ilm85.yaml")

@@ -1,0 +1,158 @@
+"""The current-torque curve of a fit: peak torque and the driver's current compensation.
+
+The curve is the sum of the model's shape terms (``linear`` and the saturation
+family) at rest, at 20 degC, without offset, friction, cogging or ripple.
+
+* Peak torque (paper, after RoboDrive): the torque where the curve falls 20 % below
+  the linear line Kt i.
+* Current compensation (paper, "Motor torque saturation"): the current a driver must
+  command for a wanted torque, i(tau), as an odd polynomial
+  i = c1 tau + c3 tau^3 + c5 tau^5 fitted over [0, tau_peak] (odd, so it serves
+  both signs).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+from numpy.typing import ArrayLike
+
+from hound_id.dyno.current.effects import Signals, get
+from hound_id.dyno.current.fit import Array, FitResult
+
+#: Relative deviation from the linear line that defines the peak torque.
+PEAK_DEVIATION = 0.20
+#: How far past the measured current the peak may be extrapolated before giving up.
+EXTRAPOLATION_LIMIT = 10.0
+
+
+def curve_torque(fit: FitResult, current: ArrayLike) -> Array:
+    """Torque of the fitted current-torque curve [N m] at the given currents [A]."""
+    i = np.atleast_1d(np.asarray(current, float))
+    s = Signals(time=np.zeros_like(i), current=i)
+    values = fit.values()
+    total = np.zeros_like(i)
+    for name in fit.model:
+        e = get(name)
+        if not e.shape:
+            continue
+        beta = np.array([values[p.name] for p in e.parameters])
+        total += e.columns(s, values) @ beta
+    return total
+
+
+@dataclass(frozen=True)
+class PeakTorque:
+    """Where the fitted curve deviates 20 % from linear."""
+
+    torque: float | None
+    """Peak torque [N m], None when the curve never deviates that much."""
+    current: float | None
+    """Current at the peak torque [A]."""
+    max_measured_current: float
+    """Largest |current| in the log [A]."""
+    extrapolated: bool
+    """Whether the peak lies beyond the measured current."""
+    note: str
+    """One sentence for the user."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "torque": self.torque,
+            "current": self.current,
+            "extrapolated": self.extrapolated,
+            "max_measured_current": self.max_measured_current,
+            "note": self.note,
+        }
+
+
+def peak_torque(
+    fit: FitResult,
+    max_measured_current: float,
+    deviation: float = PEAK_DEVIATION,
+    current_limit: float | None = None,
+) -> PeakTorque:
+    """Peak torque where (Kt i - tau(i)) / (Kt i) reaches ``deviation``.
+
+    Args:
+        current_limit: The driver's current limit seen in the log [A], if any: the advice then
+            says that this drive cannot test higher currents.
+    """
+    from scipy.optimize import brentq
+
+    kt = fit.value("kt")
+    if kt <= 0:
+        return PeakTorque(None, None, max_measured_current, False, "no positive Kt in the model")
+    top = EXTRAPOLATION_LIMIT * max_measured_current
+    grid = np.linspace(top / 4000, top, 4000)
+    dev = 1.0 - curve_torque(fit, grid) / (kt * grid)
+    above = np.flatnonzero(dev >= deviation)
+    if above.size == 0:
+        advice = (
+            f"the driver held the current at its limit of {current_limit:.3g} A, so this drive cannot test higher "
+            "current: raise the driver's current limit or test on a stronger driver"
+            if current_limit is not None
+            else "add a saturation effect or test at higher current"
+        )
+        return PeakTorque(
+            None,
+            None,
+            max_measured_current,
+            False,
+            f"the fitted curve stays within {deviation:.0%} of linear up to {top:.3g} A; {advice}",
+        )
+    k = int(above[0])
+    if k == 0:
+        i_peak = float(grid[0])
+    else:
+        i_peak = float(brentq(lambda x: 1.0 - curve_torque(fit, x)[0] / (kt * x) - deviation, grid[k - 1], grid[k]))
+    tau = float(curve_torque(fit, i_peak)[0])
+    extrapolated = i_peak > max_measured_current
+    note = f"peak torque {tau:.4g} N m at {i_peak:.4g} A, where the curve is {deviation:.0%} below Kt i" + (
+        f" (extrapolated beyond the measured currents, |i| <= {max_measured_current:.3g} A)" if extrapolated else ""
+    )
+    return PeakTorque(tau, i_peak, max_measured_current, extrapolated, note)
+
+
+@dataclass(frozen=True)
+class Compensation:
+    """Current needed for a wanted torque: i = sum c_k tau^k over odd k."""
+
+    powers: tuple[int, ...]
+    """Odd powers of torque."""
+    coefficients: tuple[float, ...]
+    """c_k [A / (N m)^k], in the order of ``powers``."""
+    torque_range: float
+    """Fitted over |tau| <= this [N m]."""
+    max_error: float
+    """Largest current error of the polynomial over the range [A]."""
+
+    def current(self, torque: Array) -> Array:
+        """Current [A] the driver should command for a torque [N m]."""
+        tau = np.asarray(torque, float)
+        return sum(c * tau**p for p, c in zip(self.powers, self.coefficients, strict=True))  # type: ignore[return-value]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "powers": list(self.powers),
+            "coefficients": list(self.coefficients),
+            "torque_range": self.torque_range,
+            "max_error": self.max_error,
+            "units": "current [A] = sum c_k * torque[N m]^k",
+        }
+
+
+def compensation(fit: FitResult, current_range: float, degree: int = 5) -> Compensation:
+    """Fit the inverse curve i(tau) over currents 0..current_range [A] (up to the peak torque's current)."""
+    i = np.linspace(0.0, current_range, 400)
+    tau = curve_torque(fit, i)
+    powers = tuple(range(1, degree + 1, 2))
+    A = np.column_stack([tau**p for p in powers])
+    scale = np.max(np.abs(A), axis=0)
+    scale[scale == 0] = 1.0
+    coef, *_ = np.linalg.lstsq(A / scale, i, rcond=None)
+    coef = coef / scale
+    err = float(np.max(np.abs(A @ coef - i)))
+    return Compensation(powers, tuple(float(c) for c in coef), float(np.max(np.abs(tau))), err)

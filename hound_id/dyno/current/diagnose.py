@@ -1,0 +1,546 @@
+"""Diagnosis: which physical effect is the model missing, and is the residual down to noise?
+
+For the current fit, every registered effect not yet in the model (whose channels the
+log has) is added in turn; its nonlinear parameter is searched on the log. Each
+candidate is first checked: the log must be able to tell its parameters from the
+model's (:func:`hound_id.dyno.current.fit.identifiability`), and it must fit with physically
+possible values (a candidate that explains the residual only with, say, Coulomb
+friction below zero is reported as such and never added). It is then scored by
+blocked cross-validation (every fold of time blocks held out once) and tested with a
+Wald test on cluster-robust standard errors (the time blocks are the clusters, so
+correlated residuals do not fake significance). The p-value is Bonferroni-corrected
+for the values its search tried and for the number of candidates.
+
+A candidate is **significant** when the corrected p-value is below ``alpha`` and it is
+**material**: it lowers the cross-validated mean-square error by at least
+:data:`MATERIAL` of the noise variance (an effect whose RMS is a fifth of the noise
+or more), so a model at the noise floor is not grown for a 0.03 % gain.
+
+The noise floor is estimated from the residual itself: for white measurement noise of
+standard deviation sigma, second differences in time have variance 6 sigma^2, while
+effects that are smooth at the sample rate nearly cancel; the median absolute
+deviation keeps steps and spikes from inflating it.
+
+The verdict compares blocks too: a block whose held-out error is several times the
+others' and its own noise (a motor switched off, a current running away, a change of
+regime) is flagged with its rows and times, and a log with such blocks is never "at
+the noise floor". So is a fold whose fit is much worse on its training rows than on
+the rows it holds out.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Sequence
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+from hound_id.dyno.current.effects import REGISTRY, Signals, get, requirements_missing
+from hound_id.dyno.current.fit import (
+    Array,
+    Design,
+    FitResult,
+    Stats,
+    agreeing_half,
+    bounds_of,
+    cross_validate,
+    fit_model,
+    identifiability,
+    parameters_of,
+    robust_cov,
+    search_hyper,
+    solve_bounded,
+    solve_normal,
+)
+from hound_id.errors import DynoDataError, FitError
+
+#: Significance level after the multiple-comparison corrections.
+ALPHA = 0.01
+#: A held-out RMSE within this factor of the noise floor counts as at the floor.
+FLOOR_FACTOR = 1.2
+#: A candidate must lower the cross-validated mean-square error by this fraction of the noise variance.
+MATERIAL = 0.05
+#: A block disagrees when its held-out RMSE exceeds this many times both the median block's and its own noise.
+BLOCK_FACTOR = 3.0
+#: Kt whose standard error exceeds this fraction of its value is not determined by the log.
+KT_UNDETERMINED = 1.0 / 3.0
+#: Residuals beyond this many noise-floor sigmas count as outliers in the summary.
+OUTLIER_SIGMAS = 8.0
+#: Effective number of values an order search scans (the residual's angular spectrum bins).
+ORDER_TRIALS = 511
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """An effect not in the model, scored by cross-validation."""
+
+    effect: str
+    """Effect name."""
+    explained: float
+    """Fraction of the cross-validated residual sum of squares the effect removes (negative: it makes it worse)."""
+    significant: bool
+    """Whether it is physically possible, material, and the corrected Wald test rejects 'no effect'."""
+    p_value: float
+    """Corrected p-value (Bonferroni over search values and candidates); NaN when not tested."""
+    rmse_test: float
+    """Cross-validated RMSE with the effect added [N m] (NaN when not fitted)."""
+    reason: str
+    """The evidence in one sentence."""
+    hypers: dict[str, float] = field(default_factory=dict)
+    """Nonlinear parameter values with the effect added (e.g. the cogging order found)."""
+    physical: bool = True
+    """False when the effect fits only with a value outside its physical bounds."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "effect": self.effect,
+            "explained": self.explained,
+            "significant": self.significant,
+            "physical": self.physical,
+            "p_value": None if math.isnan(self.p_value) else self.p_value,
+            "rmse_test": None if math.isnan(self.rmse_test) else self.rmse_test,
+            "reason": self.reason,
+        }
+
+
+@dataclass(frozen=True)
+class Diagnosis:
+    """What the residual of a fit says."""
+
+    model: tuple[str, ...]
+    """The diagnosed model."""
+    rmse_test: float
+    """Its cross-validated RMSE [N m]."""
+    noise_floor: float
+    """Estimated measurement noise (standard deviation) [N m]."""
+    at_noise_floor: bool
+    """Held-out RMSE within FLOOR_FACTOR of the floor, no significant effect, and no disagreeing block."""
+    suggestions: tuple[Suggestion, ...]
+    """Candidates, significant first, then the most residual explained."""
+    skipped: tuple[str, ...] = ()
+    """Effects not tried, with the reason (missing channel, not identifiable on this log)."""
+    outliers: str | None = None
+    """A sentence when a few far-off rows carry most of the residual."""
+    flags: tuple[str, ...] = ()
+    """Blocks of the log that disagree with the rest, and train/held-out mismatches."""
+    block_floor: Array = field(default_factory=lambda: np.empty(0))
+    """Noise floor of each time block [N m]."""
+    disagreeing: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=bool))
+    """Blocks whose error under the model fitted to the agreeing half of the blocks is BLOCK_FACTOR times both
+    the typical agreeing block's and their own noise."""
+    block_agreeing: Array = field(default_factory=lambda: np.empty(0))
+    """Each block's RMSE under the model fitted to the agreeing half of the blocks [N m]."""
+
+    @property
+    def best(self) -> Suggestion | None:
+        """The significant suggestion that explains most, if any."""
+        sig = [s for s in self.suggestions if s.significant]
+        return sig[0] if sig else None
+
+    def summary(self) -> str:
+        """One sentence on where the model stands."""
+        ratio = self.rmse_test / self.noise_floor if self.noise_floor > 0 else math.inf
+        if self.at_noise_floor:
+            return (
+                f"the cross-validated residual ({self.rmse_test:.3g} N m) is at the noise floor "
+                f"({self.noise_floor:.3g} N m); no missing effect is significant"
+            )
+        if self.best is not None:
+            head = (
+                f"cross-validated residual {self.rmse_test:.3g} N m is {ratio:.2g}x the noise floor "
+                f"({self.noise_floor:.3g} N m); add '{self.best.effect}': {self.best.reason}"
+            )
+            return f"{head}; also: {self.flags[0]}" if self.flags else head
+        if self.outliers:
+            return f"no candidate effect is significant, but {self.outliers}"
+        if self.flags:
+            return f"part of the log does not follow any model tried: {self.flags[0]}"
+        if ratio <= FLOOR_FACTOR:
+            return f"no candidate effect is significant and material; {self.rmse_test:.3g} N m is at the noise floor"
+        head = (
+            f"no candidate effect is significant, but the cross-validated residual is {ratio:.2g}x the noise floor "
+            f"({self.noise_floor:.3g} N m)"
+        )
+        if self.skipped:
+            return f"{head}; not tried: {'; '.join(self.skipped)}"
+        return f"{head}: something outside the library is missing"
+
+
+def noise_floor(residual: Array) -> float:
+    """Standard deviation of white measurement noise in a residual series [N m] (see module docstring)."""
+    r = np.asarray(residual, float)
+    if r.size < 10:
+        return float("nan")
+    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
+    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+
+
+def _trials(name: str) -> int:
+    e = get(name)
+    if not e.hypers:
+        return 1
+    h = e.hypers[0]
+    if h.integer:
+        return ORDER_TRIALS
+    return 30  # grid points plus bounded refinement evaluations (upper bound)
+
+
+def candidates_for(model: Sequence[str], signals: Signals) -> tuple[list[str], list[str]]:
+    """Effects to try (not in the model, channels present) and those skipped with the reason."""
+    tried, skipped = [], []
+    for name, effect in REGISTRY.items():
+        if name in model:
+            continue
+        missing = requirements_missing(effect, signals)
+        if missing == ["time"]:
+            skipped.append(f"{name} (a steady-state table has no sample times)")
+            continue
+        if missing:
+            skipped.append(f"{name} (no {', '.join(missing)} channel)")
+            continue
+        tried.append(name)
+    return tried, skipped
+
+
+@dataclass(frozen=True)
+class _Trial:
+    """A candidate added to the fitted model: what the diagnosis needs of it."""
+
+    values: dict[str, float]
+    hypers: dict[str, float]
+    cv_sse: float
+    wald: float
+    """Wald statistic divided by the candidate's parameter count (F-distributed)."""
+    q: int
+    tried: int
+    unphysical: str | None = None
+    wald_free: float = 0.0
+    """Wald statistic of the candidate fitted without bounds (to tell 'unphysical' from 'nothing there')."""
+
+
+def _wald(stats: Stats, cols: list[int], beta: Array, active: np.ndarray, which: list[int]) -> float:
+    cov = robust_cov(stats, cols, beta, ~active)
+    idx = [k for k in which if not active[k]]
+    if not idx:
+        return 0.0
+    V = cov[np.ix_(idx, idx)]
+    b = beta[idx]
+    _, V_inv = solve_normal(V, np.zeros(len(idx)))
+    return float(b @ V_inv @ b) / len(idx)
+
+
+def _trial(
+    name: str, fit: FitResult, design: Design, shifted: Signals, Z: Array, stats: Stats, residual_search: Array
+) -> _Trial | str:
+    """Add one effect to the fitted model, reusing the model's per-block sums; a string says why not."""
+    effect = get(name)
+    model = [m for m in fit.model if m != "delay"]
+    hypers = dict(fit.hypers)
+    tried = 1
+    rows = design.search
+    if effect.hypers:
+        base = Z[rows, 1:]
+        found, tried = search_hyper(effect, base, design.torque[rows], shifted.take(rows), residual_search, hypers)
+        hypers.update(found)
+    C = effect.columns(shifted, hypers)
+    ext = Stats.extended(stats, Z, C, design.torque)
+    p, q = Z.shape[1] - 1, C.shape[1]
+    cols = list(range(1, p + q + 1))
+    names = [par.name for _, par in parameters_of([*model, name])]
+    problems = [
+        u for u in identifiability(ext, cols, names, design.signals) if {u.parameter, u.partner} & set(names[p:])
+    ]
+    if problems:
+        return problems[0].sentence()
+    lower, upper = bounds_of([*model, name])
+    G, g, _ = ext.total(cols)
+    free, _ = solve_normal(G, g)
+    bad = [
+        (par, float(v))
+        for (_, par), v in zip(parameters_of([*model, name]), free, strict=True)
+        if par.outside(float(v)) is not None and (par.name in names[p:] or par.name == "kt")
+    ]
+    beta, active = solve_bounded(G, g, lower, upper)
+    values = dict(zip(names, (float(b) for b in beta), strict=True))
+    values.update(hypers)
+    unphysical = None
+    if bad:
+        par, v = bad[0]
+        unphysical = (
+            f"fits only with {par.outside(v)} ({par.name} = {v:.3g} {par.unit}; {par.bound_reason}): not physical, "
+            "not added"
+        )
+    cv = cross_validate(ext, ext, cols, lower, upper)
+    which = list(range(p, p + q))
+    wald = _wald(ext, cols, beta, active, which)
+    wald_free = _wald(ext, cols, free, np.zeros(p + q, dtype=bool), which) if bad else wald
+    return _Trial(values, hypers, cv.sse, wald, q, tried, unphysical, wald_free)
+
+
+def _delay_trial(signals: Signals, torque: Array, fit: FitResult) -> _Trial | str:
+    try:
+        trial = fit_model(signals, torque, (*fit.model, "delay"), robust=fit.robust, hypers=fit.hypers)
+    except (FitError, DynoDataError) as err:
+        return str(err)
+    est = trial.parameters["delay"]
+    if not est.stderr > 0:
+        return "the delay has no defined standard error on this log"
+    z2 = (est.value / est.stderr) ** 2
+    return _Trial(trial.values(), dict(trial.hypers), trial.rmse_test**2 * trial.n_test, z2, 1, 1)
+
+
+def diagnose(
+    signals: Signals, torque: Array, fit: FitResult, *, candidates: Sequence[str] | None = None, alpha: float = ALPHA
+) -> Diagnosis:
+    """Rank the effects missing from ``fit`` by cross-validated residual explained, with significance."""
+    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
+
+    names, skipped = candidates_for(fit.model, signals)
+    if candidates is not None:
+        names = [c for c in candidates if c in names]
+    design = Design(signals, torque)
+    n = design.torque.size
+    shifted = signals.shifted(fit.hypers.get("delay", 0.0))
+    X = design.columns([m for m in fit.model if m != "delay"], fit.hypers, shifted)
+    Z = design.with_ones(X)
+    stats = Stats(Z, design.torque, design.blocks)
+    cols = list(range(1, Z.shape[1]))
+    lower, upper = bounds_of(fit.model)
+    base_sse = cross_validate(stats, stats, cols, lower, upper).sse
+    residual_search = np.asarray(fit.residual)[design.search]
+    floor = noise_floor(fit.residual)
+    clusters = design.blocks.count
+
+    suggestions = []
+    for name in names:
+        try:
+            if name == "delay":
+                trial = _delay_trial(signals, torque, fit)
+            else:
+                trial = _trial(name, fit, design, shifted, Z, stats, residual_search)
+        except FitError as err:
+            trial = str(err)
+        if isinstance(trial, str):
+            skipped.append(f"{name} ({trial})")
+            continue
+        explained = (base_sse - trial.cv_sse) / base_sse if base_sse > 0 else 0.0
+        gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
+        material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2)
+        p = float(fdtrc(trial.q, max(clusters - 1, 1), trial.wald))
+        p_adj = min(1.0, p * _trials(name) * max(len(names), 1))
+        rmse = math.sqrt(trial.cv_sse / n)
+        effect = get(name)
+        p_free = min(1.0, float(fdtrc(trial.q, max(clusters - 1, 1), trial.wald_free)) * _trials(name) * len(names))
+        unphysical = trial.unphysical if p_free < alpha else None
+        significant = bool(trial.unphysical is None and p_adj < alpha and material)
+        if unphysical is not None:
+            reason = unphysical
+        elif significant:
+            reason = effect.evidence(trial.values, signals) if effect.evidence is not None else "it fits"
+            reason += f" (explains {explained:.1%} of the cross-validated residual, p = {p_adj:.2g})"
+        elif p_adj < alpha and gain > 0:
+            reason = (
+                f"real (p = {p_adj:.2g}) but immaterial: it lowers the cross-validated mean-square error by "
+                f"{gain / floor**2:.1%} of the noise variance, less than {MATERIAL:.0%}"
+            )
+        elif p_adj < alpha:
+            reason = (
+                f"fits the log better (p = {p_adj:.2g}) but raises the cross-validated error by "
+                f"{-explained:.2%}: not kept"
+            )
+        else:
+            reason = f"explains {explained:.2%} of the cross-validated residual; not significant (p = {p_adj:.2g})"
+        suggestions.append(
+            Suggestion(name, float(explained), significant, p_adj, rmse, reason, trial.hypers, unphysical is None)
+        )
+    suggestions.sort(key=lambda s: (-s.significant, -s.physical, -s.explained))
+    block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
+    agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
+    disagreeing = _disagreeing(agreeing, floor, block_floor)
+    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals))
+    at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
+    return Diagnosis(
+        fit.model,
+        fit.rmse_test,
+        floor,
+        at_floor,
+        tuple(suggestions),
+        tuple(skipped),
+        _outliers(fit, floor, signals),
+        flags,
+        block_floor,
+        disagreeing,
+        agreeing.rmse,
+    )
+
+
+def _span(signals: Signals, start: int, stop: int) -> str:
+    if signals.timed:
+        return f"t = {signals.time[start]:.4g}-{signals.time[stop - 1]:.4g} s"
+    # a steady-state table's time is its 0-based data row
+    return f"data rows {int(signals.time[start]) + 1}-{int(signals.time[stop - 1]) + 1}"
+
+
+def _window(signals: Signals, start: int, stop: int) -> str:
+    """The --window option that keeps rows start..stop-1."""
+    if signals.timed:
+        return f"--window {signals.time[start]:.4g}:{signals.time[stop - 1]:.4g}"
+    return f"--window {int(signals.time[start]) + 1}:{int(signals.time[stop - 1]) + 1}"
+
+
+@dataclass(frozen=True)
+class _Agreeing:
+    """The blocks judged against a fit to the half of them that agrees (:func:`.fit.agreeing_half`).
+
+    A motor switched off for a third of the log pulls a fit to all blocks towards it, so that no block stands
+    out against the median; a fit to the agreeing half does not (robust to breakage in up to half the log).
+    """
+
+    good: np.ndarray
+    """The agreeing half."""
+    beta: Array
+    """The coefficients of the fit to it (the model's columns)."""
+    rmse: Array
+    """Every block's RMSE under that fit [N m]."""
+
+    @property
+    def typical(self) -> float:
+        """The median block's RMSE under that fit (a good block's while fewer than half disagree)."""
+        return float(np.median(self.rmse))
+
+
+def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
+    """(start, stop) of the runs of True in a boolean array."""
+    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
+    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
+
+
+def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.ndarray:
+    r = agreeing.rmse
+    own = np.where(np.isfinite(block_floor), np.maximum(block_floor, floor), floor)
+    return (r > BLOCK_FACTOR * agreeing.typical) & (r > BLOCK_FACTOR * own)  # type: ignore[no-any-return]
+
+
+def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, signals: Signals) -> list[str]:
+    """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out."""
+    r = agreeing.rmse
+    edges = fit.blocks.edges
+    ref = agreeing.typical
+    out = []
+    k = 0
+    while k < bad.size:
+        if not bad[k]:
+            k += 1
+            continue
+        j = k
+        while j + 1 < bad.size and bad[j + 1]:
+            j += 1
+        worst = float(r[k : j + 1].max())
+        out.append(
+            f"blocks {k + 1}-{j + 1} of {bad.size} ({_span(signals, int(edges[k]), int(edges[j + 1]))}) disagree with "
+            f"the rest: RMSE up to {worst:.3g} N m under the model fitted to the agreeing half of the blocks, against "
+            f"{ref:.3g} N m for the median block; the log changes there (a motor switched off, a current running away, "
+            "another regime) or an effect acting only there is missing"
+        )
+        k = j + 1
+    if out:
+        # a block next to a disagreeing one may hold the start of the change: leave it out of the advice
+        margin = ~bad & ~np.concatenate(([False], bad[:-1])) & ~np.concatenate((bad[1:], [False]))
+        good_runs = _runs_of(margin) or _runs_of(~bad)
+        if good_runs:
+            a, b = max(good_runs, key=lambda ab: int(edges[ab[1]] - edges[ab[0]]))
+            names = [par.name for _, par in parameters_of(fit.model)]
+            kt_note = ""
+            if "kt" in names:
+                kt_note = f"fitted to the agreeing blocks alone, Kt = {agreeing.beta[names.index('kt')]:.4g} N m/A; "
+            out.append(
+                f"{kt_note}to fit the longest agreeing stretch ({_span(signals, int(edges[a]), int(edges[b]))}) "
+                f"alone, pass {_window(signals, int(edges[a]), int(edges[b]))}"
+            )
+    kt = fit.parameters.get("kt")
+    if kt is not None and not kt.stderr <= KT_UNDETERMINED * abs(kt.value):
+        out.insert(
+            0,
+            f"Kt = {kt.value:.4g} +- {kt.stderr:.2g} N m/A is not determined by this log (its standard error is more "
+            f"than {KT_UNDETERMINED:.0%} of it): the torque hardly follows the current; record a current sweep "
+            "against a torque sensor that is loaded",
+        )
+    train, test = np.asarray(fit.fold_rmse_train), np.asarray(fit.fold_rmse_test)
+    ratio = train / np.maximum(test, 1e-300)
+    worst_fold = int(np.argmax(ratio))
+    if ratio[worst_fold] > BLOCK_FACTOR and train[worst_fold] > BLOCK_FACTOR * floor:
+        out.append(
+            f"the fit without fold {worst_fold + 1} of {train.size} is {ratio[worst_fold]:.3g}x worse on its own "
+            f"training rows ({train[worst_fold]:.3g} N m) than on the fold it holds out ({test[worst_fold]:.3g} N m): "
+            "the rows outside that fold do not follow the model"
+        )
+    return out
+
+
+def _outliers(fit: FitResult, floor: float, signals: Signals) -> str | None:
+    """A sentence when a few rows far outside the noise carry most of the residual, else None."""
+    r = np.asarray(fit.residual)
+    far = np.abs(r) > OUTLIER_SIGMAS * floor
+    total = float(r @ r)
+    if not far.any() or total <= 0 or far.mean() > 0.01:
+        return None
+    share = float(r[far] @ r[far]) / total
+    if share < 0.5:
+        return None
+    k = int(np.argmax(np.abs(r)))
+    where = f"t = {signals.time[k]:.4g} s" if signals.timed else f"row {k}"
+    return (
+        f"{int(far.sum())} rows ({far.mean():.2%}) lie more than {OUTLIER_SIGMAS:g}x the noise floor from the "
+        f"model and carry {share:.0%} of the residual (largest {r[k]:+.3g} N m at {where}): "
+        "inspect them (glitches longer than 2 samples are kept as data)"
+    )
+
+
+@dataclass(frozen=True)
+class Step:
+    """One rung of the ``--auto`` ladder."""
+
+    model: tuple[str, ...]
+    """Model at this step."""
+    added: str | None
+    """Effect added to reach it (None for the start)."""
+    fit: FitResult
+    """Its fit."""
+    diagnosis: Diagnosis
+    """Its diagnosis."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "model": list(self.model),
+            "added": self.added,
+            "rmse_train": self.fit.rmse_train,
+            "rmse_test": self.fit.rmse_test,
+            "at_noise_floor": self.diagnosis.at_noise_floor,
+            "aic": self.fit.aic,
+            "bic": self.fit.bic,
+        }
+
+
+def auto(
+    signals: Signals, torque: Array, start: FitResult, *, max_steps: int = 10, alpha: float = ALPHA, on_step: Any = None
+) -> list[Step]:
+    """Add the most explaining significant (physical, material) effect until none is left; the ladder of fits.
+
+    The ladder stops at the noise floor: there no candidate is material by construction of the rule.
+    """
+    fit = start
+    ladder = []
+    added: str | None = None
+    for _ in range(max_steps + 1):
+        diagnosis = diagnose(signals, torque, fit, alpha=alpha)
+        ladder.append(Step(fit.model, added, fit, diagnosis))
+        if on_step is not None:
+            on_step(ladder[-1])
+        best = diagnosis.best
+        if best is None or diagnosis.at_noise_floor:
+            break
+        added = best.effect
+        fit = fit_model(signals, torque, (*fit.model, best.effect), robust=fit.robust)
+    return ladder

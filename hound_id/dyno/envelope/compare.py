@@ -1,0 +1,366 @@
+"""``hound-id mor --compare``: the add-an-effect ladder over envelope models.
+
+**What is missing.** Each candidate effect of :mod:`hound_id.mor.envelope` is fitted on top of
+the model (bounded scalar search of its parameter, the model's parameters refitted with it) and
+ranked by the share of the envelope error's sum of squares it explains. It is significant when
+the partial F statistic (SSE0 - SSE1) / (SSE1 / (bins - 1)) beats F(1, bins - 1) at 1 % divided
+by the number of candidates (Bonferroni), and when the envelope error falls by at least the
+noise level (an effect too small to matter is not suggested). ``--add`` and ``--auto`` grow the
+model as in ``fit-current``; :func:`unneeded` names the effects the final model can drop.
+
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.dyno.envelope.evidence import bus_evidence, contradicts, current_evidence
+from hound_id.dyno.envelope.offsets import Offsets, isolated_bins, offsets, outside_stats, past_edges
+from hound_id.dyno.envelope.walls import Walls, find_walls, inputs_for
+from hound_id.dyno.logs import EnvelopeLog
+from hound_id.errors import DynoDataError, SpecError
+from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names
+
+Array = NDArray[np.float64]
+
+#: Family-wise false-alarm rate of the significance tests.
+ALPHA = 0.01
+
+#: The model explains the envelope when its error is at most this many noise levels ...
+EXPLAINED = 3.0
+
+#: ... and (for the spec sheet itself) at most this share of the samples lies past its edges.
+OUTSIDE_OK = 0.005
+
+#: A candidate is refuted when more than OUTSIDE_OK of the samples pass its edges by this share of the torque limit.
+REFUTE = 0.05
+
+#: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
+IMPLAUSIBLE = 2.0
+
+
+@dataclass(frozen=True)
+class Suggestion:
+    """A candidate effect tried on top of the model."""
+
+    effect: str
+    value: float
+    """Fitted parameter [the effect's unit]."""
+    unit: str
+    explained: float
+    """Share of the envelope error's sum of squares it removes [0-1]."""
+    rmse: float
+    """Envelope error with it [N m]."""
+    f_statistic: float
+    p_value: float
+    significant: bool
+    reason: str
+    supported: bool = False
+    """A logged channel confirms it (the bus voltage for ``bus_sag``); such a suggestion ranks first."""
+    refit: Mapping[str, float] = field(default_factory=dict)
+    """The model's own parameters refitted together with this effect (a wrong earlier effect falls back here)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        out = {k: getattr(self, k) for k in self.__dataclass_fields__}
+        out["refit"] = dict(self.refit)
+        return out
+
+
+def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
+    """The search interval of an effect's parameter (a current limit: up to the spec's own)."""
+    lo_b, hi_b = EFFECTS[name].bounds
+    if not math.isfinite(hi_b):
+        hi_b = (inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt) * 1.0001
+        lo_b = 0.05 * hi_b
+    return lo_b, hi_b
+
+
+def _at_bound(name: str, value: float, inputs: EnvelopeInputs) -> bool:
+    """Whether a fitted parameter sits at a bound of its search (not identified), other than its neutral value."""
+    lo_b, hi_b = _bounds(name, inputs)
+    near = min(abs(value - lo_b), abs(hi_b - value)) < 1e-3 * (hi_b - lo_b)
+    return bool(near and value != EFFECTS[name].neutral)
+
+
+def _fit_one(
+    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], name: str, inputs: EnvelopeInputs
+) -> tuple[float, float, bool]:
+    """(fitted parameter, sum of squares, whether it sits at a bound of the search), the others held."""
+    from scipy.optimize import minimize_scalar
+
+    lo_b, hi_b = _bounds(name, inputs)
+    res = minimize_scalar(
+        lambda v: offsets(log, walls, {**model, name: float(v)}, inputs).sse,
+        bounds=(lo_b, hi_b),
+        method="bounded",
+        options={"xatol": (hi_b - lo_b) * 1e-5},
+    )
+    return float(res.x), float(res.fun), _at_bound(name, float(res.x), inputs)
+
+
+def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> list[Suggestion]:
+    """Every candidate effect fitted on top of ``model``, best first (module docstring)."""
+    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
+
+    base = offsets(log, walls, model, inputs)
+    n = base.offset.size
+    if n < 3:
+        raise SpecError(
+            f"{log.source}: only {n} speed bins show the motor at its limits (method: {walls.method}); the log does "
+            "not push the motor to its envelope, so there is nothing to compare. Log commands past the limits, or "
+            "add a torque_cmd column"
+        )
+    names = [c for c in effect_names(inputs_for(log, inputs, np.arange(log.n))) if c not in model]
+    excess0 = np.nan_to_num(past_edges(log, inputs, base.sample_noise, model)[0], nan=0.0)
+    spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.torque_limit))
+    out = []
+    for name in names:
+        value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
+        refit = dict(model)
+        if model:
+            # Refit the model's own parameters with the candidate in, from two starts: the candidate on top of the
+            # model, and the candidate alone (the model's effects then refitted): an effect added wrongly must not
+            # hide the right one.
+            alone = _fit_one(log, walls, {}, name, inputs)[0]
+            for start in ({**model, name: value}, {**model, name: alone}):
+                joint = _refit(log, walls, start, inputs, all_params=True, lead=name)
+                sse_joint = offsets(log, walls, joint, inputs).sse
+                if sse_joint < sse1:
+                    value, sse1 = joint.pop(name), sse_joint
+                    refit = joint
+                    at_bound = _at_bound(name, value, inputs)
+        dof = max(n - 1, 1)
+        f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
+        p = float(fdtrc(1, dof, f_stat))
+        effect = EFFECTS[name]
+        # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
+        # compromises between two effects passes its samples by a little)
+        excess = past_edges(log, inputs, base.sample_noise, {**refit, name: value})[0]
+        spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.torque_limit))
+        refuted = spill > max(OUTSIDE_OK, 2 * spill0)
+        moved = ", ".join(
+            f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
+            for k, v in refit.items()
+            if abs(v - model[k]) > 1e-3 * max(abs(model[k]), 1e-12)
+        )
+        out.append(
+            Suggestion(
+                effect=name,
+                value=value,
+                unit=effect.unit,
+                explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
+                rmse=math.sqrt(sse1 / n),
+                f_statistic=float(f_stat),
+                p_value=p,
+                # statistically and practically: the F-test, and an error that falls by at least the noise level
+                significant=bool(p < ALPHA / max(len(names), 1))
+                and not at_bound
+                and not refuted
+                and base.rmse - math.sqrt(sse1 / n) >= base.noise,
+                reason=(
+                    f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
+                    f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
+                    + (f" ({moved})" if moved else "")
+                    + (
+                        f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
+                        "its edges; the log makes torque it forbids)"
+                        if refuted
+                        else ""
+                    )
+                    + (" (at the bound of its search: not identified)" if at_bound else "")
+                ),
+                refit=refit,
+            )
+        )
+    # Logged channels settle what the envelope alone cannot: a sagging bus, inductance and a saturating core all
+    # shorten the motoring edge at speed; the bus voltage and the current say which it is.
+    for named, evidence in (("bus_sag", bus_evidence(log, inputs)), ("kt_saturation", current_evidence(log, inputs))):
+        if evidence is None:
+            continue
+        for k, sug in enumerate(out):
+            if named == "bus_sag" and sug.effect == named and contradicts(sug.value, evidence):
+                # the logged bus is the direct measurement: a sag it does not show is another effect's shortfall
+                out[k] = replace(
+                    sug,
+                    significant=False,
+                    reason=sug.reason + f"; contradicted: {evidence['text']}, not {sug.value:.3g} ohm",
+                )
+            elif sug.effect == named and sug.explained > 0.5:
+                out[k] = replace(sug, reason=sug.reason + f"; {evidence['text']}", supported=evidence["significant"])
+    out.sort(key=lambda s: (-int(s.supported and s.significant), -s.explained))
+    return out
+
+
+@dataclass(frozen=True)
+class Step:
+    """One rung of the ladder: the model, its offsets and the suggestions on top of it."""
+
+    model: dict[str, float]
+    added: str | None
+    offsets: Offsets
+    suggestions: tuple[Suggestion, ...]
+    refound: bool = False
+    """Whether the walls were found again against this model (and every parameter refitted on them)."""
+
+
+@dataclass(frozen=True)
+class Comparison:
+    """Everything ``hound-id mor --compare`` found."""
+
+    log: EnvelopeLog
+    inputs: EnvelopeInputs
+    walls: Walls
+    """The samples at the limit, found against the final model's edges."""
+    ladder: tuple[Step, ...]
+    outside: dict[str, Any] = field(default_factory=dict)
+    baseline: Offsets | None = None
+    """The spec sheet's offsets on the final walls (the fair 'before' of the final model)."""
+    unneeded: tuple[dict[str, Any], ...] = ()
+    """Effects of the final model the log does not need once the others are in (:func:`unneeded`)."""
+    isolated: tuple[dict[str, Any], ...] = ()
+    """Single bins left out as chance walls (:func:`isolated_bins`): speed, edge, offset, se."""
+    outside_final: float = 0.0
+    """Share of the samples past the final model's edges (as :func:`outside_stats` counts them)."""
+
+    @property
+    def final(self) -> Step:
+        return self.ladder[-1]
+
+
+def compare(
+    log: EnvelopeLog, inputs: EnvelopeInputs, add: Sequence[str] = (), auto: bool = False, max_steps: int = 4
+) -> Comparison:
+    """Compare a log with the spec's region; add the named effects, or with ``auto`` the best significant one
+    until none is left (at most ``max_steps``)."""
+    for name in add:
+        if name not in EFFECTS:
+            raise SpecError(f"--add: unknown effect {name!r}; effects are {', '.join(EFFECTS)}")
+    _plausible(log, inputs)
+    walls = find_walls(log, inputs)
+    model: dict[str, float] = {}
+    base = offsets(log, walls, model, inputs)
+    ladder = [Step(dict(model), None, base, tuple(suggest(log, walls, model, inputs)))]
+    queue = list(add)
+    while queue or auto:
+        if queue:
+            name = queue.pop(0)
+            if name not in {s.effect for s in ladder[-1].suggestions}:
+                raise SpecError(
+                    f"--add {name}: not testable on this log (it needs {', '.join(EFFECTS[name].requires) or 'nothing'}"
+                    " that is missing, or is already in the model)"
+                )
+        else:
+            best = [s for s in ladder[-1].suggestions if s.significant]
+            if not best or len(ladder) > max_steps:
+                break
+            name = best[0].effect
+        chosen = next(s for s in ladder[-1].suggestions if s.effect == name)
+        model = {**model, **chosen.refit, name: chosen.value}
+        # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
+        again = find_walls(log, inputs, model, commanded=walls.commanded)
+        refound = _bins(again) >= _bins(walls)
+        if refound:
+            walls = again
+            model = _refit(log, walls, model, inputs, all_params=True)
+        step_offsets = offsets(log, walls, model, inputs)
+        ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs)), refound))
+    walls, isolated = isolated_bins(walls, offsets(log, walls, model, inputs), inputs.spec.back_emf_damping)
+    if isolated:  # the last rung on the walls that are left
+        last = ladder[-1]
+        ladder[-1] = replace(last, offsets=offsets(log, walls, model, inputs))
+    baseline = offsets(log, walls, {}, inputs)
+    return Comparison(
+        log,
+        inputs,
+        walls,
+        tuple(ladder),
+        outside_stats(log, inputs, base.sample_noise),
+        baseline=baseline,
+        unneeded=tuple(unneeded(log, walls, model, inputs)),
+        isolated=tuple(isolated),
+        outside_final=float(past_edges(log, inputs, base.sample_noise, model)[2].mean()),
+    )
+
+
+def unneeded(
+    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs
+) -> list[dict[str, Any]]:
+    """The model's effects the log does not need once the others are in: each dropped in turn, the rest refitted;
+    needed only if the drop is significant (partial F-test at :data:`ALPHA` / effects) and raises the envelope
+    error by at least the noise level, as for adding one. Empty for models of fewer than two effects."""
+    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
+
+    if len(model) < 2:
+        return []
+    full = offsets(log, walls, model, inputs)
+    n, dof = full.offset.size, max(full.offset.size - len(model), 1)
+    out = []
+    for name in model:
+        rest = _refit(log, walls, {k: v for k, v in model.items() if k != name}, inputs, all_params=True)
+        without = offsets(log, walls, rest, inputs)
+        f_stat = max(without.sse - full.sse, 0.0) / max(full.sse / dof, 1e-30)
+        p = float(fdtrc(1, dof, f_stat))
+        if p < ALPHA / len(model) and without.rmse - full.rmse >= full.noise:
+            continue
+        others = ", ".join(f"{k} = {v:.4g} {EFFECTS[k].unit}" for k, v in rest.items())
+        out.append(
+            {
+                "effect": name,
+                "value": model[name],
+                "rmse_without": without.rmse,
+                "p_value": p,
+                "reason": f"without it (and {others} refitted) the envelope error is {without.rmse:.3g} N m against "
+                f"{full.rmse:.3g} N m with it over {n} bins (p = {p:.2g}): the log does not need it",
+            }
+        )
+    return out
+
+
+def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
+    """Refuse a log whose torque or speed the motor cannot have made: most samples of a log lie inside the region,
+    so a 99th percentile past :data:`IMPLAUSIBLE` x the torque limit or the overspeed is a unit mistake."""
+    from hound_id.mor.region import operating_region
+
+    spec = inputs.spec
+    overspeed = operating_region(spec).overspeed
+    for name, values, limit, unit, units in (
+        ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", 100.0), ("mN*m", 1000.0))),
+        ("velocity", log.velocity, overspeed, "rad/s", (("rpm", 30.0 / math.pi), ("deg/s", 180.0 / math.pi))),
+    ):
+        p99 = float(np.quantile(np.abs(values), 0.99))
+        if p99 > IMPLAUSIBLE * limit:
+            fits = [u for u, factor in units if p99 / factor <= 1.2 * limit]  # the smallest unit that makes sense
+            hint = f"--units {name}={fits[0]}" if fits else "--units " + " or ".join(f"{name}={u}" for u, _ in units)
+            raise DynoDataError(
+                f"{log.source}: {name} reaches {p99:.4g} {unit} (99th percentile), over {IMPLAUSIBLE:g}x what "
+                f"{spec.name} can ({limit:.4g} {unit}); check its unit: a [unit] in the header or {hint}"
+            )
+
+
+def _bins(walls: Walls) -> int:
+    return sum(w.size > 0 for w in walls.upper) + sum(w.size > 0 for w in walls.lower)
+
+
+def _refit(
+    log: EnvelopeLog,
+    walls: Walls,
+    model: Mapping[str, float],
+    inputs: EnvelopeInputs,
+    all_params: bool = False,
+    lead: str | None = None,
+) -> dict[str, float]:
+    """One coordinate-descent sweep over the model's parameters, each refitted with the others fixed (``lead``,
+    if given, is held first and refitted last)."""
+    fitted = dict(model)
+    if len(fitted) > 1 or all_params:
+        order = [k for k in fitted if k != lead] + ([lead] if lead in fitted else [])
+        for name in order:
+            others = {k: v for k, v in fitted.items() if k != name}
+            fitted[name] = _fit_one(log, walls, others, name, inputs)[0]
+    return fitted

@@ -1,0 +1,75 @@
+"""Logged channels that settle what the envelope alone cannot: the bus voltage (a sagging pack) and the current
+(a saturating core)."""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.dyno.logs import EnvelopeLog
+from hound_id.mor.envelope import EnvelopeInputs
+
+Array = NDArray[np.float64]
+
+#: A fitted pack resistance this many standard errors (and a third of itself) above the one the logged bus voltage
+#: shows is contradicted by it.
+EVIDENCE_SIGMAS = 5.0
+
+
+def contradicts(value: float, evidence: Mapping[str, Any]) -> bool:
+    """Whether a fitted pack resistance is ruled out by the logged bus voltage's own: more than
+    :data:`EVIDENCE_SIGMAS` standard errors and a third of the fitted value above it."""
+    return bool(value - evidence["r_pack"] > max(EVIDENCE_SIGMAS * evidence["se"], value / 3))
+
+
+def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
+    """Whether the logged current grows faster than tau / Kt at high torque (a saturating core): the slope of
+    Kt i - tau against tau^3, with its standard error; None without a current channel."""
+    if log.current is None:
+        return None
+    x = log.torque**3
+    slope, se = _leading(np.column_stack([x, log.torque, np.ones_like(x)]), inputs.spec.kt * log.current - log.torque)
+    significant = slope > 5 * se
+    return {
+        "slope": slope,
+        "se": se,
+        "significant": significant,
+        "text": f"the logged current exceeds tau/Kt by {slope:.3g} +- {se:.2g} A/Kt per (N m)^3"
+        + ("" if significant else " (not significant)"),
+    }
+
+
+def _leading(A: Array, y: Array) -> tuple[float, float]:
+    """Least squares y ~ A c: the first coefficient and its standard error."""
+    coef, *_ = np.linalg.lstsq(A, y, rcond=None)
+    resid = y - A @ coef
+    cov = np.linalg.pinv(A.T @ A) * float(np.sum(resid**2)) / max(y.size - A.shape[1], 1)
+    return float(coef[0]), math.sqrt(max(float(cov[0, 0]), 0.0))
+
+
+def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
+    """The pack resistance the logged bus voltage shows: V_nominal - V_bus against the bus current P / V_bus
+    of motoring samples (P = (R i + omega/Kv) i, i from the current channel or tau / Kt); None without the channel.
+    """
+    if log.bus_voltage is None:
+        return None
+    spec = inputs.spec
+    i = log.current if log.current is not None else log.torque / spec.kt
+    power = (spec.resistance * i + log.velocity / spec.kv) * i
+    motoring = power > 0.05 * float(np.max(np.abs(power)))
+    if motoring.sum() < 20:
+        return None
+    x = power[motoring] / np.maximum(log.bus_voltage[motoring], 1e-3 * spec.bus_voltage)  # the bus current
+    r_pack, se = _leading(np.column_stack([x, np.ones_like(x)]), spec.bus_voltage - log.bus_voltage[motoring])
+    significant = r_pack > 5 * se and r_pack > 1e-3
+    return {
+        "r_pack": r_pack,
+        "se": se,
+        "significant": significant,
+        "text": f"the logged bus voltage falls {r_pack:.3g} +- {se:.2g} ohm x bus current while motoring"
+        + ("" if significant else " (not significant)"),
+    }

@@ -1,0 +1,176 @@
+"""Edge offsets: how far the samples at the limit sit from a model's edges, and where a log leaves the region.
+
+**Edge offsets.** For a model (the spec sheet plus effects with parameters), a bin's edge
+offset is the mean margin of its cluster against that model [N m], with its standard error
+(widened by sqrt((1 + rho)/(1 - rho)) for the lag-1 autocorrelation rho of consecutive samples).
+The *envelope error* is the RMS of the offsets over all wall bins, upper and lower; the *noise
+level* is the RMS of their standard errors. A bin whose offset is below -3 SE falls short of
+the model; above +3 SE the log spills over it. :func:`verdict` says whether the model explains
+the log, and flags bins off it and an inflated noise level.
+"""
+
+from __future__ import annotations
+
+import math
+from collections.abc import Mapping
+from dataclasses import dataclass, replace
+from typing import Any
+
+import numpy as np
+from numpy.typing import NDArray
+
+from hound_id.dyno.envelope.walls import Walls, inputs_for
+from hound_id.dyno.logs import EnvelopeLog
+from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
+
+Array = NDArray[np.float64]
+
+#: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall.
+ISOLATED = 5.0
+
+
+@dataclass(frozen=True)
+class Offsets:
+    """Edge offsets of the wall bins against one model [N m]."""
+
+    speeds: Array
+    """Speed of each wall bin (its samples' mean) [rad/s]."""
+    side: NDArray[np.int8]
+    """+1 upper edge, -1 lower edge."""
+    offset: Array
+    """Mean margin of the bin's wall samples against the model (positive: past the model) [N m]."""
+    se: Array
+    """Standard error of the offset [N m]."""
+    spread: Array
+    """Standard deviation of the bin's wall margins: the torque noise at the limit [N m]."""
+
+    @property
+    def sample_noise(self) -> float:
+        """Typical torque noise of one sample at the limit [N m] (median over the bins)."""
+        return float(np.median(self.spread)) if self.spread.size else 0.0
+
+    @property
+    def rmse(self) -> float:
+        return float(np.sqrt(np.mean(self.offset**2)))
+
+    @property
+    def noise(self) -> float:
+        return float(np.sqrt(np.mean(self.se**2)))
+
+    @property
+    def sse(self) -> float:
+        return float(np.sum(self.offset**2))
+
+
+def offsets(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> Offsets:
+    """Edge offsets of every wall bin against ``model`` (effect -> parameter)."""
+    groups = [(s, i) for s, side in ((1, walls.upper), (-1, walls.lower)) for i in side if i.size]
+    if not groups:
+        return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
+    margin = []
+    for s in (1, -1):  # each edge only where it is needed: positive margins lie past the model's edge
+        idx = np.concatenate([i for side, i in groups if side == s] or [np.array([], dtype=np.int64)])
+        if idx.size:
+            limit = edge(log.velocity[idx], s, model, inputs_for(log, inputs, idx))
+            margin.append(s * (log.torque[idx] - limit))
+    m = np.concatenate(margin)
+    ordered = [g for s in (1, -1) for g in groups if g[0] == s]
+    sizes = np.array([i.size for _, i in ordered])
+    gid = np.repeat(np.arange(sizes.size), sizes)
+    bad = np.bincount(gid, weights=~np.isfinite(m), minlength=sizes.size) > 0
+    m = np.where(np.isfinite(m), m, 0.0)
+    mean = np.bincount(gid, weights=m) / sizes
+    spread = np.sqrt(np.maximum(np.bincount(gid, weights=(m - mean[gid]) ** 2) / sizes, 0.0))
+    speeds = np.bincount(gid, weights=log.velocity[np.concatenate([i for _, i in ordered])]) / sizes
+    side = np.array([s for s, _ in ordered], dtype=np.int8)
+    off = np.where(bad, -inputs.spec.torque_limit, mean)
+    # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
+    se = spread / np.sqrt(sizes) * math.sqrt((1 + walls.rho) / (1 - walls.rho))
+    return Offsets(speeds, side, off, se, spread)
+
+
+def past_edges(
+    log: EnvelopeLog, inputs: EnvelopeInputs, noise: float, model: Mapping[str, float] | None = None
+) -> tuple[Array, float, NDArray[np.bool_]]:
+    """(how far each sample passes the edges of ``model`` (default the spec sheet) [N m], the threshold, the
+    samples past it)."""
+    lo, hi = envelope(log.velocity, dict(model or {}), inputs_for(log, inputs, np.arange(log.n)))
+    thr = max(4 * noise, 0.005 * inputs.spec.torque_limit)
+    excess = np.maximum(log.torque - hi, lo - log.torque)
+    return excess, thr, np.asarray(np.isfinite(excess) & (excess > thr))
+
+
+def outside_mask(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> NDArray[np.bool_]:
+    """Samples past the spec sheet's region by more than the threshold of :func:`outside_stats`."""
+    return past_edges(log, inputs, noise)[2]
+
+
+def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dict[str, Any]:
+    """Where the log leaves the spec sheet's region: share of samples, how far, which quadrant and speeds.
+
+    A sample is outside when it passes an edge by more than 4 x the torque noise of one sample at
+    the limit (and 0.5 % of the torque limit). Quadrants: I motoring forward (tau > 0, omega > 0), II braking (tau > 0,
+    omega < 0), III motoring backward, IV braking (tau < 0, omega > 0).
+    """
+    excess, thr, out = past_edges(log, inputs, noise)
+    t, w = log.torque[out], log.velocity[out]
+    quadrant = np.where(t >= 0, np.where(w >= 0, "I", "II"), np.where(w < 0, "III", "IV"))
+    return {
+        "fraction": float(out.mean()),
+        "samples": int(out.sum()),
+        "threshold": thr,
+        "max_excess": float(excess[out].max()) if out.any() else 0.0,
+        "p95_excess": float(np.quantile(excess[out], 0.95)) if out.any() else 0.0,
+        "by_quadrant": {q: int(np.sum(quadrant == q)) for q in ("I", "II", "III", "IV")},
+        "speed_range": [float(np.abs(w).min()), float(np.abs(w).max())] if out.any() else None,
+    }
+
+
+def coverage(off: Offsets) -> dict[str, list[float] | None]:
+    """Motor speeds [rad/s] the bins at the limit span, per edge: where the data say anything."""
+    out: dict[str, list[float] | None] = {}
+    for side, name in ((1, "upper"), (-1, "lower")):
+        w = off.speeds[off.side == side]
+        out[name] = [float(w.min()), float(w.max())] if w.size else None
+    return out
+
+
+def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list[dict[str, Any]]]:
+    """Without a command channel, leave out single bins far off the final model whose neighbours agree with it:
+    passes that happened to line up into a wall (a real departure spans a range of speeds). A bin is isolated when
+    its offset exceeds :data:`ISOLATED` x the torque noise of one sample at the limit and the nearest bin on each
+    side of the same edge lies within 3 standard errors of the model. The last bin of an edge (effects show at the
+    ends of the speed range) is isolated only if it also jumps from its neighbour by more than an edge can change
+    between their speeds, twice the back-EMF slope ``slope`` [N m s/rad] (plus 5 standard errors)."""
+    if walls.method != "wall" or off.offset.size < 3:
+        return walls, []
+    noise = off.sample_noise
+    sides = {1: list(walls.upper), -1: list(walls.lower)}
+    bins = {s: [b for b, i in enumerate(sides[s]) if i.size] for s in sides}  # offsets run over these, by edge
+    position = {s: 0 for s in sides}
+    found, drop = [], []
+    for k in range(off.offset.size):  # offsets run over upper bins, then lower ones, each by speed
+        s = int(off.side[k])
+        b = bins[s][position[s]]
+        position[s] += 1
+        if abs(off.offset[k]) <= ISOLATED * noise:
+            continue
+        near = [j for j in range(off.offset.size) if off.side[j] == s and j != k]
+        left, right = [j for j in near if j < k], [j for j in near if j > k]
+        if left and right:
+            isolated = all(abs(off.offset[j]) <= 3 * off.se[j] for j in (left[-1], right[0]))
+        elif left or right:  # an end bin: only a jump no edge can make between neighbouring speeds
+            j = left[-1] if left else right[0]
+            jump = abs(off.offset[k] - off.offset[j])
+            bound = 2 * slope * abs(off.speeds[k] - off.speeds[j]) + 5 * math.hypot(off.se[k], off.se[j])
+            isolated = abs(off.offset[j]) <= 3 * off.se[j] and jump > bound
+        else:
+            isolated = False
+        if isolated:
+            drop.append((s, b))
+            found.append({"speed": float(off.speeds[k]), "edge": "upper" if s == 1 else "lower",
+                          "offset": float(off.offset[k]), "se": float(off.se[k])})  # fmt: skip
+    empty = np.array([], dtype=np.int64)
+    for s, b in drop:
+        sides[s][b] = empty
+    return replace(walls, upper=tuple(sides[1]), lower=tuple(sides[-1])), found

@@ -1,0 +1,181 @@
+"""A polled actuator test rig with the artefacts of real ones, written for the tests.
+
+It shares no code with :mod:`hound_id.dyno.simulate.current` (whose rig streams every channel at one
+instant, with white noise) so that a method tuned to one simulator is checked on another. It
+follows the public actuator logs described in ``physics-notes.md``:
+
+* a host loop polls the drive at 100-200 Hz with a jittered period; the drive's current reply
+  describes the previous loop (``current_late``), so the current lags the torque by one loop;
+* the torque transducer is a second-order (Butterworth) low-pass, and its noise is AR(1);
+* the current reply is quantised, encoded in a fixed range (clamped, or wrapped around);
+* the driver limits the current while the command keeps rising;
+* the drive may be switched off midway (its last reply repeats while the torque falls to the
+  friction), or the current reading may run away while the torque does not follow;
+* an opposing motor imposes the speed, by default through all four quadrants; the regimes that
+  cannot identify a parameter (one quadrant, one speed sign, one constant current) are options;
+* the CSV may have a title line, a units row, ``, `` separators, a trailing constant field and
+  columns in ms, mA or N.mm, with or without a units row saying so.
+
+The truth (:class:`Truth`) is the model the fit should recover: measured torque =
+kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w, with the transducer's filter and lag.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+import pandas as pd
+
+FINE_HZ = 4000.0  # physics grid [Hz]
+
+
+@dataclass(frozen=True)
+class Truth:
+    kt: float = 1.15  # N m/A, output side (an AK80-9-like actuator)
+    k_sat: float = 0.0  # N m/A^2
+    coulomb: float = 0.25  # N m
+    gear_friction: float = 0.0  # N m/A
+    viscous: float = 0.0  # N m s/rad
+
+
+@dataclass(frozen=True)
+class Rig:
+    truth: Truth = Truth()
+    seconds: float = 60.0
+    rate_hz: float = 150.0
+    jitter: float = 0.15  # share of the loop period
+    current_amplitude: float = 10.0  # A
+    speed_amplitude: float = 3.0  # rad/s
+    quadrants: str = "all"  # "all", "motoring" (current and speed both >= 0), "one_speed_sign"
+    constant_current: float | None = None  # A: one held current instead of a sweep
+    current_loop_tau: float = 0.0015  # s
+    torque_filter_hz: float = 80.0  # transducer bandwidth
+    torque_noise: float = 0.03  # N m
+    torque_noise_rho: float = 0.85  # AR(1) correlation per loop
+    current_noise: float = 0.02  # A
+    current_quantum: float = 0.01  # A
+    current_late: bool = True
+    current_clamp: float | None = None  # A: the reply's encoding range
+    wrap_period: float | None = None  # A: the reply wraps around
+    driver_limit: float | None = None  # A
+    motor_off_at: float | None = None  # s
+    runaway_from: float | None = None  # s
+    runaway_rate: float = 1.5  # A/s
+    seed: int = 0
+
+
+def _butter2(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
+    from scipy.signal import butter, lfilter
+
+    b, a = butter(2, cutoff / (rate / 2))
+    return lfilter(b, a, x - x[0]) + x[0]
+
+
+def run(rig: Rig) -> pd.DataFrame:
+    """Columns loop_time [s], iq_meas [A], iq_cmd [A], torque_adc [N m], speed [rad/s]."""
+    rng = np.random.default_rng(rig.seed)
+    t = np.arange(0.0, rig.seconds, 1.0 / FINE_HZ)
+    # the command: a slow sweep with a varying envelope plus square steps (steps make the lags visible)
+    sweep = np.sin(2 * np.pi * 0.13 * t) * (0.6 + 0.4 * np.sin(2 * np.pi * 0.021 * t + 1.0))
+    steps = 0.25 * np.sign(np.sin(2 * np.pi * 0.7 * t + 0.3))
+    command = rig.current_amplitude * np.clip(sweep + steps, -1.0, 1.0)
+    speed = rig.speed_amplitude * np.sin(2 * np.pi * 0.17 * t + 0.5)
+    if rig.quadrants == "motoring":
+        command, speed = np.abs(command) + 0.5, np.abs(speed) + 0.3
+    elif rig.quadrants == "one_speed_sign":
+        speed = np.abs(speed) + 0.3
+    if rig.constant_current is not None:
+        command = np.full_like(t, rig.constant_current)
+    if rig.driver_limit is not None:
+        # the command asks for more than the driver gives
+        command = command * 1.6
+    # the current loop follows the command (first order), within the driver's limit
+    alpha = 1.0 - np.exp(-1.0 / (FINE_HZ * rig.current_loop_tau))
+    from scipy.signal import lfilter
+
+    current = lfilter([alpha], [1.0, alpha - 1.0], command - command[0]) + command[0]
+    if rig.driver_limit is not None:
+        current = np.clip(current, -rig.driver_limit, rig.driver_limit)
+    off = np.zeros_like(t, dtype=bool) if rig.motor_off_at is None else t >= rig.motor_off_at
+    current = np.where(off, 0.0, current)
+    tr = rig.truth
+    sgn = np.tanh(speed / 0.02)
+    torque = (
+        tr.kt * current
+        - tr.k_sat * current * np.abs(current)
+        - sgn * (tr.coulomb + tr.gear_friction * np.abs(current))
+        - tr.viscous * speed
+    )
+    sensed = _butter2(torque, rig.torque_filter_hz, FINE_HZ)
+
+    # the host loop: jittered polls
+    period = 1.0 / rig.rate_hz
+    polls = np.cumsum(period * (1.0 + rig.jitter * rng.uniform(-1, 1, int(rig.seconds * rig.rate_hz))))
+    polls = polls[polls < t[-1]]
+    k = np.searchsorted(t, polls)
+    n = k.size
+    ar = np.empty(n)
+    e = rng.normal(0.0, rig.torque_noise * np.sqrt(1 - rig.torque_noise_rho**2), n)
+    ar[0] = rng.normal(0.0, rig.torque_noise)
+    for j in range(1, n):
+        ar[j] = rig.torque_noise_rho * ar[j - 1] + e[j]
+    torque_read = sensed[k] + ar
+    measured = current[k] + rng.normal(0.0, rig.current_noise, n)
+    if rig.runaway_from is not None:
+        measured = measured + rig.runaway_rate * np.clip(polls - rig.runaway_from, 0.0, None)
+    if rig.current_late:  # the reply read in this loop was measured in the previous one
+        measured = np.concatenate([[measured[0]], measured[:-1]])
+    if rig.motor_off_at is not None:  # a disabled drive repeats its last reply
+        first = int(np.argmax(polls >= rig.motor_off_at)) if np.any(polls >= rig.motor_off_at) else n
+        if first < n:
+            measured[first:] = measured[first - 1]
+    reply = np.round(measured / rig.current_quantum) * rig.current_quantum
+    if rig.current_clamp is not None:
+        reply = np.clip(reply, -rig.current_clamp, rig.current_clamp)
+    if rig.wrap_period is not None:
+        p = rig.wrap_period
+        reply = np.mod(reply + p / 2, p) - p / 2
+    return pd.DataFrame(
+        {
+            "loop_time": polls - polls[0],
+            "iq_meas": reply,
+            "iq_cmd": command[k],
+            "torque_adc": torque_read,
+            "speed": speed[k],
+        }
+    )
+
+
+COLUMNS = "time=loop_time,current=iq_meas,torque=torque_adc,velocity=speed,current_cmd=iq_cmd"
+
+
+def write(
+    frame: pd.DataFrame,
+    path: Path,
+    *,
+    title: str | None = None,
+    units: dict[str, str] | None = None,
+    separator: str = ",",
+    trailing: str | None = None,
+    scale: dict[str, float] | None = None,
+    drop: tuple[str, ...] = (),
+) -> Path:
+    """Write a log as a rig's host would: optional title line, units row, separator, trailing field;
+    ``scale`` multiplies columns (1e3 to write ms, mA or N.mm)."""
+    out = frame.drop(columns=list(drop)).copy()
+    for column, factor in (scale or {}).items():
+        out[column] = out[column] * factor
+    lines = []
+    if title is not None:
+        lines.append(title)
+    lines.append(separator.join(out.columns))
+    if units is not None:
+        lines.append(separator.join(units.get(c, "") for c in out.columns))
+    cells = out.to_numpy()
+    for row in cells:
+        text = separator.join(f"{v:.6g}" for v in row)
+        lines.append(text + (separator + trailing if trailing is not None else ""))
+    path.write_text("\n".join(lines) + "\n")
+    return path

@@ -1,0 +1,404 @@
+"""fit-current on a second, independent simulator (tests/dyno/acquire/polledrig.py) with real-rig artefacts.
+
+Each artefact must be detected and named, and no fit on it may be confidently wrong: either the
+truth lies within a few standard errors, or the log is flagged (never "at the noise floor"), or the
+fit is refused with the reason.
+"""
+
+from __future__ import annotations
+
+import math
+from functools import lru_cache
+
+import numpy as np
+import pandas as pd
+import pytest
+
+from hound_id.dyno.artefacts import PLATEAU_SIGMAS, noise_sigma
+from hound_id.dyno.current.curve import peak_torque
+from hound_id.dyno.current.diagnose import auto, diagnose
+from hound_id.dyno.current.effects import Signals
+from hound_id.dyno.current.fit import bounds_of, fit_model, parameters_of
+from hound_id.dyno.logs import DynoLog, load_log, parse_mapping
+from hound_id.errors import DynoDataError, FitError
+from tests.dyno.acquire.polledrig import COLUMNS, Rig, Truth, run, write
+
+MAP = parse_mapping(COLUMNS, "--columns")
+DEFAULT = ("linear", "saturation")
+FRICTION = Truth(coulomb=0.25, gear_friction=0.05)
+
+
+@lru_cache(maxsize=32)
+def frame(rig: Rig) -> pd.DataFrame:
+    return run(rig)
+
+
+def load(tmp_path, rig: Rig, name: str = "log.csv", columns=MAP, **kw) -> DynoLog:
+    return load_log(write(frame(rig), tmp_path / name, **kw), columns=columns)
+
+
+def ladder_of(log: DynoLog, model=DEFAULT):
+    s = Signals.from_log(log)
+    return s, auto(s, log.torque, fit_model(s, log.torque, model))
+
+
+def kinds(log: DynoLog) -> list[str]:
+    return [n.kind for n in log.notes]
+
+
+def note(log: DynoLog, kind: str) -> str:
+    return " | ".join(n.message for n in log.notes if n.kind == kind)
+
+
+def assert_physical(fit) -> None:
+    lower, upper = bounds_of(fit.model)
+    for (_, par), lo, hi in zip(parameters_of(fit.model), lower, upper, strict=True):
+        assert lo <= fit.value(par.name) <= hi, (par.name, fit.value(par.name))
+
+
+def assert_not_confidently_wrong(fit, diagnosis, kt: float) -> None:
+    """Kt within 4 standard errors (plus 1 %) of the truth, unless the log is flagged."""
+    assert_physical(fit)
+    est = fit.parameters["kt"]
+    if not diagnosis.flags:
+        assert abs(est.value - kt) <= 4 * est.stderr + 0.01 * kt, (est, kt)
+    else:
+        assert not diagnosis.at_noise_floor
+
+
+# --- a clean polled log: late reply, filtered transducer, AR(1) noise, jittered loop ----------------------
+
+
+def test_a_clean_polled_log_recovers_the_truth_and_names_the_late_current(tmp_path):
+    log = load(tmp_path, Rig(truth=FRICTION))
+    assert log.n == log.rows_read  # nothing to clean
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert set(fit.model) == {"linear", "saturation", "coulomb", "gear_friction", "delay"}
+    assert fit.value("kt") == pytest.approx(1.15, rel=0.003)
+    assert fit.value("coulomb") == pytest.approx(0.25, abs=0.015)
+    assert fit.value("gear_friction") == pytest.approx(0.05, abs=0.004)
+    assert_not_confidently_wrong(fit, ladder[-1].diagnosis, 1.15)
+    # one loop late (6.7 ms) less the transducer's group delay (2.8 ms at 80 Hz): the current lags
+    assert -0.0055 < fit.value("delay") < -0.0025
+    step = next(k for k, s in enumerate(ladder) if s.added == "delay")
+    reason = next(s.reason for s in ladder[step - 1].diagnosis.suggestions if s.effect == "delay")
+    assert "current channel lags" in reason and "one loop late" in reason
+    assert not fit.unphysical
+
+
+@pytest.mark.parametrize(
+    ("rig", "low", "high", "words"),
+    [
+        (Rig(torque_filter_hz=1500.0, current_late=True), -0.0080, -0.0055, "current channel lags"),
+        (Rig(torque_filter_hz=30.0, current_late=False), 0.0060, 0.0090, "torque channel lags"),
+    ],
+    ids=["reply-one-loop-late", "filtered-transducer"],
+)
+def test_the_delay_is_signed_and_both_signs_are_named(tmp_path, rig, low, high, words):
+    log = load(tmp_path, rig)
+    signals = Signals.from_log(log)
+    fit = fit_model(signals, log.torque, (*DEFAULT, "coulomb", "delay"))
+    assert low < fit.value("delay") < high
+    d = diagnose(signals, log.torque, fit_model(signals, log.torque, (*DEFAULT, "coulomb")))
+    top = next(s for s in d.suggestions if s.effect == "delay")
+    assert top.significant and words in top.reason
+
+
+def test_a_delay_outside_its_window_is_refused(tmp_path):
+    log = load(tmp_path, Rig())
+    signals = Signals.from_log(log)
+    late = signals.shifted(-0.08)  # the current 80 ms late: no transducer or bus does that
+    with pytest.raises(FitError, match="outside the"):
+        fit_model(late, log.torque, (*DEFAULT, "coulomb", "delay"))
+
+
+# --- driver and sensor limits ------------------------------------------------------------------------------
+
+
+def test_a_driver_current_limit_is_named_kept_and_changes_the_advice(tmp_path):
+    log = load(tmp_path, Rig(driver_limit=8.0))
+    assert log.n == log.rows_read  # the rows at the limit are data
+    assert "current_limit" in kinds(log) and "clamp" not in kinds(log)
+    assert log.current_limit == pytest.approx(8.0, abs=0.15)
+    assert "driver current limit at 8.0" in note(log, "current_limit")
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert_not_confidently_wrong(fit, ladder[-1].diagnosis, 1.15)
+    peak = peak_torque(fit, float(np.max(np.abs(signals.current))), current_limit=log.current_limit)
+    assert "driver" in peak.note and "test at higher current" not in peak.note
+
+
+def test_a_clamped_reply_is_named_and_its_rows_removed(tmp_path):
+    rig = Rig(current_clamp=7.5)
+    log = load(tmp_path, rig)
+    text = note(log, "clamp")
+    assert "clamped at 7.5 A" in text and "clamped at -7.5 A" in text
+    reply = frame(rig)["iq_meas"].to_numpy()
+    removed = log.rows_read - log.n
+    assert removed == sum(n.rows for n in log.notes if n.kind == "clamp")  # counted once each
+    # every row at the clamp, and beside it only rows within the reply's noise of it (PLATEAU_SIGMAS sigmas)
+    near = 7.5 - PLATEAU_SIGMAS * noise_sigma(reply) - 1e-9
+    assert np.count_nonzero(np.abs(reply) >= 7.5) <= removed <= np.count_nonzero(np.abs(reply) >= near)
+    assert not any(n.kind == "glitch" for n in log.notes)  # the rows next to the cut are no spikes
+    signals, ladder = ladder_of(log)
+    assert_not_confidently_wrong(ladder[-1].fit, ladder[-1].diagnosis, 1.15)
+
+
+def test_a_held_current_that_the_command_asks_for_is_not_a_clamp(tmp_path):
+    # the command itself is clipped at +-10 A for long stretches while friction moves the torque
+    log = load(tmp_path, Rig(truth=FRICTION))
+    assert "clamp" not in kinds(log) and "current_limit" not in kinds(log)
+
+
+def test_a_current_wrapped_past_its_range_is_restored_from_the_torque(tmp_path):
+    rig = Rig(wrap_period=15.0)
+    log = load(tmp_path, rig)
+    text = note(log, "wrap")
+    assert "wraps around" in text and "went past the range" in text and "+-7.5 A" in text
+    assert log.n == log.rows_read
+    clean = load(tmp_path, Rig(), name="clean.csv")
+    assert np.max(np.abs(log.current - clean.current)) < 0.05  # every row back to its true value
+    signals, ladder = ladder_of(log)
+    assert ladder[-1].fit.value("kt") == pytest.approx(1.15, rel=0.003)
+
+
+def test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap(tmp_path):
+    # the driver holds the current at the reply's range: noise flips the reply between +7.5 and -7.5 A
+    rig = Rig(wrap_period=15.0, driver_limit=7.5)
+    log = load(tmp_path, rig)
+    assert "wraps around" in note(log, "wrap") and "+-7.5 A" in note(log, "wrap")
+    assert not any(n.kind == "glitch" and n.channel == "current" for n in log.notes)
+    # no row left with the wrong sign (beyond the transients of steps, where the late reply trails the torque)
+    assert np.mean(log.current[log.torque > 5.0] < 0) < 0.005
+    signals, ladder = ladder_of(log)
+    assert_not_confidently_wrong(ladder[-1].fit, ladder[-1].diagnosis, 1.15)
+
+
+# --- files as rigs write them -------------------------------------------------------------------------------
+
+
+@pytest.mark.parametrize("separator", [",", ", ", ";", "\t"])
+def test_title_line_units_row_separators_and_a_trailing_field_are_read(tmp_path, separator):
+    rig = Rig(seconds=10.0)
+    units = {"loop_time": "ms", "iq_meas": "mA", "iq_cmd": "A", "torque_adc": "N.mm", "speed": "rad.s"}
+    scale = {"loop_time": 1e3, "iq_meas": 1e3, "torque_adc": 1e3}
+    log = load(
+        tmp_path,
+        rig,
+        title="AK80-9 opposing-motor test, 2026-11-23 10:41",
+        units=units,
+        separator=separator,
+        trailing="0",
+        scale=scale,
+    )
+    text = " | ".join(n.message for n in log.notes)
+    assert "skipped 1 line above the header" in text and "units row" in text
+    assert "the last field is always '0' and was dropped" in text
+    plain = load(tmp_path, rig, name="plain.csv")
+    np.testing.assert_allclose(log.time, plain.time, atol=1e-6)
+    np.testing.assert_allclose(log.current, plain.current, atol=1e-5)
+    np.testing.assert_allclose(log.torque, plain.torque, rtol=1e-5, atol=1e-5)
+    np.testing.assert_allclose(log.velocity, plain.velocity, rtol=1e-5)
+
+
+def test_a_varying_extra_field_is_kept_not_shifted(tmp_path):
+    f = frame(Rig(seconds=10.0)).copy()
+    path = tmp_path / "extra.csv"
+    lines = [",".join(f.columns)] + [",".join(f"{v:.6g}" for v in row) + f",{k % 7}" for k, row in enumerate(f.values)]
+    path.write_text("\n".join(lines) + "\n")
+    log = load_log(path, columns=MAP)
+    assert log.current == pytest.approx(load(tmp_path, Rig(seconds=10.0), name="p.csv").current)
+
+
+def test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted(tmp_path):
+    log = load(tmp_path, Rig(), scale={"loop_time": 1e3})
+    assert "if it is in ms" in " ".join(n.message for n in log.notes)
+    signals = Signals.from_log(log)
+    d = diagnose(signals, log.torque, fit_model(signals, log.torque, DEFAULT))
+    assert any(s.startswith("delay (the samples are") and "--units time=ms" in s for s in d.skipped)
+    with pytest.raises(FitError, match="cannot be seen"):
+        fit_model(signals, log.torque, (*DEFAULT, "delay"))
+
+
+# --- broken logs are flagged, never at the noise floor ---------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("rig", "start", "seen"),
+    [(Rig(truth=FRICTION, motor_off_at=40.0), 40.0, 0.5), (Rig(truth=FRICTION, runaway_from=35.0), 35.0, 2.0)],
+    ids=["motor-off", "current-runs-away"],
+)
+def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start, seen):
+    """Flagged from the block where it breaks (a runaway shows once it has run `seen` seconds)."""
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    for step in ladder:
+        assert not step.diagnosis.at_noise_floor
+    d = ladder[-1].diagnosis
+    first = next(f for f in d.flags if f.startswith("blocks"))
+    t0 = float(first.split("t = ")[1].split("-")[0])
+    assert start - 1.5 < t0 <= start + seen, first
+    assert d.disagreeing[-1] and not d.disagreeing[0]
+    window = next(f for f in d.flags if "--window" in f)
+    stop = float(window.split("--window ")[1].split(":")[1])
+    assert stop <= start + seen
+    kept = log.window(None, stop)
+    s2, ladder2 = ladder_of(kept)
+    assert not ladder2[-1].diagnosis.flags
+    assert ladder2[-1].fit.value("kt") == pytest.approx(1.15, rel=0.005)
+
+
+def test_a_flagged_training_fold_is_not_hidden_by_a_good_held_out_error(tmp_path):
+    # the broken part sits in most folds' training rows: the fold's train error is far above its held-out one
+    log = load(tmp_path, Rig(motor_off_at=40.0))
+    signals = Signals.from_log(log)
+    fit = fit_model(signals, log.torque, DEFAULT)
+    d = diagnose(signals, log.torque, fit)
+    assert d.flags and not d.at_noise_floor
+    assert "disagree" in d.summary() or any("disagree" in f for f in d.flags)
+
+
+# --- regimes that cannot identify a parameter -------------------------------------------------------------------
+
+
+def test_one_quadrant_cannot_tell_kt_from_gear_friction(tmp_path):
+    log = load(tmp_path, Rig(quadrants="motoring", truth=FRICTION))
+    signals = Signals.from_log(log)
+    with pytest.raises(FitError, match="cannot tell kt from gear_friction.*all four quadrants.*leave out 'gear_fric"):
+        fit_model(signals, log.torque, (*DEFAULT, "gear_friction"))
+    d = diagnose(signals, log.torque, fit_model(signals, log.torque, DEFAULT))
+    assert any(s.startswith("gear_friction (this log cannot tell") for s in d.skipped)
+
+
+def test_one_speed_sign_cannot_tell_coulomb_from_an_offset(tmp_path):
+    log = load(tmp_path, Rig(quadrants="one_speed_sign"))
+    signals, ladder = ladder_of(log)
+    final = ladder[-1]
+    assert "coulomb" not in final.fit.model
+    assert any(
+        s.startswith("coulomb (this log cannot tell") and "both directions" in s for s in final.diagnosis.skipped
+    )
+    if "offset" in final.fit.model:  # the step it stands for is named as either
+        step = next(k for k, s in enumerate(ladder) if s.added == "offset")
+        reason = next(s.reason for s in ladder[step - 1].diagnosis.suggestions if s.effect == "offset")
+        assert "Coulomb friction" in reason and "cannot be told apart" in reason
+
+
+def test_a_held_current_cannot_identify_kt(tmp_path):
+    log = load(tmp_path, Rig(constant_current=6.0))
+    assert "clamp" not in kinds(log)
+    signals = Signals.from_log(log)
+    with pytest.raises(FitError, match="cannot tell kt from a torque offset: the current hardly varies"):
+        fit_model(signals, log.torque, DEFAULT)
+
+
+# --- physically possible models only ---------------------------------------------------------------------------
+
+
+def test_friction_with_the_wrong_sign_is_reported_and_never_added(tmp_path):
+    f = frame(Rig()).copy()
+    # a torque that rises with the speed's sign: Coulomb friction would have to be negative to explain it
+    f["torque_adc"] = f["torque_adc"] + 0.5 * np.tanh(f["speed"] / 0.02)
+    path = tmp_path / "wrong.csv"
+    f.to_csv(path, index=False)
+    log = load_log(path, columns=MAP)
+    signals, ladder = ladder_of(log)
+    for step in ladder:
+        assert step.added not in ("coulomb", "stribeck")
+        assert_physical(step.fit)
+    first = ladder[0].diagnosis
+    coulomb = next(s for s in first.suggestions if s.effect == "coulomb")
+    assert not coulomb.significant and coulomb.reason.startswith("fits only with coulomb < 0")
+
+
+@pytest.mark.parametrize("model", [DEFAULT, ("linear",), ("linear", "offset", "coulomb"), ("linear", "viscous")])
+@pytest.mark.parametrize("robust", [False, True])
+def test_negative_kt_is_never_accepted(tmp_path, model, robust):
+    log = load(tmp_path, Rig())
+    signals = Signals.from_log(log)
+    with pytest.raises(DynoDataError, match="reversed"):
+        fit_model(signals, -log.torque, model, robust=robust)
+
+
+def test_a_reversed_sensor_is_refused_by_the_loader_with_the_fix(tmp_path):
+    f = frame(Rig()).copy()
+    f["torque_adc"] = -f["torque_adc"]
+    path = tmp_path / "reversed.csv"
+    f.to_csv(path, index=False)
+    with pytest.raises(DynoDataError, match="--flip-torque"):
+        load_log(path, columns=MAP)
+    flipped = load_log(path, columns=MAP, flip_torque=True)
+    fit = fit_model(Signals.from_log(flipped), flipped.torque, DEFAULT)
+    assert fit.value("kt") == pytest.approx(1.15, rel=0.01)
+
+
+# --- a steady-state table --------------------------------------------------------------------------------------
+
+
+def steady_state_table(path, truth: Truth = FRICTION, seed: int = 0):
+    """An ODrive-style dyno table: date line, units row, ', ' separators, one quadrant, no time column."""
+    rng = np.random.default_rng(seed)
+    rows = []
+    for speed in (0.5, 1.0, 1.5, 2.0, 2.5, 3.0):
+        for current in np.linspace(0.5, 10.0, 20):
+            torque = truth.kt * current - truth.coulomb - truth.gear_friction * current - 0.05 * speed
+            rows.append((current * 1e3, (torque + rng.normal(0, 0.02)) * 1e3, speed, 25 + 2 * current))
+    lines = [
+        "Dyno run 2026-11-23 14:02, motor D5065",
+        "Test motor q-axis current, Output Torque, Output Speed, Test Motor Temperature",
+        "mA, N.mm, rad.s, Deg C",
+    ]
+    lines += [", ".join(f"{v:.6g}" for v in row) for row in rows]
+    path.write_text("\n".join(lines) + "\n")
+    return path
+
+
+STEADY = parse_mapping(
+    "current=Test motor q-axis current,torque=Output Torque,velocity=Output Speed,temperature=Test Motor Temperature",
+    "--columns",
+)
+
+
+def test_a_steady_state_table_loads_with_only_columns_and_reports_what_it_cannot_show(tmp_path):
+    log = load_log(steady_state_table(tmp_path / "dyno.csv"), columns=STEADY)
+    assert not log.timed and "steady_state" in kinds(log)
+    assert log.current.max() == pytest.approx(10.0)
+    signals, ladder = ladder_of(log)
+    final = ladder[-1]
+    skipped = " ".join(final.diagnosis.skipped)
+    assert "delay (a steady-state table has no sample times)" in skipped
+    assert "gear_friction (this log cannot tell" in skipped
+    assert "gear_friction" not in final.fit.model and "delay" not in final.fit.model
+    # Kt here is the plain slope: load-dependent friction cannot be taken out of it on one quadrant
+    assert final.fit.value("kt") == pytest.approx(1.15 - 0.05, rel=0.01)
+    assert_physical(final.fit)
+    for f in final.diagnosis.flags:
+        assert "data rows" in f or "Kt" in f  # spans are named in the table's own rows
+
+
+def test_a_steady_state_table_cannot_fit_a_delay(tmp_path):
+    log = load_log(steady_state_table(tmp_path / "dyno.csv"), columns=STEADY)
+    with pytest.raises(FitError, match="steady-state table"):
+        fit_model(Signals.from_log(log), log.torque, (*DEFAULT, "delay"))
+    assert math.isfinite(fit_model(Signals.from_log(log), log.torque, DEFAULT).rmse_test)
+
+
+def test_a_torque_sensor_the_motor_does_not_load_gives_no_kt(tmp_path):
+    f = frame(Rig()).copy()
+    rng = np.random.default_rng(3)
+    f["torque_adc"] = 0.2 * np.sin(np.linspace(0, 40, len(f))) + rng.normal(0, 0.05, len(f))  # drift and noise only
+    path = tmp_path / "unloaded.csv"
+    f.to_csv(path, index=False)
+    log = load_log(path, columns=MAP)
+    with pytest.raises(FitError, match="the torque does not follow the current.*no different from zero"):
+        fit_model(Signals.from_log(log), log.torque, DEFAULT)
+
+
+def test_a_torque_channel_stuck_at_one_value_is_refused(tmp_path):
+    f = frame(Rig()).copy()
+    f["torque_adc"] = -2.741623e16  # an ADC never read: one huge value on every row
+    path = tmp_path / "stuck.csv"
+    f.to_csv(path, index=False)
+    with pytest.raises(DynoDataError, match="torque channel holds one value .* on every row"):
+        load_log(path, columns=MAP)

@@ -1,0 +1,82 @@
+import numpy as np
+import pytest
+
+from hound_id.dyno.current import effects as fx
+from hound_id.dyno.current.effects import REGISTRY, Effect, Parameter, get, load_effects_file, parse_model, register
+from hound_id.dyno.simulate.current import EFFECTS as SIMULATED
+from hound_id.errors import FitError
+from tests.dyno.conftest import simulated
+
+
+def test_every_builtin_effect_is_simulated_and_described():
+    assert set(fx.BUILTIN) == set(SIMULATED)
+    names = [p.name for e in REGISTRY.values() for p in (*e.parameters, *e.hypers)]
+    assert len(names) == len(set(names))
+    for effect in REGISTRY.values():
+        assert effect.physics and "\n" not in effect.physics
+        assert all(p.unit for p in (*effect.parameters, *effect.hypers))
+        assert effect.evidence is not None
+    assert list(REGISTRY) == sorted(REGISTRY)
+
+
+@pytest.mark.parametrize("name", fx.BUILTIN)
+def test_columns_have_one_finite_column_per_parameter(name):
+    signals, torque, sim = simulated(("linear", "saturation"))
+    effect = get(name)
+    hypers = {h.name: float(sim.truth.get(h.name, 1.0)) for h in effect.hypers}
+    cols = effect.columns(signals, hypers)
+    assert cols.shape == (torque.shape[0], len(effect.parameters))
+    assert np.all(np.isfinite(cols))
+
+
+def test_parse_model():
+    assert parse_model("linear + saturation+coulomb") == ("linear", "saturation", "coulomb")
+    with pytest.raises(FitError, match="unknown effect 'colomb'"):
+        parse_model("linear+colomb")
+    with pytest.raises(FitError, match="twice"):
+        parse_model("linear+linear")
+    with pytest.raises(FitError, match="names no effect"):
+        parse_model("+")
+
+
+USER_EFFECT = """
+import numpy as np
+from hound_id.dyno.current.effects import Effect, Parameter, register
+
+register(Effect(
+    name="bus_ripple_user",
+    physics="torque ripple proportional to the bus voltage ripple",
+    parameters=(Parameter("k_bus_user", "N m/A", "gain"),),
+    regressors=lambda s, h: s.current * np.sin(2 * np.pi * 50 * s.time),
+))
+"""
+
+
+def test_user_effects_from_a_file(tmp_path):
+    path = tmp_path / "mine.py"
+    path.write_text(USER_EFFECT)
+    try:
+        assert load_effects_file(path) == ["bus_ripple_user"]
+        assert "bus_ripple_user" in parse_model("linear+bus_ripple_user")
+        with pytest.raises(FitError, match="already registered"):
+            load_effects_file(path)
+    finally:
+        REGISTRY.pop("bus_ripple_user", None)
+    (tmp_path / "empty.py").write_text("x = 1\n")
+    with pytest.raises(FitError, match="registered no effect"):
+        load_effects_file(tmp_path / "empty.py")
+    (tmp_path / "broken.py").write_text("raise RuntimeError('boom')\n")
+    with pytest.raises(FitError, match="importing it failed.*boom"):
+        load_effects_file(tmp_path / "broken.py")
+    with pytest.raises(FitError, match="not found"):
+        load_effects_file(tmp_path / "none.py")
+
+
+def test_parameter_names_must_be_unique():
+    with pytest.raises(FitError, match="'kt' is already used by effect 'linear'"):
+        register(
+            Effect(
+                name="dup_user", physics="x", parameters=(Parameter("kt", "N m/A"),), regressors=lambda s, h: s.current
+            )
+        )
+    assert "dup_user" not in REGISTRY
