@@ -15,15 +15,27 @@ from hound_id.mor.envelope import EnvelopeInputs
 
 Array = NDArray[np.float64]
 
-#: A fitted pack resistance this many standard errors (and a third of itself) above the one the logged bus voltage
-#: shows is contradicted by it.
+#: A fitted pack resistance this many standard errors (and CONTRADICT_SHARE of itself) above the one the logged bus
+#: voltage shows is contradicted by it. Calibrated on test_compare::test_a_wrong_add_does_not_hide_the_right_effect.
 EVIDENCE_SIGMAS = 5.0
+CONTRADICT_SHARE = 1.0 / 3.0
+#: A logged channel shows an effect when its slope is this many standard errors above zero (5 sigma). Calibrated on
+#: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
+SHOWN_SIGMAS = 5.0
+#: The bus evidence uses the motoring samples above MOTORING_SHARE of the peak power (the bus sags measurably there),
+#: needs MIN_MOTORING of them, and a pack resistance above MIN_R_PACK [ohm] (a milliohm: below any real pack's) to show
+#: a sag. Calibrated on test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
+MOTORING_SHARE = 0.05
+MIN_MOTORING = 20
+MIN_R_PACK = 1e-3
+#: The bus voltage is floored at this share of the nominal one when dividing by it (a logged zero).
+BUS_FLOOR = 1e-3
 
 
 def contradicts(value: float, evidence: Mapping[str, Any]) -> bool:
     """Whether a fitted pack resistance is ruled out by the logged bus voltage's own: more than
-    :data:`EVIDENCE_SIGMAS` standard errors and a third of the fitted value above it."""
-    return bool(value - evidence["r_pack"] > max(EVIDENCE_SIGMAS * evidence["se"], value / 3))
+    :data:`EVIDENCE_SIGMAS` standard errors and :data:`CONTRADICT_SHARE` of the fitted value above it."""
+    return bool(value - evidence["r_pack"] > max(EVIDENCE_SIGMAS * evidence["se"], CONTRADICT_SHARE * value))
 
 
 def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
@@ -33,7 +45,7 @@ def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any]
         return None
     x = log.torque**3
     slope, se = _leading(np.column_stack([x, log.torque, np.ones_like(x)]), inputs.spec.kt * log.current - log.torque)
-    significant = slope > 5 * se
+    significant = slope > SHOWN_SIGMAS * se
     return {
         "slope": slope,
         "se": se,
@@ -60,12 +72,12 @@ def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | N
     spec = inputs.spec
     i = log.current if log.current is not None else log.torque / spec.kt
     power = (spec.resistance * i + log.velocity / spec.kv) * i
-    motoring = power > 0.05 * float(np.max(np.abs(power)))
-    if motoring.sum() < 20:
+    motoring = power > MOTORING_SHARE * float(np.max(np.abs(power)))
+    if motoring.sum() < MIN_MOTORING:
         return None
-    x = power[motoring] / np.maximum(log.bus_voltage[motoring], 1e-3 * spec.bus_voltage)  # the bus current
+    x = power[motoring] / np.maximum(log.bus_voltage[motoring], BUS_FLOOR * spec.bus_voltage)  # the bus current
     r_pack, se = _leading(np.column_stack([x, np.ones_like(x)]), spec.bus_voltage - log.bus_voltage[motoring])
-    significant = r_pack > 5 * se and r_pack > 1e-3
+    significant = r_pack > SHOWN_SIGMAS * se and r_pack > MIN_R_PACK
     return {
         "r_pack": r_pack,
         "se": se,

@@ -25,8 +25,18 @@ from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
 
 Array = NDArray[np.float64]
 
-#: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall.
+#: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall. Calibrated on
+#: test_compare::test_a_jump_at_the_end_of_an_edge_is_isolated_but_a_departure_is_not.
 ISOLATED = 5.0
+#: ... when its neighbours lie within FITS_SIGMAS standard errors of the model (3 SE: 99.7 % of Gaussian noise); an end
+#: bin also jumps from its neighbour by more than twice the back-EMF slope times their speed gap plus JUMP_SIGMAS
+#: standard errors. Calibrated on test_compare::test_a_jump_at_the_end_of_an_edge_is_isolated_but_a_departure_is_not.
+FITS_SIGMAS = 3.0
+JUMP_SIGMAS = 5.0
+#: A sample is past an edge when it passes it by more than PAST_SIGMAS torque noises of one sample at the limit and
+#: PAST_FLOOR of the torque limit. Calibrated on test_compare::test_a_log_past_the_region_is_measured_and_located.
+PAST_SIGMAS = 4.0
+PAST_FLOOR = 0.005
 
 
 @dataclass(frozen=True)
@@ -95,7 +105,7 @@ def past_edges(
     """(how far each sample passes the edges of ``model`` (default the spec sheet) [N m], the threshold, the
     samples past it)."""
     lo, hi = envelope(log.velocity, dict(model or {}), inputs_for(log, inputs, np.arange(log.n)))
-    thr = max(4 * noise, 0.005 * inputs.spec.torque_limit)
+    thr = max(PAST_SIGMAS * noise, PAST_FLOOR * inputs.spec.torque_limit)
     excess = np.maximum(log.torque - hi, lo - log.torque)
     return excess, thr, np.asarray(np.isfinite(excess) & (excess > thr))
 
@@ -108,9 +118,9 @@ def outside_mask(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> NDAr
 def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dict[str, Any]:
     """Where the log leaves the spec sheet's region: share of samples, how far, which quadrant and speeds.
 
-    A sample is outside when it passes an edge by more than 4 x the torque noise of one sample at
-    the limit (and 0.5 % of the torque limit). Quadrants: I motoring forward (tau > 0, omega > 0), II braking (tau > 0,
-    omega < 0), III motoring backward, IV braking (tau < 0, omega > 0).
+    A sample is outside when it passes an edge by more than :data:`PAST_SIGMAS` x the torque noise of one sample
+    at the limit (and :data:`PAST_FLOOR` of the torque limit). Quadrants: I motoring forward (tau > 0, omega > 0),
+    II braking (tau > 0, omega < 0), III motoring backward, IV braking (tau < 0, omega > 0).
     """
     excess, thr, out = past_edges(log, inputs, noise)
     t, w = log.torque[out], log.velocity[out]
@@ -158,12 +168,12 @@ def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list
         near = [j for j in range(off.offset.size) if off.side[j] == s and j != k]
         left, right = [j for j in near if j < k], [j for j in near if j > k]
         if left and right:
-            isolated = all(abs(off.offset[j]) <= 3 * off.se[j] for j in (left[-1], right[0]))
+            isolated = all(abs(off.offset[j]) <= FITS_SIGMAS * off.se[j] for j in (left[-1], right[0]))
         elif left or right:  # an end bin: only a jump no edge can make between neighbouring speeds
             j = left[-1] if left else right[0]
             jump = abs(off.offset[k] - off.offset[j])
-            bound = 2 * slope * abs(off.speeds[k] - off.speeds[j]) + 5 * math.hypot(off.se[k], off.se[j])
-            isolated = abs(off.offset[j]) <= 3 * off.se[j] and jump > bound
+            bound = 2 * slope * abs(off.speeds[k] - off.speeds[j]) + JUMP_SIGMAS * math.hypot(off.se[k], off.se[j])
+            isolated = abs(off.offset[j]) <= FITS_SIGMAS * off.se[j] and jump > bound
         else:
             isolated = False
         if isolated:

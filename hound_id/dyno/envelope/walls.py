@@ -27,82 +27,129 @@ import numpy as np
 from numpy.lib.stride_tricks import sliding_window_view
 from numpy.typing import NDArray
 
-from hound_id.dyno.logs import EnvelopeLog
+from hound_id.dyno.logs import MAD_TO_SIGMA, EnvelopeLog
 from hound_id.errors import DynoDataError
 from hound_id.mor.envelope import EnvelopeInputs, envelope
 
 Array = NDArray[np.float64]
 
-#: With a command channel: the lag searched [rows], a floor (robust noise levels) under the shortfall a sample at the
-#: limit must pass, the rows it must last, and the robust spreads about a cluster's median beyond which a sample is
-#: left out of it.
+# Every threshold of the wall finder, with why it has its value and the test it was calibrated on. A test named
+# here fails when the value moves far enough to matter (tests/test_thresholds.py checks that every one is named).
+
+# --- with a command channel (command_limits) ---
+
+#: Lag searched between the command and the measured torque [rows]: 100 rows is 0.1 s at 1 kHz, ten times a current loop
+#: plus a filtered transducer. Calibrated on test_hold_protocol::test_the_lag_is_measured_from_the_log.
 LAG_MAX = 100
-
+#: The lag is refined to this fraction of a row (linear interpolation between rows). Calibrated on
+#: test_hold_protocol::test_the_lag_is_measured_from_the_log.
+LAG_STEP = 0.1
+#: "Inside the region": commands within this share of the spec sheet's edges, where no plausible effect (a sag of a
+#: third, a hot winding) bounds the torque. Calibrated on
+#: test_hold_protocol::test_a_sample_far_inside_the_region_is_never_at_the_limit.
+INSIDE_SHARE = 0.5
+#: Measured torque per commanded torque inside the region must lie in this range; outside it the command is in another
+#: unit (a current: Kt is far from 1; N cm: 100). Calibrated on
+#: test_hold_protocol::test_a_command_in_another_unit_is_refused.
+GAIN_RANGE = (0.5, 2.0)
+#: A shortfall must pass this many robust noise levels at least (5 sigma: one false row in 3.5 million). Calibrated on
+#: test_hold_protocol::test_a_sample_far_inside_the_region_is_never_at_the_limit.
 CMD_SIGMAS = 5.0
-
+#: Rows a shortfall must last (at least; twice the lag when that is longer): a single noisy row is no limit. Calibrated
+#: on test_compare::test_a_commanded_torque_channel_finds_the_limit_directly.
 PERSIST = 3
-
+#: The first rows of a run at the limit are left out while the filtered torque is more than this many noise levels from
+#: the run's later median (still settling). Calibrated on test_hold_protocol::test_the_lag_is_measured_from_the_log.
+SETTLE_SIGMAS = 3.0
+#: Samples further than this many robust spreads from their cluster's median are left out of it (a passing disturbance).
+#: Calibrated on test_compare::test_a_commanded_torque_channel_finds_the_limit_directly.
 TRIM = 5.0
+#: A robust spread is floored at this share of the wall width (a simulated, noise-free wall has none). Calibrated on
+#: test_compare::test_data_that_match_the_model_flag_nothing.
+SPREAD_FLOOR = 1e-3
+#: Rows are samples in time when the median step between rows is below this share of the signal's interquartile range (a
+#: table of operating points or a shuffled log steps across it). Calibrated on
+#: test_compare::test_time_ordered_logs_without_a_command.
+ORDERED_STEP = 0.1
 
-#: A bin has a wall when (q98 - q90) < WALL (q98 - q50) of its margins.
+# --- without one: walls in speed bins (find_walls) ---
+
+#: A bin has a wall when (q98 - q90) < WALL (q98 - q50) of its margins: the top tenth of the margins is packed ten times
+#: tighter than the upper half. Calibrated on test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
 WALL = 0.1
-
-#: ... and its top (q98 - q90) narrower than this share of the torque limit: piled up within the noise.
+#: ... and its top (q98 - q90) narrower than this share of the torque limit: piled up within the noise (3 % of a 9.7 N m
+#: limit is 0.3 N m, ten sensor sigmas). Calibrated on test_compare::test_data_that_match_the_model_flag_nothing.
 WALL_WIDTH = 0.03
-
 #: ... and approached: the bin's margins span at least this share of the torque limit below it (a motor resting while
-#: the speed ramps piles up too, at one torque).
+#: the speed ramps piles up too, at one torque). Calibrated on
+#: test_compare::test_a_slow_command_is_not_taken_for_a_limit.
 APPROACH = 0.2
-
 #: Or a pile: at least PILE of the bin's margins within WALL_WIDTH of its top (q98), and at most WALL_CONTRAST as many
-#: in the band of that width below; such a wall is its margins within BAND robust spreads of their median.
+#: in the band of that width below (a speed hold pushes the motor against its limit for long). Calibrated on
+#: test_hold_protocol::test_the_hidden_effect_is_named_first.
 PILE = 0.2
-
 WALL_CONTRAST = 0.2
-
+#: Such a wall is its margins within BAND robust spreads of their median (4 sigma keeps 99.99 % of Gaussian noise).
+#: Calibrated on test_hold_protocol::test_the_hidden_effect_is_named_first.
 BAND = 4.0
-
-#: Speed bins across the logged range, and the fewest samples a bin (and a wall) needs.
+#: Speed bins across the logged range: BINS, or one per SAMPLES_PER_BIN samples for long logs, at most MAX_BINS, so that
+#: an edge falling steeply with speed stays nearly straight across one bin. Calibrated on
+#: test_compare::test_time_ordered_logs_without_a_command and benchmarks/compare.py (its scoreboard).
 BINS = 32
-
 MAX_BINS = 96
-
-#: A wall's level may depart from the line through its neighbours by this share of the torque limit ...
-STEP = 0.05
-
-#: ... looking this many bins either side for them.
-NEIGHBOURS = 3
-
-#: ... or this share of all bins, whichever is more.
-NEIGHBOUR_SPAN = 0.1
-
-#: A one-pass wall whose margins' slope in speed is this many standard errors from a plateau's tracks the edge.
-TRACK_SIGMAS = 5.0
-
-#: Passes of a wall whose levels differ at this significance are not one wall, unless they differ by less than
-#: this share of the torque limit.
-LEVEL_ALPHA = 1e-4
-
-LEVEL_FLOOR = 0.005
-
-#: A wall's samples spread at most this many times the typical noise at a limit (a pass of a moving command spreads
-#: more).
-FLAT = 3.0
-
-#: Passes (at one level) that make a wall on their own, without walls in the bins beside it.
-REPEATED = 2
-
-#: Rows of a log apart beyond which two samples of a wall belong to different passes through its speed bin.
-PASS_GAP = 25
-
-#: Speeds [share of the spec's corner / no-load speed] past which a motoring / braking edge may fall steeply.
-STEEP_MOTORING = 0.6
-
-STEEP_BRAKING = 0.9
-
+SAMPLES_PER_BIN = 250
+#: The fewest samples a bin needs, and a wall. Calibrated on
+#: test_compare::test_a_log_that_never_reaches_its_limits_is_refused.
 MIN_SAMPLES = 40
-
 MIN_WALL = 8
+#: Where an edge may fall steeply, the linear drift of the top DRIFT_QUANTILE of the margins is taken out (if it holds
+#: DRIFT_MIN samples or more) before looking for a wall again. Calibrated on
+#: test_compare::test_time_ordered_logs_without_a_command.
+DRIFT_QUANTILE = 0.8
+DRIFT_MIN = 5
+#: A wall's level may depart from the line through its neighbours by this share of the torque limit ... Calibrated on
+#: test_compare::test_a_slow_command_is_not_taken_for_a_limit.
+STEP = 0.05
+#: ... looking this many bins either side for them, or this share of all bins, whichever is more. Calibrated on
+#: test_compare::test_a_slow_command_is_not_taken_for_a_limit.
+NEIGHBOURS = 3
+NEIGHBOUR_SPAN = 0.1
+#: Walls need this many neighbouring bins with walls (or REPEATED passes): a limit spans a range of speeds. Calibrated
+#: on test_compare::test_a_slow_command_is_not_taken_for_a_limit.
+NEIGHBOURING_WALLS = 3
+#: A one-pass wall whose margins' slope in speed is this many standard errors from a plateau's tracks the edge.
+#: Calibrated on test_hold_protocol::test_the_hidden_effect_is_named_first.
+TRACK_SIGMAS = 5.0
+#: Passes of a wall whose levels differ at this significance are not one wall, unless they differ by less than
+#: LEVEL_FLOOR of the torque limit. Calibrated on
+#: test_hold_protocol::test_pulses_that_never_reach_the_limit_name_nothing_with_the_command.
+LEVEL_ALPHA = 1e-4
+LEVEL_FLOOR = 0.005
+#: A wall's samples spread at most this many times the typical noise at a limit (a pass of a moving command spreads
+#: more). Calibrated on test_compare::test_a_slow_command_is_not_taken_for_a_limit.
+FLAT = 3.0
+#: Passes (at one level) that make a wall on their own, without walls in the bins beside it. Calibrated on
+#: test_hold_protocol::test_the_hidden_effect_is_named_first.
+REPEATED = 2
+#: Rows of a log apart beyond which two samples of a wall belong to different passes through its speed bin; a pass
+#: counts when it has PASS_RUN samples; a wall is one pass when ONE_PASS_SHARE of its samples are. Calibrated on
+#: test_compare::test_a_slow_command_is_not_taken_for_a_limit.
+PASS_GAP = 25
+PASS_RUN = 5
+ONE_PASS_SHARE = 0.75
+#: Passes drift alike when their slopes agree within SLOPE_SIGMAS standard errors or SLOPE_SHARE of the mean slope.
+#: Calibrated on test_compare::test_time_ordered_logs_without_a_command.
+SLOPE_SIGMAS = 4.0
+SLOPE_SHARE = 0.2
+#: Speeds [share of the spec's corner / no-load speed] past which a motoring / braking edge may fall steeply (a sagging
+#: or hot motor turns its corner sooner). Calibrated on test_compare::test_time_ordered_logs_without_a_command.
+STEEP_MOTORING = 0.6
+STEEP_BRAKING = 0.9
+#: The lag-1 autocorrelation of the noise at a limit is clipped to [0, RHO_MAX] (at 0.95 a wall of n samples counts as
+#: n/39 independent ones) and needs FEWEST_PAIRS consecutive pairs in a wall. Calibrated on
+#: test_compare::test_the_noise_level_allows_for_correlated_sensor_noise.
+RHO_MAX = 0.95
+FEWEST_PAIRS = 10
 
 
 @dataclass(frozen=True)
@@ -184,7 +231,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     lo_s, hi_s = np.nan_to_num(lo_s, nan=0.0), np.nan_to_num(hi_s, nan=0.0)
 
     def inside(c: Array) -> NDArray[np.bool_]:
-        return np.asarray((c < 0.5 * hi_s) & (c > 0.5 * lo_s))
+        return np.asarray((c < INSIDE_SHARE * hi_s) & (c > INSIDE_SHARE * lo_s))
 
     def misfit(lag: float) -> float:
         c = _lagged(cmd, lag)
@@ -196,7 +243,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     if ordered:  # a table of operating points (rows in no time order) has no lag to find
         scores = [misfit(float(d)) for d in range(min(LAG_MAX, n // 10) + 1)]
         best = int(np.argmin(scores))
-        fine = np.arange(max(best - 1, 0), best + 1.0001, 0.1)
+        fine = np.arange(max(best - 1, 0), best + 1.0001, LAG_STEP)
         lag = float(fine[int(np.argmin([misfit(float(d)) for d in fine]))])
     c = _lagged(cmd, lag)
     keep = inside(c)
@@ -206,7 +253,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
             "compared with the torque: is it the command of this motor, in N m (map with --columns, --units)?"
         )
     gain, bias = np.polyfit(c[keep], tau[keep], 1)
-    if not 0.5 <= gain <= 2.0:
+    if not GAIN_RANGE[0] <= gain <= GAIN_RANGE[1]:
         raise DynoDataError(
             f"{log.source}: the measured torque follows torque_cmd with a gain of {gain:.3g} inside the region, "
             "expected about 1: is torque_cmd in another unit (a current, N*cm)? Fix its unit with --units "
@@ -236,7 +283,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
                 out[start:stop] = True
                 continue
             settled = float(np.median(tau[start + (stop - start) // 2 : stop]))
-            off = np.abs(tau[start:stop] - settled) > 3 * noise
+            off = np.abs(tau[start:stop] - settled) > SETTLE_SIGMAS * noise
             first = int(np.argmin(off)) if not off.all() else stop - start
             first = min(first, (stop - start) // 2)
             out[start + first : stop] = True
@@ -260,7 +307,7 @@ def time_ordered(x: Array) -> bool:
     if x.size < 3:
         return False
     q25, q75 = np.quantile(x, [0.25, 0.75])
-    return bool(np.median(np.abs(np.diff(x))) < 0.1 * (q75 - q25))
+    return bool(np.median(np.abs(np.diff(x))) < ORDERED_STEP * (q75 - q25))
 
 
 def _trimmed(members: NDArray[np.int64], margin_of: Any, width: float) -> NDArray[np.int64]:
@@ -270,13 +317,13 @@ def _trimmed(members: NDArray[np.int64], margin_of: Any, width: float) -> NDArra
         return members
     m = margin_of(members)
     centre, spread = robust(m)
-    return members[np.abs(m - centre) <= TRIM * max(spread, 1e-3 * width)]
+    return members[np.abs(m - centre) <= TRIM * max(spread, SPREAD_FLOOR * width)]
 
 
 def robust(x: Array) -> tuple[float, float]:
     """(median, 1.4826 MAD): the centre and the standard deviation of Gaussian noise, unmoved by a few outliers."""
     centre = float(np.median(x))
-    return centre, 1.4826 * float(np.median(np.abs(x - centre)))
+    return centre, MAD_TO_SIGMA * float(np.median(np.abs(x - centre)))
 
 
 def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int64]:
@@ -295,7 +342,7 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
         band = top
         for _ in range(2):
             centre, spread = robust(m[band])
-            band = np.abs(m - centre) <= BAND * max(spread, 1e-3 * width)
+            band = np.abs(m - centre) <= BAND * max(spread, SPREAD_FLOOR * width)
         return members[band]
     return np.array([], dtype=np.int64)
 
@@ -303,7 +350,7 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
 def bin_count(n: int) -> int:
     """Speed bins for a log of ``n`` samples: :data:`BINS`, more for long logs (about 250 samples a bin, at most
     :data:`MAX_BINS`), so an edge that falls steeply with speed stays nearly straight across one bin."""
-    return int(np.clip(n // 250, BINS, MAX_BINS))
+    return int(np.clip(n // SAMPLES_PER_BIN, BINS, MAX_BINS))
 
 
 def find_walls(
@@ -347,8 +394,8 @@ def find_walls(
                     # The true edge may drift against the model's across the bin where edges are steep (the motoring
                     # edge past the corner, the braking one past the no-load speed): take out the linear drift of
                     # the top fifth of the margins and look again.
-                    top = m >= np.quantile(m, 0.8)
-                    if top.sum() >= 5 and np.ptp(w[cand[top]]) > 0:
+                    top = m >= np.quantile(m, DRIFT_QUANTILE)
+                    if top.sum() >= DRIFT_MIN and np.ptp(w[cand[top]]) > 0:
                         slope = np.polyfit(w[cand[top]], m[top], 1)[0]
                         at = _wall(cand, m - slope * (w[cand] - np.mean(w[cand])), width)
                         if at.size and not _passes_agree(at, margin_of(at), w[at]):
@@ -388,7 +435,7 @@ def find_walls(
     return Walls(centres, tuple(upper), tuple(lower), method, rho, commanded)
 
 
-def _passes(idx: NDArray[np.int64], run: int = 5) -> list[NDArray[np.int64]]:
+def _passes(idx: NDArray[np.int64], run: int = PASS_RUN) -> list[NDArray[np.int64]]:
     """The passes of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) of ``run`` samples or more,
     as positions into ``idx``."""
     breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
@@ -405,7 +452,7 @@ def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[ND
 
 
 def _autocorrelation(
-    log: EnvelopeLog, groups: Sequence[NDArray[np.int64]], fewest: int = 10, pooled: bool = True
+    log: EnvelopeLog, groups: Sequence[NDArray[np.int64]], fewest: int = FEWEST_PAIRS, pooled: bool = True
 ) -> float:
     """Lag-1 autocorrelation of the torque noise between consecutive samples within a wall, about the wall's
     straight line in speed, clipped to [0, 0.95]; 0 without walls of ``fewest`` consecutive pairs, as in a shuffled
@@ -425,7 +472,7 @@ def _autocorrelation(
     if not nums:
         return 0.0
     rho = sum(nums) / sum(dens) if pooled else float(np.median(np.array(nums) / np.array(dens)))
-    return float(np.clip(rho, 0.0, 0.95))
+    return float(np.clip(rho, 0.0, RHO_MAX))
 
 
 def _noise_scale(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]]) -> float:
@@ -472,7 +519,7 @@ def _agreeing_passes(idx: NDArray[np.int64], m: Array, rho: float, floor: float)
     return idx[keep]
 
 
-def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = 5) -> bool:
+def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = PASS_RUN) -> bool:
     """Whether a wall found with its drift removed is one: in a time-ordered log any single pass through a narrow
     bin is nearly straight, so it lines up with itself whatever the command did. Such a wall needs at least two
     passes of ``run`` samples or more (rows ``idx`` at most :data:`PASS_GAP` apart) whose margins ``m`` drift
@@ -490,7 +537,7 @@ def _passes_agree(idx: NDArray[np.int64], m: Array, w: Array, run: int = 5) -> b
     slopes = np.array([f[0] for f in fits])
     se = np.array([f[1] for f in fits])
     ref = float(np.average(slopes, weights=1 / np.maximum(se, 1e-12) ** 2))
-    return bool(np.all(np.abs(slopes - ref) <= np.maximum(4 * se, 0.2 * abs(ref))))
+    return bool(np.all(np.abs(slopes - ref) <= np.maximum(SLOPE_SIGMAS * se, SLOPE_SHARE * abs(ref))))
 
 
 def _steep(speed: float, side: float, inputs: EnvelopeInputs) -> bool:
@@ -555,19 +602,19 @@ def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, 
     slope_edge = float(np.polyfit(x, edge[idx], 1)[0])
     coef = np.polyfit(x, m, 1)
     resid = m - np.polyval(coef, x)
-    rho = float(np.clip(np.sum(resid[1:] * resid[:-1]) / max(float(np.sum(resid**2)), 1e-30), 0.0, 0.95))
+    rho = float(np.clip(np.sum(resid[1:] * resid[:-1]) / max(float(np.sum(resid**2)), 1e-30), 0.0, RHO_MAX))
     se = float(np.std(resid)) / (float(np.std(x)) * math.sqrt(idx.size)) * math.sqrt((1 + rho) / (1 - rho))
     plateau = -side * slope_edge  # the margins' slope if the torque stayed put (margin = side (tau - edge))
     return bool(abs(coef[0]) < 0.5 * abs(plateau) and abs(coef[0] - plateau) > TRACK_SIGMAS * se)
 
 
-def _one_pass(idx: NDArray[np.int64], share: float = 0.75) -> bool:
+def _one_pass(idx: NDArray[np.int64], share: float = ONE_PASS_SHARE) -> bool:
     """Whether ``share`` of the samples (row indices, ascending) form one pass (rows at most :data:`PASS_GAP` apart)."""
     return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
 
 
 def _contiguous(
-    walls: list[NDArray[np.int64]], vouched: Set[int] = frozenset(), run: int = 3
+    walls: list[NDArray[np.int64]], vouched: Set[int] = frozenset(), run: int = NEIGHBOURING_WALLS
 ) -> list[NDArray[np.int64]]:
     """Keep the walls that belong to a run of at least ``run`` neighbouring bins with walls, that are seen in
     :data:`REPEATED` passes or more (a speed hold with several pulses: repeated evidence at one speed; their levels

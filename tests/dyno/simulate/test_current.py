@@ -1,6 +1,5 @@
 import dataclasses
 import math
-import time
 
 import numpy as np
 import pandas as pd
@@ -437,16 +436,6 @@ def test_frozen():
 def test_single_string_effect_and_linear_always_present():
     assert simulate("saturation", plan=SHORT).effects == ("linear", "saturation")
     assert simulate(("delay", "saturation", "saturation"), plan=SHORT).effects == ("linear", "saturation", "delay")
-
-
-def test_a_million_rows_is_fast():
-    rate = 1_000_000 / TestPlan().duration
-    simulate(EFFECTS, rate_hz=rate / 100)  # warm up
-    start = time.perf_counter()
-    log = simulate(EFFECTS, rate_hz=rate)
-    elapsed = time.perf_counter() - start
-    assert len(log.frame) >= 1_000_000
-    assert elapsed < 5.0  # about 0.5 s on a 2-core VM; generous so a loaded machine does not fail
 
 
 # --- errors ------------------------------------------------------------------------------------------------
