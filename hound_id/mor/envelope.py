@@ -37,6 +37,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hound_id.errors import SpecError
 from hound_id.mor.spec import MotorSpec
+from hound_id.parameter import Parameter
 
 #: Temperature at which a spec sheet's resistance holds [degC] (datasheets quote 20-25 degC).
 T_SPEC = 25.0
@@ -58,14 +59,29 @@ class EnvelopeEffect:
     name: str
     physics: str
     """One sentence of physics."""
-    parameter: str
-    unit: str
-    bounds: tuple[float, float]
-    """Physically sensible range of the parameter."""
-    neutral: float
-    """Value at which the effect does nothing."""
+    param: Parameter
+    """Its one parameter: name, unit, physically sensible range (``lower``, ``upper``) and ``neutral`` value."""
     requires: tuple[str, ...] = ()
     """Log channels or inputs it needs: ``temperature``, ``pole_pairs``, ``compensation``."""
+
+    @property
+    def parameter(self) -> str:
+        """The parameter's name."""
+        return self.param.name
+
+    @property
+    def unit(self) -> str:
+        return self.param.unit
+
+    @property
+    def bounds(self) -> tuple[float, float]:
+        """Physically sensible range of the parameter."""
+        return self.param.lower, self.param.upper
+
+    @property
+    def neutral(self) -> float:
+        """Value at which the effect does nothing."""
+        return float("nan") if self.param.neutral is None else self.param.neutral
 
 
 EFFECTS: dict[str, EnvelopeEffect] = {
@@ -75,56 +91,45 @@ EFFECTS: dict[str, EnvelopeEffect] = {
             EnvelopeEffect(
                 "bus_sag",
                 "the battery's internal resistance drops the bus voltage under motoring load",
-                "r_pack",
-                "ohm",
-                (0.0, 5.0),
-                0.0,
+                Parameter("r_pack", "ohm", "the pack's internal resistance", 0.0, 5.0, neutral=0.0),
             ),
             EnvelopeEffect(
                 "regen_rise",
                 "regenerated current raises the bus voltage while braking",
-                "r_regen",
-                "ohm",
-                (0.0, 5.0),
-                0.0,
+                Parameter("r_regen", "ohm", "the bus's resistance to regenerated current", 0.0, 5.0, neutral=0.0),
             ),
             EnvelopeEffect(
                 "thermal_resistance",
                 "the winding's copper resistance grows 0.39 %/K as it heats",
-                "alpha",
-                "1/K",
-                (0.0, 0.01),
-                0.0,
+                Parameter("alpha", "1/K", "temperature coefficient of the winding resistance", 0.0, 0.01, neutral=0.0),
                 ("temperature",),
             ),
             EnvelopeEffect(
                 "inductance",
                 "the q-axis current needs p omega L i of voltage in quadrature at speed",
-                "inductance",
-                "H",
-                (0.0, 0.01),
-                0.0,
+                Parameter("inductance", "H", "q-axis inductance", 0.0, 0.01, neutral=0.0),
                 ("pole_pairs",),
             ),
             EnvelopeEffect(
                 "current_limit",
                 "the driver clamps the current below the spec sheet's limit",
-                "i_limit",
-                "A",
-                (0.0, np.inf),
-                np.inf,
+                Parameter("i_limit", "A", "the driver's current limit", 0.0, np.inf, neutral=np.inf),
             ),
             EnvelopeEffect(
                 "kt_saturation",
                 "the core saturates: torque per amp falls at high current, so each "
                 "newton metre costs more current and voltage",
-                "scale",
-                "-",
-                (0.0, 2.0),
-                0.0,
+                Parameter(
+                    "scale",
+                    "-",
+                    "share of the fitted current-torque curve's departure from tau/Kt",
+                    0.0,
+                    2.0,
+                    neutral=0.0,
+                ),
                 ("compensation",),
             ),
-        ],  # fmt: skip
+        ],
         key=lambda e: e.name,
     )
 }

@@ -54,10 +54,26 @@ from hound_id.dyno.current.fit import (
     solve_bounded,
     solve_normal,
 )
+from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, best, climb, corrected, f_pvalue, rank, significant
 from hound_id.errors import DynoDataError, FitError
 
-#: Significance level after the multiple-comparison corrections.
-ALPHA = 0.01
+__all__ = [
+    "ALPHA",
+    "BLOCK_FACTOR",
+    "FLOOR_FACTOR",
+    "KT_UNDETERMINED",
+    "MATERIAL",
+    "ORDER_TRIALS",
+    "OUTLIER_SIGMAS",
+    "Diagnosis",
+    "Step",
+    "Suggestion",
+    "auto",
+    "candidates_for",
+    "diagnose",
+    "noise_floor",
+]
+
 #: A held-out RMSE within this factor of the noise floor counts as at the floor.
 FLOOR_FACTOR = 1.2
 #: A candidate must lower the cross-validated mean-square error by this fraction of the noise variance.
@@ -70,39 +86,6 @@ KT_UNDETERMINED = 1.0 / 3.0
 OUTLIER_SIGMAS = 8.0
 #: Effective number of values an order search scans (the residual's angular spectrum bins).
 ORDER_TRIALS = 511
-
-
-@dataclass(frozen=True)
-class Suggestion:
-    """An effect not in the model, scored by cross-validation."""
-
-    effect: str
-    """Effect name."""
-    explained: float
-    """Fraction of the cross-validated residual sum of squares the effect removes (negative: it makes it worse)."""
-    significant: bool
-    """Whether it is physically possible, material, and the corrected Wald test rejects 'no effect'."""
-    p_value: float
-    """Corrected p-value (Bonferroni over search values and candidates); NaN when not tested."""
-    rmse_test: float
-    """Cross-validated RMSE with the effect added [N m] (NaN when not fitted)."""
-    reason: str
-    """The evidence in one sentence."""
-    hypers: dict[str, float] = field(default_factory=dict)
-    """Nonlinear parameter values with the effect added (e.g. the cogging order found)."""
-    physical: bool = True
-    """False when the effect fits only with a value outside its physical bounds."""
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "effect": self.effect,
-            "explained": self.explained,
-            "significant": self.significant,
-            "physical": self.physical,
-            "p_value": None if math.isnan(self.p_value) else self.p_value,
-            "rmse_test": None if math.isnan(self.rmse_test) else self.rmse_test,
-            "reason": self.reason,
-        }
 
 
 @dataclass(frozen=True)
@@ -136,8 +119,7 @@ class Diagnosis:
     @property
     def best(self) -> Suggestion | None:
         """The significant suggestion that explains most, if any."""
-        sig = [s for s in self.suggestions if s.significant]
-        return sig[0] if sig else None
+        return best(self.suggestions)
 
     def summary(self) -> str:
         """One sentence on where the model stands."""
@@ -295,8 +277,6 @@ def diagnose(
     signals: Signals, torque: Array, fit: FitResult, *, candidates: Sequence[str] | None = None, alpha: float = ALPHA
 ) -> Diagnosis:
     """Rank the effects missing from ``fit`` by cross-validated residual explained, with significance."""
-    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
-
     names, skipped = candidates_for(fit.model, signals)
     if candidates is not None:
         names = [c for c in candidates if c in names]
@@ -328,16 +308,18 @@ def diagnose(
         explained = (base_sse - trial.cv_sse) / base_sse if base_sse > 0 else 0.0
         gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
         material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2)
-        p = float(fdtrc(trial.q, max(clusters - 1, 1), trial.wald))
-        p_adj = min(1.0, p * _trials(name) * max(len(names), 1))
+        dfd = max(clusters - 1, 1)
+        p = f_pvalue(trial.wald, trial.q, dfd)
+        p_adj = corrected(p, _trials(name), len(names))
         rmse = math.sqrt(trial.cv_sse / n)
         effect = get(name)
-        p_free = min(1.0, float(fdtrc(trial.q, max(clusters - 1, 1), trial.wald_free)) * _trials(name) * len(names))
+        # unphysical only if the effect is there: the fit without bounds passes the same test
+        p_free = corrected(f_pvalue(trial.wald_free, trial.q, dfd), _trials(name), len(names))
         unphysical = trial.unphysical if p_free < alpha else None
-        significant = bool(trial.unphysical is None and p_adj < alpha and material)
+        verdict = significant(p_adj, material=material, physical=trial.unphysical is None, alpha=alpha)
         if unphysical is not None:
             reason = unphysical
-        elif significant:
+        elif verdict:
             reason = effect.evidence(trial.values, signals) if effect.evidence is not None else "it fits"
             reason += f" (explains {explained:.1%} of the cross-validated residual, p = {p_adj:.2g})"
         elif p_adj < alpha and gain > 0:
@@ -353,9 +335,20 @@ def diagnose(
         else:
             reason = f"explains {explained:.2%} of the cross-validated residual; not significant (p = {p_adj:.2g})"
         suggestions.append(
-            Suggestion(name, float(explained), significant, p_adj, rmse, reason, trial.hypers, unphysical is None)
+            Suggestion(
+                effect=name,
+                explained=float(explained),
+                significant=verdict,
+                p_value=p,
+                p_adjusted=p_adj,
+                rmse=rmse,
+                reason=reason,
+                statistic=trial.wald,
+                physical=unphysical is None,
+                hypers=trial.hypers,
+            )
         )
-    suggestions.sort(key=lambda s: (-s.significant, -s.physical, -s.explained))
+    suggestions = rank(suggestions)
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
     agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
     disagreeing = _disagreeing(agreeing, floor, block_floor)
@@ -498,49 +491,28 @@ def _outliers(fit: FitResult, floor: float, signals: Signals) -> str | None:
     )
 
 
-@dataclass(frozen=True)
-class Step:
-    """One rung of the ``--auto`` ladder."""
-
-    model: tuple[str, ...]
-    """Model at this step."""
-    added: str | None
-    """Effect added to reach it (None for the start)."""
-    fit: FitResult
-    """Its fit."""
-    diagnosis: Diagnosis
-    """Its diagnosis."""
-
-    def to_dict(self) -> dict[str, Any]:
-        return {
-            "model": list(self.model),
-            "added": self.added,
-            "rmse_train": self.fit.rmse_train,
-            "rmse_test": self.fit.rmse_test,
-            "at_noise_floor": self.diagnosis.at_noise_floor,
-            "aic": self.fit.aic,
-            "bic": self.fit.bic,
-        }
-
-
 def auto(
     signals: Signals, torque: Array, start: FitResult, *, max_steps: int = 10, alpha: float = ALPHA, on_step: Any = None
-) -> list[Step]:
-    """Add the most explaining significant (physical, material) effect until none is left; the ladder of fits.
+) -> list[Step[tuple[str, ...], FitResult]]:
+    """Add the most explaining significant (physical, material) effect until none is left; the ladder of fits
+    (:func:`hound_id.dyno.identify.engine.climb`; each rung's ``fit`` and ``diagnosis``).
 
     The ladder stops at the noise floor: there no candidate is material by construction of the rule.
     """
-    fit = start
-    ladder = []
-    added: str | None = None
-    for _ in range(max_steps + 1):
+
+    def rung(fit: FitResult, added: str | None) -> Step[tuple[str, ...], FitResult]:
         diagnosis = diagnose(signals, torque, fit, alpha=alpha)
-        ladder.append(Step(fit.model, added, fit, diagnosis))
-        if on_step is not None:
-            on_step(ladder[-1])
-        best = diagnosis.best
-        if best is None or diagnosis.at_noise_floor:
-            break
-        added = best.effect
-        fit = fit_model(signals, torque, (*fit.model, best.effect), robust=fit.robust)
-    return ladder
+        return Step(fit.model, added, fit, diagnosis.suggestions, diagnosis)
+
+    def grow(step: Step[tuple[str, ...], FitResult], chosen: Suggestion) -> Step[tuple[str, ...], FitResult]:
+        fit = fit_model(signals, torque, (*step.fit.model, chosen.effect), robust=step.fit.robust)
+        return rung(fit, chosen.effect)
+
+    return climb(
+        rung(start, None),
+        grow,
+        auto=True,
+        max_steps=max_steps,
+        on_step=on_step,
+        at_floor=lambda step: bool(step.diagnosis.at_noise_floor),
+    )

@@ -31,6 +31,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.errors import FitError
+from hound_id.parameter import Parameter
 
 #: Smoothing speed of the friction sign function sgn(w) = tanh(w / EPS_SPEED) [rad/s].
 EPS_SPEED = 0.01
@@ -118,36 +119,6 @@ class Signals:
             else:
                 out[name] = np.interp(t, self.time, value)
         return Signals(**out)
-
-
-@dataclass(frozen=True)
-class Parameter:
-    """A parameter that enters the model linearly, with the physical bounds the fit respects."""
-
-    name: str
-    """Unique name across the library, e.g. ``kt``."""
-    unit: str
-    """SI unit, e.g. ``N m/A``."""
-    doc: str = ""
-    """What it is."""
-    lower: float = -math.inf
-    """Smallest physically possible value (e.g. 0 for a friction coefficient)."""
-    upper: float = math.inf
-    """Largest physically possible value."""
-    bound_reason: str = ""
-    """Why the bounds hold, in a few words (shown when a fit asks for a value outside them)."""
-
-    def __post_init__(self) -> None:
-        if not self.lower < self.upper:
-            raise FitError(f"parameter '{self.name}': lower bound {self.lower} is not below upper bound {self.upper}")
-
-    def outside(self, value: float) -> str | None:
-        """'coulomb < 0' when ``value`` breaks a bound, else None."""
-        if value < self.lower:
-            return f"{self.name} < {self.lower:g}"
-        if value > self.upper:
-            return f"{self.name} > {self.upper:g}"
-        return None
 
 
 @dataclass(frozen=True)

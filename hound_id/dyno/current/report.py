@@ -2,13 +2,14 @@
 
 from __future__ import annotations
 
+import math
 import os
 from collections.abc import Sequence
 from pathlib import Path
 from typing import Any
 
 from hound_id.dyno.current.curve import Compensation, PeakTorque
-from hound_id.dyno.current.diagnose import Diagnosis, Step
+from hound_id.dyno.current.diagnose import Diagnosis, Step, Suggestion
 from hound_id.dyno.current.fit import FitResult
 
 SCHEMA = "hound-id/fit/2"
@@ -169,15 +170,41 @@ def fit_report(
         "flags": list(diagnosis.flags),
         "peak_torque": peak.to_dict(),
         "compensation": None if comp is None else comp.to_dict(),
-        "suggestions": [s.to_dict() for s in diagnosis.suggestions],
+        "suggestions": [suggestion_dict(s) for s in diagnosis.suggestions],
         "skipped": list(diagnosis.skipped),
         "outliers": diagnosis.outliers,
         "noise_floor": diagnosis.noise_floor,
         "at_noise_floor": diagnosis.at_noise_floor,
         "summary": diagnosis.summary(),
-        "ladder": None if ladder is None else [s.to_dict() for s in ladder],
+        "ladder": None if ladder is None else [step_dict(s) for s in ladder],
         "cleaning": [{"kind": n.kind, "rows": n.rows, "message": n.message} for n in cleaning],
         "units": {"torque": "N m", "current": "A", "rmse": "N m", "noise_floor": "N m"},
+    }
+
+
+def suggestion_dict(s: Suggestion) -> dict[str, Any]:
+    """A suggestion of the report (``p_value`` is the corrected one, ``rmse_test`` the cross-validated RMSE)."""
+    return {
+        "effect": s.effect,
+        "explained": s.explained,
+        "significant": s.significant,
+        "physical": s.physical,
+        "p_value": None if math.isnan(s.p_adjusted) else s.p_adjusted,
+        "rmse_test": None if math.isnan(s.rmse) else s.rmse,
+        "reason": s.reason,
+    }
+
+
+def step_dict(step: Step[tuple[str, ...], FitResult]) -> dict[str, Any]:
+    """A rung of the report's ``ladder``."""
+    return {
+        "model": list(step.model),
+        "added": step.added,
+        "rmse_train": step.fit.rmse_train,
+        "rmse_test": step.fit.rmse_test,
+        "at_noise_floor": step.diagnosis.at_noise_floor,
+        "aic": step.fit.aic,
+        "bic": step.fit.bic,
     }
 
 

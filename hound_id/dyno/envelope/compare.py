@@ -23,14 +23,26 @@ from numpy.typing import NDArray
 from hound_id.dyno.envelope.evidence import bus_evidence, contradicts, current_evidence
 from hound_id.dyno.envelope.offsets import Offsets, isolated_bins, offsets, outside_stats, past_edges
 from hound_id.dyno.envelope.walls import Walls, find_walls, inputs_for
+from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, climb, corrected, f_pvalue, rank, significant
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.errors import DynoDataError, SpecError
 from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names
 
 Array = NDArray[np.float64]
 
-#: Family-wise false-alarm rate of the significance tests.
-ALPHA = 0.01
+__all__ = [
+    "ALPHA",
+    "EXPLAINED",
+    "IMPLAUSIBLE",
+    "OUTSIDE_OK",
+    "REFUTE",
+    "Comparison",
+    "Step",
+    "Suggestion",
+    "compare",
+    "suggest",
+    "unneeded",
+]
 
 #: The model explains the envelope when its error is at most this many noise levels ...
 EXPLAINED = 3.0
@@ -45,33 +57,6 @@ REFUTE = 0.05
 IMPLAUSIBLE = 2.0
 
 
-@dataclass(frozen=True)
-class Suggestion:
-    """A candidate effect tried on top of the model."""
-
-    effect: str
-    value: float
-    """Fitted parameter [the effect's unit]."""
-    unit: str
-    explained: float
-    """Share of the envelope error's sum of squares it removes [0-1]."""
-    rmse: float
-    """Envelope error with it [N m]."""
-    f_statistic: float
-    p_value: float
-    significant: bool
-    reason: str
-    supported: bool = False
-    """A logged channel confirms it (the bus voltage for ``bus_sag``); such a suggestion ranks first."""
-    refit: Mapping[str, float] = field(default_factory=dict)
-    """The model's own parameters refitted together with this effect (a wrong earlier effect falls back here)."""
-
-    def to_dict(self) -> dict[str, Any]:
-        out = {k: getattr(self, k) for k in self.__dataclass_fields__}
-        out["refit"] = dict(self.refit)
-        return out
-
-
 def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
     """The search interval of an effect's parameter (a current limit: up to the spec's own)."""
     lo_b, hi_b = EFFECTS[name].bounds
@@ -83,9 +68,7 @@ def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
 
 def _at_bound(name: str, value: float, inputs: EnvelopeInputs) -> bool:
     """Whether a fitted parameter sits at a bound of its search (not identified), other than its neutral value."""
-    lo_b, hi_b = _bounds(name, inputs)
-    near = min(abs(value - lo_b), abs(hi_b - value)) < 1e-3 * (hi_b - lo_b)
-    return bool(near and value != EFFECTS[name].neutral)
+    return EFFECTS[name].param.at_bound(value, *_bounds(name, inputs))
 
 
 def _fit_one(
@@ -106,8 +89,6 @@ def _fit_one(
 
 def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> list[Suggestion]:
     """Every candidate effect fitted on top of ``model``, best first (module docstring)."""
-    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
-
     base = offsets(log, walls, model, inputs)
     n = base.offset.size
     if n < 3:
@@ -137,7 +118,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                     at_bound = _at_bound(name, value, inputs)
         dof = max(n - 1, 1)
         f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
-        p = float(fdtrc(1, dof, f_stat))
+        p = f_pvalue(f_stat, 1, dof)
         effect = EFFECTS[name]
         # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
         # compromises between two effects passes its samples by a little)
@@ -156,13 +137,16 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 unit=effect.unit,
                 explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
                 rmse=math.sqrt(sse1 / n),
-                f_statistic=float(f_stat),
+                statistic=float(f_stat),
                 p_value=p,
+                p_adjusted=corrected(p, 1, len(names)),
                 # statistically and practically: the F-test, and an error that falls by at least the noise level
-                significant=bool(p < ALPHA / max(len(names), 1))
-                and not at_bound
-                and not refuted
-                and base.rmse - math.sqrt(sse1 / n) >= base.noise,
+                significant=significant(
+                    corrected(p, 1, len(names)),
+                    material=base.rmse - math.sqrt(sse1 / n) >= base.noise,
+                    identified=not at_bound,
+                    refuted=refuted,
+                ),
                 reason=(
                     f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
                     f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
@@ -193,20 +177,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 )
             elif sug.effect == named and sug.explained > 0.5:
                 out[k] = replace(sug, reason=sug.reason + f"; {evidence['text']}", supported=evidence["significant"])
-    out.sort(key=lambda s: (-int(s.supported and s.significant), -s.explained))
-    return out
-
-
-@dataclass(frozen=True)
-class Step:
-    """One rung of the ladder: the model, its offsets and the suggestions on top of it."""
-
-    model: dict[str, float]
-    added: str | None
-    offsets: Offsets
-    suggestions: tuple[Suggestion, ...]
-    refound: bool = False
-    """Whether the walls were found again against this model (and every parameter refitted on them)."""
+    return rank(out, verdict_first=False)
 
 
 @dataclass(frozen=True)
@@ -217,7 +188,7 @@ class Comparison:
     inputs: EnvelopeInputs
     walls: Walls
     """The samples at the limit, found against the final model's edges."""
-    ladder: tuple[Step, ...]
+    ladder: tuple[Step[dict[str, float], Offsets], ...]
     outside: dict[str, Any] = field(default_factory=dict)
     baseline: Offsets | None = None
     """The spec sheet's offsets on the final walls (the fair 'before' of the final model)."""
@@ -229,7 +200,7 @@ class Comparison:
     """Share of the samples past the final model's edges (as :func:`outside_stats` counts them)."""
 
     @property
-    def final(self) -> Step:
+    def final(self) -> Step[dict[str, float], Offsets]:
         return self.ladder[-1]
 
 
@@ -243,37 +214,34 @@ def compare(
             raise SpecError(f"--add: unknown effect {name!r}; effects are {', '.join(EFFECTS)}")
     _plausible(log, inputs)
     walls = find_walls(log, inputs)
-    model: dict[str, float] = {}
-    base = offsets(log, walls, model, inputs)
-    ladder = [Step(dict(model), None, base, tuple(suggest(log, walls, model, inputs)))]
-    queue = list(add)
-    while queue or auto:
-        if queue:
-            name = queue.pop(0)
-            if name not in {s.effect for s in ladder[-1].suggestions}:
-                raise SpecError(
-                    f"--add {name}: not testable on this log (it needs {', '.join(EFFECTS[name].requires) or 'nothing'}"
-                    " that is missing, or is already in the model)"
-                )
-        else:
-            best = [s for s in ladder[-1].suggestions if s.significant]
-            if not best or len(ladder) > max_steps:
-                break
-            name = best[0].effect
-        chosen = next(s for s in ladder[-1].suggestions if s.effect == name)
-        model = {**model, **chosen.refit, name: chosen.value}
+
+    def rung(model: dict[str, float], added: str | None, refound: bool = False) -> Step[dict[str, float], Offsets]:
+        found = offsets(log, walls, model, inputs)
+        return Step(dict(model), added, found, tuple(suggest(log, walls, model, inputs)), refound=refound)
+
+    def grow(step: Step[dict[str, float], Offsets], chosen: Suggestion) -> Step[dict[str, float], Offsets]:
+        nonlocal walls
+        model = {**step.model, **chosen.refit, chosen.effect: chosen.value}
         # with the effect in, edges the spec sheet missed line up: look for walls again and refit on them
         again = find_walls(log, inputs, model, commanded=walls.commanded)
         refound = _bins(again) >= _bins(walls)
         if refound:
             walls = again
             model = _refit(log, walls, model, inputs, all_params=True)
-        step_offsets = offsets(log, walls, model, inputs)
-        ladder.append(Step(dict(model), name, step_offsets, tuple(suggest(log, walls, model, inputs)), refound))
+        return rung(model, chosen.effect, refound)
+
+    def untestable(name: str) -> SpecError:
+        return SpecError(
+            f"--add {name}: not testable on this log (it needs {', '.join(EFFECTS[name].requires) or 'nothing'}"
+            " that is missing, or is already in the model)"
+        )
+
+    ladder = climb(rung({}, None), grow, add=add, auto=auto, max_steps=max_steps, untestable=untestable)
+    base, model = ladder[0].offsets, ladder[-1].model
     walls, isolated = isolated_bins(walls, offsets(log, walls, model, inputs), inputs.spec.back_emf_damping)
     if isolated:  # the last rung on the walls that are left
         last = ladder[-1]
-        ladder[-1] = replace(last, offsets=offsets(log, walls, model, inputs))
+        ladder[-1] = replace(last, result=offsets(log, walls, model, inputs))
     baseline = offsets(log, walls, {}, inputs)
     return Comparison(
         log,
@@ -293,9 +261,8 @@ def unneeded(
 ) -> list[dict[str, Any]]:
     """The model's effects the log does not need once the others are in: each dropped in turn, the rest refitted;
     needed only if the drop is significant (partial F-test at :data:`ALPHA` / effects) and raises the envelope
-    error by at least the noise level, as for adding one. Empty for models of fewer than two effects."""
-    from scipy.special import fdtrc  # F distribution survival function (scipy.stats is slow to import)
-
+    error by at least the noise level, as for adding one (the one rule,
+    :func:`~hound_id.dyno.identify.engine.significant`). Empty for models of fewer than two effects."""
     if len(model) < 2:
         return []
     full = offsets(log, walls, model, inputs)
@@ -305,8 +272,8 @@ def unneeded(
         rest = _refit(log, walls, {k: v for k, v in model.items() if k != name}, inputs, all_params=True)
         without = offsets(log, walls, rest, inputs)
         f_stat = max(without.sse - full.sse, 0.0) / max(full.sse / dof, 1e-30)
-        p = float(fdtrc(1, dof, f_stat))
-        if p < ALPHA / len(model) and without.rmse - full.rmse >= full.noise:
+        p = f_pvalue(f_stat, 1, dof)
+        if significant(corrected(p, 1, len(model)), material=without.rmse - full.rmse >= full.noise):
             continue
         others = ", ".join(f"{k} = {v:.4g} {EFFECTS[k].unit}" for k, v in rest.items())
         out.append(

@@ -9,7 +9,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
-from hound_id.dyno.envelope.compare import EXPLAINED, OUTSIDE_OK, Comparison
+from hound_id.dyno.envelope.compare import EXPLAINED, OUTSIDE_OK, Comparison, Suggestion
 from hound_id.dyno.envelope.offsets import coverage
 from hound_id.mor.envelope import polyline
 
@@ -28,12 +28,30 @@ INFLATED = 1.5
 WIDE = 3.0
 
 
+def suggestion_dict(s: Suggestion) -> dict[str, Any]:
+    """A suggestion of the JSON: the fitted parameter (``value`` in ``unit``), the envelope error with it (``rmse``
+    [N m]), the partial F statistic and its uncorrected p-value."""
+    return {
+        "effect": s.effect,
+        "value": s.value,
+        "unit": s.unit,
+        "explained": s.explained,
+        "rmse": s.rmse,
+        "f_statistic": s.statistic,
+        "p_value": s.p_value,
+        "significant": s.significant,
+        "reason": s.reason,
+        "supported": s.supported,
+        "refit": dict(s.refit),
+    }
+
+
 def _rung(c: Comparison, k: int) -> dict[str, Any]:
     """One step of the ladder, with the suggestion (from the step before) that added its effect."""
     step = c.ladder[k]
     why = None
     if k > 0:
-        why = next((x.to_dict() for x in c.ladder[k - 1].suggestions if x.effect == step.added), None)
+        why = next((suggestion_dict(x) for x in c.ladder[k - 1].suggestions if x.effect == step.added), None)
     # the spec sheet's rung on the final walls, as the headline "before" (its suggestions' texts are on the first)
     off = c.baseline if k == 0 and c.baseline is not None else step.offsets
     return {
@@ -133,7 +151,7 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "sample_noise": first.offsets.sample_noise,
         "model": last.model,
         "added": [s.added for s in c.ladder[1:]],
-        "suggestions": [s.to_dict() for s in last.suggestions],
+        "suggestions": [suggestion_dict(s) for s in last.suggestions],
         "unneeded": list(c.unneeded),
         "isolated_bins": list(c.isolated),
         "ladder": [_rung(c, k) for k in range(len(c.ladder))],
