@@ -193,3 +193,5 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
 
 #: Factors for derived display units (SI value * factor = display value).
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
+#: deg/s per rad/s.
+DEG_S_PER_RAD_S = 180.0 / math.pi

@@ -27,6 +27,7 @@ from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, climb, correc
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.errors import DynoDataError, SpecError
 from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names
+from hound_id.units import DEG_S_PER_RAD_S, RPM_PER_RAD_S
 
 Array = NDArray[np.float64]
 
@@ -44,25 +45,56 @@ __all__ = [
     "unneeded",
 ]
 
-#: The model explains the envelope when its error is at most this many noise levels ...
+#: The model explains the envelope when its error is at most this many noise levels (3 sigma) ... Calibrated on
+#: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope and
+#: test_mor_compare_cli::test_out_is_refused_when_the_model_does_not_explain_the_log.
 EXPLAINED = 3.0
 
-#: ... and (for the spec sheet itself) at most this share of the samples lies past its edges.
+#: ... and (for the spec sheet itself) at most this share of the samples lies past its edges (half a percent: glitches,
+#: not a region that is wrong). Calibrated on test_compare::test_a_log_past_the_region_is_measured_and_located.
 OUTSIDE_OK = 0.005
 
-#: A candidate is refuted when more than OUTSIDE_OK of the samples pass its edges by this share of the torque limit.
+#: A candidate is refuted when more than OUTSIDE_OK of the samples pass its edges by this share of the torque limit (5
+#: %: far beyond the noise, a compromise between two effects passes by less). Calibrated on
+#: test_compare::test_a_candidate_the_log_passes_is_refuted.
 REFUTE = 0.05
 
-#: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake.
+#: A log's 99th-percentile torque or speed past this multiple of the torque limit or overspeed is a unit mistake: most
+#: samples of a log lie inside the region. The unit suggested is the smallest that brings the percentile within
+#: UNIT_SLACK of the limit. Calibrated on
+#: test_compare::test_an_empty_optional_column_is_left_out_and_implausible_units_are_refused.
 IMPLAUSIBLE = 2.0
+IMPLAUSIBLE_QUANTILE = 0.99
+UNIT_SLACK = 1.2
+#: A current-limit search runs from CURRENT_SEARCH[0] to CURRENT_SEARCH[1] x the spec's current limit (a driver clamps
+#: below its motor's rating; a hair above it lets the search reach the spec's own value). Calibrated on
+#: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
+CURRENT_SEARCH = (0.05, 1.0001)
+#: Bounded scalar searches stop at this share of their interval (far below any effect's standard error). Calibrated on
+#: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
+SEARCH_TOLERANCE = 1e-5
+#: A comparison needs this many speed bins at the limit (an F-test on fewer has no degrees of freedom left). Calibrated
+#: on test_compare::test_a_log_that_never_reaches_its_limits_is_refused.
+MIN_BINS = 3
+#: A candidate is refuted when its share of samples past its edges also exceeds SPILL_GROWTH x the spec sheet's (a log
+#: that already spills over the sheet does not refute every effect). Calibrated on
+#: test_compare::test_a_candidate_the_log_passes_is_refuted.
+SPILL_GROWTH = 2.0
+#: A logged channel's evidence is attached to a suggestion that explains more than this share of the envelope error (its
+#: own effect, not one that merely helps). Calibrated on test_compare::test_a_wrong_add_does_not_hide_the_right_effect.
+EVIDENCE_EXPLAINED = 0.5
+#: Rungs of the automatic ladder past the spec sheet. Calibrated on
+#: test_mor_compare_cli::test_a_wrong_add_names_the_right_effect_and_then_says_it_is_not_needed.
+MAX_STEPS = 4
 
 
 def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
     """The search interval of an effect's parameter (a current limit: up to the spec's own)."""
     lo_b, hi_b = EFFECTS[name].bounds
     if not math.isfinite(hi_b):
-        hi_b = (inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt) * 1.0001
-        lo_b = 0.05 * hi_b
+        top = inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt
+        hi_b = top * CURRENT_SEARCH[1]
+        lo_b = CURRENT_SEARCH[0] * hi_b
     return lo_b, hi_b
 
 
@@ -82,7 +114,7 @@ def _fit_one(
         lambda v: offsets(log, walls, {**model, name: float(v)}, inputs).sse,
         bounds=(lo_b, hi_b),
         method="bounded",
-        options={"xatol": (hi_b - lo_b) * 1e-5},
+        options={"xatol": (hi_b - lo_b) * SEARCH_TOLERANCE},
     )
     return float(res.x), float(res.fun), _at_bound(name, float(res.x), inputs)
 
@@ -91,7 +123,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     """Every candidate effect fitted on top of ``model``, best first (module docstring)."""
     base = offsets(log, walls, model, inputs)
     n = base.offset.size
-    if n < 3:
+    if n < MIN_BINS:
         raise SpecError(
             f"{log.source}: only {n} speed bins show the motor at its limits (method: {walls.method}); the log does "
             "not push the motor to its envelope, so there is nothing to compare. Log commands past the limits, or "
@@ -124,7 +156,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         # compromises between two effects passes its samples by a little)
         excess = past_edges(log, inputs, base.sample_noise, {**refit, name: value})[0]
         spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.torque_limit))
-        refuted = spill > max(OUTSIDE_OK, 2 * spill0)
+        refuted = spill > max(OUTSIDE_OK, SPILL_GROWTH * spill0)
         moved = ", ".join(
             f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
             for k, v in refit.items()
@@ -173,10 +205,10 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 out[k] = replace(
                     sug,
                     significant=False,
-                    reason=sug.reason + f"; contradicted: {evidence['text']}, not {sug.value:.3g} ohm",
+                    reason=sug.reason + f"; contradicted: {evidence.text}, not {sug.value:.3g} ohm",
                 )
-            elif sug.effect == named and sug.explained > 0.5:
-                out[k] = replace(sug, reason=sug.reason + f"; {evidence['text']}", supported=evidence["significant"])
+            elif sug.effect == named and sug.explained > EVIDENCE_EXPLAINED:
+                out[k] = replace(sug, reason=sug.reason + f"; {evidence.text}", supported=evidence.significant)
     return rank(out, verdict_first=False)
 
 
@@ -205,7 +237,7 @@ class Comparison:
 
 
 def compare(
-    log: EnvelopeLog, inputs: EnvelopeInputs, add: Sequence[str] = (), auto: bool = False, max_steps: int = 4
+    log: EnvelopeLog, inputs: EnvelopeInputs, add: Sequence[str] = (), auto: bool = False, max_steps: int = MAX_STEPS
 ) -> Comparison:
     """Compare a log with the spec's region; add the named effects, or with ``auto`` the best significant one
     until none is left (at most ``max_steps``)."""
@@ -298,11 +330,11 @@ def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
     overspeed = operating_region(spec).overspeed
     for name, values, limit, unit, units in (
         ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", 100.0), ("mN*m", 1000.0))),
-        ("velocity", log.velocity, overspeed, "rad/s", (("rpm", 30.0 / math.pi), ("deg/s", 180.0 / math.pi))),
+        ("velocity", log.velocity, overspeed, "rad/s", (("rpm", RPM_PER_RAD_S), ("deg/s", DEG_S_PER_RAD_S))),
     ):
-        p99 = float(np.quantile(np.abs(values), 0.99))
+        p99 = float(np.quantile(np.abs(values), IMPLAUSIBLE_QUANTILE))
         if p99 > IMPLAUSIBLE * limit:
-            fits = [u for u, factor in units if p99 / factor <= 1.2 * limit]  # the smallest unit that makes sense
+            fits = [u for u, factor in units if p99 / factor <= UNIT_SLACK * limit]  # the smallest unit that fits
             hint = f"--units {name}={fits[0]}" if fits else "--units " + " or ".join(f"{name}={u}" for u, _ in units)
             raise DynoDataError(
                 f"{log.source}: {name} reaches {p99:.4g} {unit} (99th percentile), over {IMPLAUSIBLE:g}x what "

@@ -4,8 +4,7 @@
 from __future__ import annotations
 
 import math
-from collections.abc import Mapping
-from typing import Any
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -32,13 +31,27 @@ MIN_R_PACK = 1e-3
 BUS_FLOOR = 1e-3
 
 
-def contradicts(value: float, evidence: Mapping[str, Any]) -> bool:
+@dataclass(frozen=True)
+class Evidence:
+    """What a logged channel shows about one effect: a slope with its standard error."""
+
+    value: float
+    """The slope: the pack resistance [ohm] (bus voltage), or the current's excess over tau/Kt per (N m)^3 [A/Kt]."""
+    se: float
+    """Its standard error [same unit]."""
+    significant: bool
+    """Whether the channel shows the effect (:data:`SHOWN_SIGMAS` standard errors above zero)."""
+    text: str
+    """The evidence in one clause, for a suggestion's reason."""
+
+
+def contradicts(value: float, evidence: Evidence) -> bool:
     """Whether a fitted pack resistance is ruled out by the logged bus voltage's own: more than
     :data:`EVIDENCE_SIGMAS` standard errors and :data:`CONTRADICT_SHARE` of the fitted value above it."""
-    return bool(value - evidence["r_pack"] > max(EVIDENCE_SIGMAS * evidence["se"], CONTRADICT_SHARE * value))
+    return bool(value - evidence.value > max(EVIDENCE_SIGMAS * evidence.se, CONTRADICT_SHARE * value))
 
 
-def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
+def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> Evidence | None:
     """Whether the logged current grows faster than tau / Kt at high torque (a saturating core): the slope of
     Kt i - tau against tau^3, with its standard error; None without a current channel."""
     if log.current is None:
@@ -46,13 +59,8 @@ def current_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any]
     x = log.torque**3
     slope, se = _leading(np.column_stack([x, log.torque, np.ones_like(x)]), inputs.spec.kt * log.current - log.torque)
     significant = slope > SHOWN_SIGMAS * se
-    return {
-        "slope": slope,
-        "se": se,
-        "significant": significant,
-        "text": f"the logged current exceeds tau/Kt by {slope:.3g} +- {se:.2g} A/Kt per (N m)^3"
-        + ("" if significant else " (not significant)"),
-    }
+    text = f"the logged current exceeds tau/Kt by {slope:.3g} +- {se:.2g} A/Kt per (N m)^3"
+    return Evidence(slope, se, bool(significant), text + ("" if significant else " (not significant)"))
 
 
 def _leading(A: Array, y: Array) -> tuple[float, float]:
@@ -63,7 +71,7 @@ def _leading(A: Array, y: Array) -> tuple[float, float]:
     return float(coef[0]), math.sqrt(max(float(cov[0, 0]), 0.0))
 
 
-def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | None:
+def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> Evidence | None:
     """The pack resistance the logged bus voltage shows: V_nominal - V_bus against the bus current P / V_bus
     of motoring samples (P = (R i + omega/Kv) i, i from the current channel or tau / Kt); None without the channel.
     """
@@ -78,10 +86,5 @@ def bus_evidence(log: EnvelopeLog, inputs: EnvelopeInputs) -> dict[str, Any] | N
     x = power[motoring] / np.maximum(log.bus_voltage[motoring], BUS_FLOOR * spec.bus_voltage)  # the bus current
     r_pack, se = _leading(np.column_stack([x, np.ones_like(x)]), spec.bus_voltage - log.bus_voltage[motoring])
     significant = r_pack > SHOWN_SIGMAS * se and r_pack > MIN_R_PACK
-    return {
-        "r_pack": r_pack,
-        "se": se,
-        "significant": significant,
-        "text": f"the logged bus voltage falls {r_pack:.3g} +- {se:.2g} ohm x bus current while motoring"
-        + ("" if significant else " (not significant)"),
-    }
+    text = f"the logged bus voltage falls {r_pack:.3g} +- {se:.2g} ohm x bus current while motoring"
+    return Evidence(r_pack, se, bool(significant), text + ("" if significant else " (not significant)"))
