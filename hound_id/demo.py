@@ -33,8 +33,12 @@ class StepResult:
     """Headline numbers, SI."""
 
 
+#: Resolution of the demo's plots [dots per inch].
+DPI = 110
+
+
 def _save_png(fig: object, path: Path) -> None:
-    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=110))  # type: ignore[attr-defined]
+    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=DPI))  # type: ignore[attr-defined]
 
 
 def step_motor_regions(out: Path) -> StepResult:
@@ -123,36 +127,20 @@ DYNO_COLUMNS = {
 
 def step_fit_current(out: Path) -> StepResult:
     """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
-    import yaml
+    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
 
-    from hound_id.dyno.current.diagnose import auto
-    from hound_id.dyno.current.effects import Signals
-    from hound_id.dyno.current.fit import fit_model
-    from hound_id.dyno.current.plot import plot_fit
-    from hound_id.dyno.current.report import fitted_motor, summarize
-    from hound_id.dyno.logs import load_log
-
-    data = samples_dir() / "dyno" / "ilm85_dyno.csv"
-    log = load_log(data, columns=DYNO_COLUMNS)
-    signals = Signals.from_log(log)
-    start = fit_model(signals, log.torque, ("linear", "saturation"))
-    ladder = auto(signals, log.torque, start)
-    fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
-    peak, _, report = summarize(
-        str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read, log.current_limit, signals.time
+    options = FitCurrentOptions(
+        auto=True,
+        columns=DYNO_COLUMNS,
+        spec=samples_dir() / "motors" / "hound_ilm85.yaml",
+        plot=out / "fit_ilm85_dyno.png",
+        out=out / "hound_ilm85_fitted.yaml",
     )
-    io.write_json(out / "fit_ilm85_dyno.json", report)
-    pairs = [("before: " + "+".join(start.model), start), ("after: " + "+".join(fit.model), fit)]
-    _save_png(
-        plot_fit(
-            signals, log.torque, fit, peak, pairs, cogging_order=fit.hypers.get("cogging_order"), diagnosis=diagnosis
-        ),
-        out / "fit_ilm85_dyno.png",
-    )
-    spec = samples_dir() / "motors" / "hound_ilm85.yaml"
-    motor = fitted_motor(report, out / "hound_ilm85_fitted.yaml", spec)
-    io.write_text(out / "hound_ilm85_fitted.yaml", yaml.safe_dump(motor, sort_keys=False))
-    rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in ladder)
+    result = fit_current(samples_dir() / "dyno" / "ilm85_dyno.csv", options)
+    io.write_json(out / "fit_ilm85_dyno.json", result.report)
+    write_outputs(result, dpi=DPI)
+    fit, diagnosis, peak = result.fit, result.diagnosis, result.peak
+    rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in result.ladder or ())
     kt = fit.parameters["kt"]
     return StepResult(
         "fit a dyno log",
@@ -209,27 +197,22 @@ def step_foot(out: Path) -> StepResult:
 
 def step_compare(out: Path) -> StepResult:
     """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
-    import yaml
-
-    from hound_id.dyno.envelope.compare import compare
-    from hound_id.dyno.envelope.plot import plot_compare
-    from hound_id.dyno.envelope.report import comparison_json, envelope_spec
-    from hound_id.dyno.logs import load_envelope_log
-    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.dyno.compare_envelope import CompareOptions, compare_envelope, write_outputs
     from hound_id.mor.region import measured_region, operating_region
     from hound_id.mor.spec import load_motor_spec
 
-    spec_path = samples_dir() / "motors" / "hound_ilm85.yaml"
-    columns = {"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"}
-    log = load_envelope_log(samples_dir() / "envelope" / "ilm85_sag_log.csv", columns)
-    result = compare(log, EnvelopeInputs(load_motor_spec(spec_path)), auto=True)
-    data = comparison_json(result)
-    io.write_json(out / "compare_ilm85_sag.json", data)
-    _save_png(plot_compare(result), out / "compare_ilm85_sag.png")
-    io.write_text(
-        out / "hound_ilm85_envelope.yaml",
-        yaml.safe_dump(envelope_spec(spec_path, out / "hound_ilm85_envelope.yaml", result), sort_keys=False),
+    options = CompareOptions(
+        columns={"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"},
+        auto=True,
+        plot=out / "compare_ilm85_sag.png",
+        out=out / "hound_ilm85_envelope.yaml",
     )
+    result = compare_envelope(
+        samples_dir() / "motors" / "hound_ilm85.yaml", samples_dir() / "envelope" / "ilm85_sag_log.csv", options
+    )
+    data = result.data
+    io.write_json(out / "compare_ilm85_sag.json", data)
+    write_outputs(result, dpi=DPI)
     added = ", ".join(f"{k} = {v:.4g}" for k, v in data["model"].items()) or "nothing"
     measured = load_motor_spec(out / "hound_ilm85_envelope.yaml")  # the region the envelope leaves
     corner, sheet_corner = measured_region(measured).corner_speed, operating_region(measured).corner_speed
