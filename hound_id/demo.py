@@ -43,16 +43,15 @@ def _save_png(fig: object, path: Path) -> None:
 
 def step_motor_regions(out: Path) -> StepResult:
     """Operating region of every sample motor: JSON and plot."""
-    from hound_id.mor.plot import plot_region
-    from hound_id.mor.region import motor_report, operating_region
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.region import motor_report
+    from hound_id.mor.run import motor_regions
 
     files, parts, figures = [], [], {}
     for spec_file in sorted((samples_dir() / "motors").glob("*.yaml")):
-        spec = load_motor_spec(spec_file)
-        region = operating_region(spec)
+        run = motor_regions(spec_file)
+        spec, region = run.spec, run.region
         io.write_json(out / f"mor_{spec.name}.json", motor_report(spec, region))
-        _save_png(plot_region(region), out / f"mor_{spec.name}.png")
+        _save_png(run.figure(), out / f"mor_{spec.name}.png")
         files += [f"mor_{spec.name}.json", f"mor_{spec.name}.png"]
         parts.append(f"{spec.name}: {region.torque_limit:.3g} N m up to {region.corner_speed:.4g} rad/s")
         figures[f"{spec.name}.corner_speed"] = region.corner_speed
@@ -61,15 +60,13 @@ def step_motor_regions(out: Path) -> StepResult:
 
 def step_robot_regions(out: Path) -> StepResult:
     """Joint-space regions, URDF boxes and the saturation study of every sample robot."""
-    from hound_id.mor.joint_space import robot_regions
-    from hound_id.mor.plot import plot_robot
-    from hound_id.mor.robot import load_robot
+    from hound_id.mor.run import robot_regions_of
     from hound_id.mor.saturation import box_study, saturation_for
 
     files, parts, figures = [], [], {}
     for robot_file in sorted((samples_dir() / "robots").glob("*.yaml")):
-        robot = load_robot(robot_file)
-        regions = robot_regions(robot)
+        run = robot_regions_of(robot_file)
+        robot, regions = run.robot, run.regions
         sat = saturation_for(robot)
         inner = np.array([[j.inner_box.effort, j.inner_box.velocity] for j in regions.joints])
         outer = np.array([[j.outer_box.effort, j.outer_box.velocity] for j in regions.joints])
@@ -77,7 +74,7 @@ def step_robot_regions(out: Path) -> StepResult:
         data = regions.to_dict()
         data["box_study"] = study.to_dict()
         io.write_json(out / f"mor_robot_{robot.name}.json", data)
-        _save_png(plot_robot(regions), out / f"mor_robot_{robot.name}.png")
+        _save_png(run.figure(), out / f"mor_robot_{robot.name}.png")
         files += [f"mor_robot_{robot.name}.json", f"mor_robot_{robot.name}.png"]
         parts.append(
             f"{robot.name}: {study.outer_infeasible:.1%} of commands inside the URDF outer box are infeasible "
@@ -90,19 +87,14 @@ def step_robot_regions(out: Path) -> StepResult:
 
 def step_saturate_log(out: Path) -> StepResult:
     """Saturate the sample command log as training does; plot it against each motor's region."""
-    from hound_id.mor.plot import plot_log_saturation
-    from hound_id.mor.region import operating_region
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import saturate_log
-    from hound_id.tables import read_table
+    from hound_id.mor.run import saturate_commands
 
-    robot = load_robot(samples_dir() / "robots" / "hound_like.yaml")
-    log_file = samples_dir() / "commands" / "hound_like_running.csv"
-    log = saturate_log(robot, read_table(log_file), source=str(log_file))
-    summary = log.to_dict()
+    run = saturate_commands(
+        samples_dir() / "commands" / "hound_like_running.csv", samples_dir() / "robots" / "hound_like.yaml", plot=True
+    )
+    summary = run.summary.to_dict()
     io.write_json(out / "saturate_hound_like_running.json", summary)
-    regions = tuple(operating_region(robot.motor_specs[m]) for m in robot.motors)
-    _save_png(plot_log_saturation(log, regions), out / "saturate_hound_like_running.png")
+    _save_png(run.figure(), out / "saturate_hound_like_running.png")
     worst = max(summary["joints"], key=lambda j: j["max_clip"])
     return StepResult(
         "saturate a command log",
@@ -112,6 +104,9 @@ def step_saturate_log(out: Path) -> StepResult:
         {"violating_fraction": summary["violating_fraction"]},
     )
 
+
+#: Knee angle of the demo's nominal pose [rad] (``design_foot``'s default; the command line's is -70 deg).
+DEMO_KNEE_ANGLE = -1.2
 
 #: Column mapping of the sample dyno log (a rig's own export names).
 DYNO_COLUMNS = {
@@ -158,25 +153,20 @@ def step_fit_current(out: Path) -> StepResult:
 
 def step_foot(out: Path) -> StepResult:
     """Optimise the sample leg's foot for the sample running log: STL, URDF, JSON, plot."""
-    from hound_id.foot.angles import gait_angles
-    from hound_id.foot.design import PAPER, design_foot, write_foot
-    from hound_id.foot.material import DEFAULT_GROUND, DEFAULT_MATERIAL, GROUNDS, MATERIALS
-    from hound_id.foot.optimise import FootRequirements
-    from hound_id.foot.plot import plot_foot
-    from hound_id.mor.robot import load_robot
+    from hound_id.foot.design import PAPER
+    from hound_id.foot.run import FootOptions, run_foot, write_outputs
 
-    angles = gait_angles(samples_dir() / "gait" / "hound_running.csv")
-    req = FootRequirements(
-        low=angles.low,
-        high=angles.high,
-        material=MATERIALS[DEFAULT_MATERIAL],
-        ground=GROUNDS[DEFAULT_GROUND],
-        peak_force=1500.0,
+    options = FootOptions(
+        optimise=True,
+        knee_angle=math.degrees(DEMO_KNEE_ANGLE),
+        robot=samples_dir() / "robots" / "hound_like.yaml",
+        out=out / "foot",
+        plot=out / "foot" / "foot.png",
     )
-    reflected = load_robot(samples_dir() / "robots" / "hound_like.yaml").reflected_inertia("RR_KFE")
-    report = design_foot(samples_dir() / "legs" / "hound_leg.urdf", angles, req, reflected_knee_inertia=reflected)
-    write_foot(report, out / "foot")
-    _save_png(plot_foot(report), out / "foot" / "foot.png")
+    run = run_foot(options)
+    write_outputs(run, dpi=DPI)
+    report = run.report
+    assert report is not None  # optimise=True
     g = report.design.geometry
     return StepResult(
         "optimise the foot",

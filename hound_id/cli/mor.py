@@ -165,25 +165,17 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
-    from hound_id.mor.joint_space import motor_region
-    from hound_id.mor.region import motor_report, operating_region
-    from hound_id.mor.spec import load_motor_spec, spec_warnings
+    from hound_id.mor.run import motor_regions
 
     check_output(plot, (".png",), "plot")
-    spec = load_motor_spec(path)
-    sheet = operating_region(spec)
-    region = motor_region(spec)  # the measured envelope, if the spec carries one
-    measured = bool(spec.envelope)
-    warnings = spec_warnings(spec)
-    for w in warnings:
+    run = motor_regions(path)
+    spec, sheet, region, measured = run.spec, run.sheet, run.region, run.measured
+    for w in run.warnings:
         warn(w)
     if plot is not None:
-        from hound_id.mor.plot import plot_region
-
-        save_figure(plot_region(region, sheet if measured else None), plot)
+        save_figure(run.figure(), plot)
     if json_out:
-        data = motor_report(spec, region)
-        data["spec_sheet"] = sheet.to_dict() if measured else None
+        data = run.report()
         data["plot"] = str(plot) if plot else None
         print_json(data)
         return
@@ -257,20 +249,18 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
 
 
 def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
-    from hound_id.mor.joint_space import robot_regions
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.spec import spec_warnings
+    from hound_id.mor.run import robot_regions_of
 
     check_output(plot, (".png",), "plot")
-    robot = load_robot(path)
-    for spec in {s.name: s for s in robot.motor_specs.values()}.values():
-        for w in spec_warnings(spec):
-            warn(w)
-    regions = robot_regions(robot)
-    if plot is not None:
-        from hound_id.mor.plot import plot_robot
 
-        save_figure(plot_robot(regions), plot)
+    def show(warnings: tuple[str, ...]) -> None:
+        for w in warnings:
+            warn(w)
+
+    run = robot_regions_of(path, on_warnings=show)
+    robot, regions = run.robot, run.regions
+    if plot is not None:
+        save_figure(run.figure(), plot)
     if json_out:
         data = regions.to_dict()
         data["plot"] = str(plot) if plot else None
@@ -317,20 +307,16 @@ def saturate(
 ) -> None:
     """Saturate a log of joint torque commands exactly as the method does in training. The log is
     streamed: memory stays bounded whatever its length."""
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import PLOT_ROWS, saturate_file
+    from hound_id.mor.run import saturate_commands
     from hound_id.tables import SUFFIXES
 
     check_output(out, SUFFIXES, "table", inputs=(commands, robot))
     check_output(plot, (".png",), "plot", inputs=(commands, robot))
-    rob = load_robot(robot)
-    log = saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot is not None else 0)
-    if plot is not None and log.sample is not None:
-        from hound_id.mor.plot import plot_log_saturation
-        from hound_id.mor.region import operating_region
-
-        regions = tuple(operating_region(rob.motor_specs[m]) for m in rob.motors)
-        save_figure(plot_log_saturation(log.sample, regions), plot)
+    run = saturate_commands(commands, robot, out=out, plot=plot is not None)
+    log = run.summary
+    figure = run.figure() if plot is not None else None
+    if plot is not None and figure is not None:
+        save_figure(figure, plot)
     summary = log.to_dict()
     if json_out:
         summary.update(out=str(out) if out else None, plot=str(plot) if plot else None)
