@@ -63,7 +63,7 @@ class MotorRegions:
         return plot_region(self.region, self.sheet if self.measured else None)
 
 
-def motor_regions(path: str | os.PathLike[str]) -> MotorRegions:
+def motor_regions(path: str | Path) -> MotorRegions:
     """Load a motor spec and build its regions (``hound-id mor --spec``)."""
     from hound_id.mor.joint_space import motor_region
     from hound_id.mor.region import operating_region
@@ -94,7 +94,7 @@ class RobotRegionsRun:
 
 
 def robot_regions_of(
-    path: str | os.PathLike[str], on_warnings: Callable[[tuple[str, ...]], None] | None = None
+    path: str | Path, on_warnings: Callable[[tuple[str, ...]], None] | None = None
 ) -> RobotRegionsRun:
     """Load a robot and build its joint-space regions (``hound-id mor --robot``).
 
@@ -138,7 +138,7 @@ class SaturateRun:
 
 def saturate_commands(
     commands: str | os.PathLike[str],
-    robot: str | os.PathLike[str],
+    robot: str | Path,
     out: str | os.PathLike[str] | None = None,
     plot: bool = False,
 ) -> SaturateRun:
