@@ -93,9 +93,7 @@ class RobotRegionsRun:
         return plot_robot(self.regions)
 
 
-def robot_regions_of(
-    path: str | Path, on_warnings: Callable[[tuple[str, ...]], None] | None = None
-) -> RobotRegionsRun:
+def robot_regions_of(path: str | Path, on_warnings: Callable[[tuple[str, ...]], None] | None = None) -> RobotRegionsRun:
     """Load a robot and build its joint-space regions (``hound-id mor --robot``).
 
     Args:
