@@ -33,22 +33,25 @@ class StepResult:
     """Headline numbers, SI."""
 
 
+#: Resolution of the demo's plots [dots per inch].
+DPI = 110
+
+
 def _save_png(fig: object, path: Path) -> None:
-    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=110))  # type: ignore[attr-defined]
+    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=DPI))  # type: ignore[attr-defined]
 
 
 def step_motor_regions(out: Path) -> StepResult:
     """Operating region of every sample motor: JSON and plot."""
-    from hound_id.mor.plot import plot_region
-    from hound_id.mor.region import motor_report, operating_region
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.region import motor_report
+    from hound_id.mor.run import motor_regions
 
     files, parts, figures = [], [], {}
     for spec_file in sorted((samples_dir() / "motors").glob("*.yaml")):
-        spec = load_motor_spec(spec_file)
-        region = operating_region(spec)
+        run = motor_regions(spec_file)
+        spec, region = run.spec, run.region
         io.write_json(out / f"mor_{spec.name}.json", motor_report(spec, region))
-        _save_png(plot_region(region), out / f"mor_{spec.name}.png")
+        _save_png(run.figure(), out / f"mor_{spec.name}.png")
         files += [f"mor_{spec.name}.json", f"mor_{spec.name}.png"]
         parts.append(f"{spec.name}: {region.torque_limit:.3g} N m up to {region.corner_speed:.4g} rad/s")
         figures[f"{spec.name}.corner_speed"] = region.corner_speed
@@ -57,15 +60,13 @@ def step_motor_regions(out: Path) -> StepResult:
 
 def step_robot_regions(out: Path) -> StepResult:
     """Joint-space regions, URDF boxes and the saturation study of every sample robot."""
-    from hound_id.mor.joint_space import robot_regions
-    from hound_id.mor.plot import plot_robot
-    from hound_id.mor.robot import load_robot
+    from hound_id.mor.run import robot_regions_of
     from hound_id.mor.saturation import box_study, saturation_for
 
     files, parts, figures = [], [], {}
     for robot_file in sorted((samples_dir() / "robots").glob("*.yaml")):
-        robot = load_robot(robot_file)
-        regions = robot_regions(robot)
+        run = robot_regions_of(robot_file)
+        robot, regions = run.robot, run.regions
         sat = saturation_for(robot)
         inner = np.array([[j.inner_box.effort, j.inner_box.velocity] for j in regions.joints])
         outer = np.array([[j.outer_box.effort, j.outer_box.velocity] for j in regions.joints])
@@ -73,7 +74,7 @@ def step_robot_regions(out: Path) -> StepResult:
         data = regions.to_dict()
         data["box_study"] = study.to_dict()
         io.write_json(out / f"mor_robot_{robot.name}.json", data)
-        _save_png(plot_robot(regions), out / f"mor_robot_{robot.name}.png")
+        _save_png(run.figure(), out / f"mor_robot_{robot.name}.png")
         files += [f"mor_robot_{robot.name}.json", f"mor_robot_{robot.name}.png"]
         parts.append(
             f"{robot.name}: {study.outer_infeasible:.1%} of commands inside the URDF outer box are infeasible "
@@ -86,19 +87,14 @@ def step_robot_regions(out: Path) -> StepResult:
 
 def step_saturate_log(out: Path) -> StepResult:
     """Saturate the sample command log as training does; plot it against each motor's region."""
-    from hound_id.mor.plot import plot_log_saturation
-    from hound_id.mor.region import operating_region
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import saturate_log
-    from hound_id.tables import read_table
+    from hound_id.mor.run import saturate_commands
 
-    robot = load_robot(samples_dir() / "robots" / "hound_like.yaml")
-    log_file = samples_dir() / "commands" / "hound_like_running.csv"
-    log = saturate_log(robot, read_table(log_file), source=str(log_file))
-    summary = log.to_dict()
+    run = saturate_commands(
+        samples_dir() / "commands" / "hound_like_running.csv", samples_dir() / "robots" / "hound_like.yaml", plot=True
+    )
+    summary = run.summary.to_dict()
     io.write_json(out / "saturate_hound_like_running.json", summary)
-    regions = tuple(operating_region(robot.motor_specs[m]) for m in robot.motors)
-    _save_png(plot_log_saturation(log, regions), out / "saturate_hound_like_running.png")
+    _save_png(run.figure(), out / "saturate_hound_like_running.png")
     worst = max(summary["joints"], key=lambda j: j["max_clip"])
     return StepResult(
         "saturate a command log",
@@ -108,6 +104,9 @@ def step_saturate_log(out: Path) -> StepResult:
         {"violating_fraction": summary["violating_fraction"]},
     )
 
+
+#: Knee angle of the demo's nominal pose [rad] (``design_foot``'s default; the command line's is -70 deg).
+DEMO_KNEE_ANGLE = -1.2
 
 #: Column mapping of the sample dyno log (a rig's own export names).
 DYNO_COLUMNS = {
@@ -123,36 +122,20 @@ DYNO_COLUMNS = {
 
 def step_fit_current(out: Path) -> StepResult:
     """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
-    import yaml
+    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
 
-    from hound_id.dyno.current.diagnose import auto
-    from hound_id.dyno.current.effects import Signals
-    from hound_id.dyno.current.fit import fit_model
-    from hound_id.dyno.current.plot import plot_fit
-    from hound_id.dyno.current.report import fitted_motor, summarize
-    from hound_id.dyno.logs import load_log
-
-    data = samples_dir() / "dyno" / "ilm85_dyno.csv"
-    log = load_log(data, columns=DYNO_COLUMNS)
-    signals = Signals.from_log(log)
-    start = fit_model(signals, log.torque, ("linear", "saturation"))
-    ladder = auto(signals, log.torque, start)
-    fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
-    peak, _, report = summarize(
-        str(data), fit, diagnosis, signals.current, ladder, log.notes, log.rows_read, log.current_limit, signals.time
+    options = FitCurrentOptions(
+        auto=True,
+        columns=DYNO_COLUMNS,
+        spec=samples_dir() / "motors" / "hound_ilm85.yaml",
+        plot=out / "fit_ilm85_dyno.png",
+        out=out / "hound_ilm85_fitted.yaml",
     )
-    io.write_json(out / "fit_ilm85_dyno.json", report)
-    pairs = [("before: " + "+".join(start.model), start), ("after: " + "+".join(fit.model), fit)]
-    _save_png(
-        plot_fit(
-            signals, log.torque, fit, peak, pairs, cogging_order=fit.hypers.get("cogging_order"), diagnosis=diagnosis
-        ),
-        out / "fit_ilm85_dyno.png",
-    )
-    spec = samples_dir() / "motors" / "hound_ilm85.yaml"
-    motor = fitted_motor(report, out / "hound_ilm85_fitted.yaml", spec)
-    io.write_text(out / "hound_ilm85_fitted.yaml", yaml.safe_dump(motor, sort_keys=False))
-    rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in ladder)
+    result = fit_current(samples_dir() / "dyno" / "ilm85_dyno.csv", options)
+    io.write_json(out / "fit_ilm85_dyno.json", result.report)
+    write_outputs(result, dpi=DPI)
+    fit, diagnosis, peak = result.fit, result.diagnosis, result.peak
+    rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in result.ladder or ())
     kt = fit.parameters["kt"]
     return StepResult(
         "fit a dyno log",
@@ -170,25 +153,20 @@ def step_fit_current(out: Path) -> StepResult:
 
 def step_foot(out: Path) -> StepResult:
     """Optimise the sample leg's foot for the sample running log: STL, URDF, JSON, plot."""
-    from hound_id.foot.angles import gait_angles
-    from hound_id.foot.design import PAPER, design_foot, write_foot
-    from hound_id.foot.material import DEFAULT_GROUND, DEFAULT_MATERIAL, GROUNDS, MATERIALS
-    from hound_id.foot.optimise import FootRequirements
-    from hound_id.foot.plot import plot_foot
-    from hound_id.mor.robot import load_robot
+    from hound_id.foot.design import PAPER
+    from hound_id.foot.run import FootOptions, run_foot, write_outputs
 
-    angles = gait_angles(samples_dir() / "gait" / "hound_running.csv")
-    req = FootRequirements(
-        low=angles.low,
-        high=angles.high,
-        material=MATERIALS[DEFAULT_MATERIAL],
-        ground=GROUNDS[DEFAULT_GROUND],
-        peak_force=1500.0,
+    options = FootOptions(
+        optimise=True,
+        knee_angle=math.degrees(DEMO_KNEE_ANGLE),
+        robot=samples_dir() / "robots" / "hound_like.yaml",
+        out=out / "foot",
+        plot=out / "foot" / "foot.png",
     )
-    reflected = load_robot(samples_dir() / "robots" / "hound_like.yaml").reflected_inertia("RR_KFE")
-    report = design_foot(samples_dir() / "legs" / "hound_leg.urdf", angles, req, reflected_knee_inertia=reflected)
-    write_foot(report, out / "foot")
-    _save_png(plot_foot(report), out / "foot" / "foot.png")
+    run = run_foot(options)
+    write_outputs(run, dpi=DPI)
+    report = run.report
+    assert report is not None  # optimise=True
     g = report.design.geometry
     return StepResult(
         "optimise the foot",
@@ -209,27 +187,22 @@ def step_foot(out: Path) -> StepResult:
 
 def step_compare(out: Path) -> StepResult:
     """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
-    import yaml
-
-    from hound_id.dyno.envelope.compare import compare
-    from hound_id.dyno.envelope.plot import plot_compare
-    from hound_id.dyno.envelope.report import comparison_json, envelope_spec
-    from hound_id.dyno.logs import load_envelope_log
-    from hound_id.mor.envelope import EnvelopeInputs
+    from hound_id.dyno.compare_envelope import CompareOptions, compare_envelope, write_outputs
     from hound_id.mor.region import measured_region, operating_region
     from hound_id.mor.spec import load_motor_spec
 
-    spec_path = samples_dir() / "motors" / "hound_ilm85.yaml"
-    columns = {"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"}
-    log = load_envelope_log(samples_dir() / "envelope" / "ilm85_sag_log.csv", columns)
-    result = compare(log, EnvelopeInputs(load_motor_spec(spec_path)), auto=True)
-    data = comparison_json(result)
-    io.write_json(out / "compare_ilm85_sag.json", data)
-    _save_png(plot_compare(result), out / "compare_ilm85_sag.png")
-    io.write_text(
-        out / "hound_ilm85_envelope.yaml",
-        yaml.safe_dump(envelope_spec(spec_path, out / "hound_ilm85_envelope.yaml", result), sort_keys=False),
+    options = CompareOptions(
+        columns={"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"},
+        auto=True,
+        plot=out / "compare_ilm85_sag.png",
+        out=out / "hound_ilm85_envelope.yaml",
     )
+    result = compare_envelope(
+        samples_dir() / "motors" / "hound_ilm85.yaml", samples_dir() / "envelope" / "ilm85_sag_log.csv", options
+    )
+    data = result.data
+    io.write_json(out / "compare_ilm85_sag.json", data)
+    write_outputs(result, dpi=DPI)
     added = ", ".join(f"{k} = {v:.4g}" for k, v in data["model"].items()) or "nothing"
     measured = load_motor_spec(out / "hound_ilm85_envelope.yaml")  # the region the envelope leaves
     corner, sheet_corner = measured_region(measured).corner_speed, operating_region(measured).corner_speed

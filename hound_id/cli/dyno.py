@@ -9,10 +9,7 @@ import typer
 from rich.markup import escape
 from rich.table import Table
 
-from hound_id import io
-from hound_id.cli._render import console, err_console, print_json, save_figure, warn
-from hound_id.errors import FitError, HoundIdError
-from hound_id.io import check_output
+from hound_id.cli._render import console, err_console, print_json, warn
 
 
 def fit_current(
@@ -42,113 +39,55 @@ def fit_current(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/2)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
-    from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model
-    from hound_id.dyno.logs import load_log, parse_mapping, parse_window
+    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
-    sources = (data, spec, *(effects_file or []))
-    check_output(plot, (".png",), "plot", inputs=sources)
-    start_stop = parse_window(window)
-    check_output(out, (".yaml", ".yml"), "fitted-motor", inputs=sources)
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.dyno.fit_current import FitCurrentOptions, write_outputs
+    from hound_id.dyno.fit_current import fit_current as run
 
-    sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet
-    for path in effects_file or []:
-        load_effects_file(path)
-    names = list(parse_model(model))
-    for extra in add or []:
-        for effect_name in parse_model(extra):
-            if effect_name in names:
-                raise FitError(f"--add {effect_name}: the model already has it")
-            names.append(effect_name)
-    log = load_log(
-        data,
-        columns=parse_mapping(columns, "--columns"),
-        units=parse_mapping(units, "--units"),
+    options = FitCurrentOptions(
+        model=model,
+        add=tuple(add or ()),
+        auto=auto,
+        columns=columns,
+        units=units,
         flip_torque=flip_torque,
+        window=window,
+        robust=robust,
+        effects_files=tuple(effects_file or ()),
+        spec=spec,
+        plot=plot,
+        out=out,
     )
-    if window is not None:
-        log = log.window(*start_stop)
+    with Progress(
+        SpinnerColumn(),
+        TextColumn("{task.description}"),
+        TimeElapsedColumn(),
+        console=err_console,
+        transient=True,
+        disable=not err_console.is_terminal,
+    ) as progress:
+        task: list[TaskID] = []
+
+        def on_progress(description: str) -> None:
+            if task:
+                progress.update(task[0], description=description)
+            else:
+                task.append(progress.add_task(description))
+
+        result = run(data, options, on_progress=on_progress)
+    write_outputs(result)
     # Notes and warnings are printed once the command has succeeded: an error is then the only line.
-    notes = [n.message for n in log.notes if n.kind in ("unit", "format", "window")] if not json_out else []
-    log_warnings = [n.message for n in log.notes if n.kind not in ("unit", "format", "window")]
-    signals = Signals.from_log(log)
-    torque = log.torque
-    result = _run(signals, torque, tuple(names), auto=auto, robust=robust)
-    fit, diagnosis, ladder, start = result
-    from hound_id.dyno.current.report import fitted_motor, summarize
-
-    peak, _, report = summarize(
-        str(data),
-        fit,
-        diagnosis,
-        signals.current,
-        ladder,
-        log.notes,
-        log.rows_read,
-        current_limit=log.current_limit,
-        time=signals.time if signals.timed else None,
-    )
-    warnings = _fit_warnings(report)
-    from hound_id.dyno.current.report import check_kt, spec_checks
-
-    check_kt(str(data), report["parameters"]["kt"]["value"], sheet, str(spec))
-    if sheet is not None:
-        warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
-    if out is not None:
-        import yaml
-
-        motor = fitted_motor(report, out, spec, data.stem if sheet is None else None)
-        motor_text = yaml.safe_dump(motor, sort_keys=False)  # written after the plot: both or neither
-        if "extrapolated" in motor:
-            warnings.append(
-                f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
-                f"(|i| <= {report['peak_torque']['max_measured_current']:.3g} A); written with "
-                "'extrapolated: [peak_torque]'"
-            )
-        if not diagnosis.at_noise_floor:
-            warnings.append(
-                f"{out}: written from a fit that is not at the noise floor ({diagnosis.summary()}); "
-                "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
-            )
-    report["warnings"] = warnings
-    if plot is not None:
-        from hound_id.dyno.current.fit import fit_model
-        from hound_id.dyno.current.plot import plot_fit
-
-        order = fit.hypers.get("cogging_order") or next(
-            (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.significant),
-            None,
-        )
-        base = tuple(parse_model(model))
-        if auto or tuple(fit.model) != base:  # compare against the model the user started from
-            before = start if auto else _fit_or_none(signals, torque, base, robust)
-        else:
-            before = None
-        if before is not None:
-            pairs = [("before: " + "+".join(before.model), before), ("after: " + "+".join(fit.model), fit)]
-        elif diagnosis.best is not None:  # show what the top suggestion would do
-            best = diagnosis.best.effect
-            suggested = fit_model(signals, torque, (*fit.model, best), robust=robust)
-            pairs = [("model: " + "+".join(fit.model), fit), (f"with suggested {best}", suggested)]
-        else:
-            pairs = [("model: " + "+".join(fit.model), fit)]
-        save_figure(plot_fit(signals, torque, fit, peak, pairs, cogging_order=order, diagnosis=diagnosis), plot)
-    if out is not None:
-        try:
-            io.write_text(out, motor_text)
-        except HoundIdError:
-            if plot is not None:
-                plot.unlink(missing_ok=True)
-            raise
-    for message in notes:
-        err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
-    for w in [*log_warnings, *warnings]:
+    if not json_out:
+        for message in result.notes:
+            err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
+    for w in [*result.log_warnings, *result.warnings]:
         warn(w)
+    report = result.report_json()
     if json_out:
         report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
         print_json(report)
         return
-    _print(report, fit, diagnosis, ladder, plot, out)
+    _print(report, result.fit, result.diagnosis, result.ladder, plot, out)
 
 
 def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
@@ -161,59 +100,6 @@ def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
     if upper is not None:
         return f" <= {upper:g}"
     return ""
-
-
-def _fit_warnings(report: dict) -> list[str]:  # type: ignore[type-arg]
-    """Warnings every user must see: parameters held at a physical bound, disagreeing blocks."""
-    out = []
-    for name, wanted in report["unphysical"].items():
-        est = report["parameters"][name]
-        out.append(
-            f"{name} is held at its physical bound {est['value']:.4g} {est['unit']}: the unconstrained fit wants "
-            f"{wanted:.4g} {est['unit']}, which is not physical; the model lacks what the log shows there, or the "
-            f"log cannot separate {name} from another term"
-        )
-    out += report["flags"]
-    return out
-
-
-def _fit_or_none(signals, torque, model, robust):  # type: ignore[no-untyped-def]
-    from hound_id.dyno.current.fit import fit_model
-
-    try:
-        return fit_model(signals, torque, model, robust=robust)
-    except FitError:
-        return None
-
-
-def _run(signals, torque, names, *, auto: bool, robust: bool):  # type: ignore[no-untyped-def]
-    from rich.progress import Progress, SpinnerColumn, TextColumn, TimeElapsedColumn
-
-    from hound_id.dyno.current.diagnose import auto as run_auto
-    from hound_id.dyno.current.diagnose import diagnose
-    from hound_id.dyno.current.fit import fit_model
-
-    with Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        TimeElapsedColumn(),
-        console=err_console,
-        transient=True,
-        disable=not err_console.is_terminal,
-    ) as progress:
-        task = progress.add_task(f"fitting {'+'.join(names)}")
-        start = fit_model(signals, torque, names, robust=robust)
-        if auto:
-
-            def on_step(step) -> None:  # type: ignore[no-untyped-def]
-                progress.update(
-                    task, description=f"diagnosed {'+'.join(step.model)}: held-out RMSE {step.fit.rmse_test:.3g} N m"
-                )
-
-            ladder = run_auto(signals, torque, start, on_step=on_step)
-            return ladder[-1].fit, ladder[-1].diagnosis, ladder, start
-        progress.update(task, description="diagnosing")
-        return start, diagnose(signals, torque, start), None, start
 
 
 def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]

@@ -87,9 +87,7 @@ def record_cmd(
             live=lambda: {"transport_errors": reader.faults()},
             on_progress=on_progress,
         )
-    import json
-
-    meta = json.loads(result.sidecar.read_text())
+    meta = dict(result.metadata)  # what the sidecar says
     if json_out:
         print_json(meta)
     else:

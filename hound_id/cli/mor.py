@@ -5,15 +5,18 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Optional
 
 import typer
 from rich.table import Table
 
 from hound_id.cli._render import console, print_json, save_figure, warn
-from hound_id.errors import HoundIdError, SpecError
+from hound_id.errors import HoundIdError
 from hound_id.io import check_output
 from hound_id.units import RPM_PER_RAD_S
+
+if TYPE_CHECKING:
+    from hound_id.dyno.compare_envelope import CompareOptions
 
 
 def mor(
@@ -42,7 +45,10 @@ def mor(
             raise HoundIdError(
                 "mor --compare: give --spec MOTOR.yaml (the motor whose region the log is compared with)"
             )
-        _mor_compare(spec, compare, columns, units, robot, joint, add or [], auto, plot, json_out, out)
+        from hound_id.dyno.compare_envelope import CompareOptions
+
+        options = CompareOptions(columns, units, robot, joint, tuple(add or ()), auto, plot, out)
+        _mor_compare(spec, compare, options, json_out)
         return
     if columns or units or joint or add or auto or out:
         raise HoundIdError("mor: --columns, --units, --joint, --add, --auto and --out go with --compare LOG")
@@ -55,64 +61,18 @@ def mor(
         _mor_robot(robot, plot, json_out)
 
 
-def _mor_compare(
-    spec_path: Path,
-    log_path: Path,
-    columns: str | None,
-    units: str | None,
-    robot_path: Path | None,
-    joint: str | None,
-    add: list[str],
-    auto: bool,
-    plot: Path | None,
-    json_out: bool,
-    out: Path | None = None,
-) -> None:
-    from hound_id.dyno.envelope.compare import compare
-    from hound_id.dyno.envelope.report import comparison_json
-    from hound_id.dyno.logs import load_envelope_log, parse_mapping
-    from hound_id.mor.envelope import EnvelopeInputs, compensation_of
-    from hound_id.mor.spec import load_motor_spec
+def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_out: bool) -> None:
+    from hound_id.dyno.compare_envelope import compare_envelope, write_outputs
 
-    check_output(plot, (".png",), "plot", inputs=(spec_path, log_path, robot_path))
-    check_output(out, (".yaml", ".yml"), "motor spec", inputs=(spec_path, log_path, robot_path))
-    spec = load_motor_spec(spec_path)
-    robot = None
-    if robot_path is not None:
-        from hound_id.mor.robot import load_robot
-
-        robot = load_robot(robot_path)
-    log = load_envelope_log(
-        log_path, parse_mapping(columns, "--columns"), parse_mapping(units, "--units"), robot=robot, joint=joint
-    )
     with console.status("comparing the log with the operating region"):
-        result = compare(log, EnvelopeInputs(spec, compensation=compensation_of(spec)), add=add, auto=auto)
-    data = comparison_json(result)
-    if out is not None and not data["explained"]:
-        final, noise = data["envelope_rmse"]["with_added"], data["noise_level"]
-        raise SpecError(
-            f"--out {out}: the model does not explain {log.source} (envelope error {final:.3g} N m, "
-            f"{final / max(noise, 1e-12):.0f}x the noise level"
-            + "".join(f"; {f['text']}" for f in data["flags"])
-            + "); a measured envelope is written only when it explains the log: run without --out to see what is "
-            "missing"
-        )
-    if plot is not None:
-        from hound_id.dyno.envelope.plot import plot_compare
-
-        save_figure(plot_compare(result), plot)
-    data["plot"] = str(plot) if plot else None
-    data["out"] = str(out) if out else None
-    if out is not None:
-        import yaml
-
-        from hound_id.dyno.envelope.report import envelope_spec
-        from hound_id.io import write_text
-
-        write_text(out, yaml.safe_dump(envelope_spec(spec_path, out, result), sort_keys=False))
+        result = compare_envelope(spec_path, log_path, options)
+    write_outputs(result)
+    plot, out = options.plot, options.out
+    data = {**result.data, "plot": str(plot) if plot else None, "out": str(out) if out else None}
     if json_out:
         print_json(data)
         return
+    spec, log = result.spec, result.log
     outside = data["outside"]
     console.print(
         f"[bold]{spec.name}[/bold] against {log.source} ({log.side}, {log.n} samples): "
@@ -124,8 +84,8 @@ def _mor_compare(
         ),
         highlight=False,
     )
-    if log.ignored:
-        warn(f"{log.source}: column(s) {', '.join(log.ignored)} hold no finite value and were left out")
+    if result.ignored_warning:
+        warn(result.ignored_warning)
     console.print(
         f"{data['bins_at_limit']} speed bins show the motor at its limit ({data['limit_method']}); envelope error "
         f"{data['envelope_rmse']['model']:.3g} N m against the spec sheet, noise level {data['noise_level']:.2g} N m",
@@ -165,26 +125,24 @@ def _mor_compare(
         + (f"; {data['rows_dropped']} rows with NaN or inf dropped" if data["rows_dropped"] else ""),
         highlight=False,
     )
-    no_load = spec.no_load_speed
-    forward = max((cov["upper"] or [0.0, 0.0])[1], 0.0)  # the motoring edges: upper forward, lower backward
-    backward = max(-(cov["lower"] or [0.0, 0.0])[0], 0.0)
-    if min(forward, backward) < 0.9 * no_load:
+    if not result.covers_speed:
+        forward, backward = result.motoring_speeds
         console.print(
             f"note: the log shows the motoring edges to {forward:.4g} rad/s forward and {backward:.4g} rad/s backward "
-            f"(no-load speed {no_load:.4g} rad/s): effects that act at speed (bus_sag, inductance, "
+            f"(no-load speed {spec.no_load_speed:.4g} rad/s): effects that act at speed (bus_sag, inductance, "
             "thermal_resistance) show little or nothing below that, so the verdict holds only there",
             highlight=False,
         )
-    significant = [s for s in data["suggestions"] if s["significant"]]
     final = data["envelope_rmse"]["with_added"]
-    for flag in data["flags"]:
-        warn(flag["text"])
+    for text in result.flag_warnings:
+        warn(text)
     for item in data["unneeded"]:
         name = item["effect"]
         console.print(f"not needed: {name}: {item['reason']}; leave out --add {name}", highlight=False)
-    if significant:
-        console.print(f"suggested: --add {significant[0]['effect']}: {significant[0]['reason']}", highlight=False)
-    elif data["explained"]:
+    suggestion = result.suggestion
+    if suggestion is not None:
+        console.print(f"suggested: --add {suggestion['effect']}: {suggestion['reason']}", highlight=False)
+    elif result.verdict == "explained":
         console.print("no missing effect is significant: the model explains the envelope", highlight=False)
     else:
         console.print(
@@ -207,25 +165,17 @@ def _mor_compare(
 
 
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
-    from hound_id.mor.joint_space import motor_region
-    from hound_id.mor.region import motor_report, operating_region
-    from hound_id.mor.spec import load_motor_spec, spec_warnings
+    from hound_id.mor.run import motor_regions
 
     check_output(plot, (".png",), "plot")
-    spec = load_motor_spec(path)
-    sheet = operating_region(spec)
-    region = motor_region(spec)  # the measured envelope, if the spec carries one
-    measured = bool(spec.envelope)
-    warnings = spec_warnings(spec)
-    for w in warnings:
+    run = motor_regions(path)
+    spec, sheet, region, measured = run.spec, run.sheet, run.region, run.measured
+    for w in run.warnings:
         warn(w)
     if plot is not None:
-        from hound_id.mor.plot import plot_region
-
-        save_figure(plot_region(region, sheet if measured else None), plot)
+        save_figure(run.figure(), plot)
     if json_out:
-        data = motor_report(spec, region)
-        data["spec_sheet"] = sheet.to_dict() if measured else None
+        data = run.report()
         data["plot"] = str(plot) if plot else None
         print_json(data)
         return
@@ -299,20 +249,18 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
 
 
 def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
-    from hound_id.mor.joint_space import robot_regions
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.spec import spec_warnings
+    from hound_id.mor.run import robot_regions_of
 
     check_output(plot, (".png",), "plot")
-    robot = load_robot(path)
-    for spec in {s.name: s for s in robot.motor_specs.values()}.values():
-        for w in spec_warnings(spec):
-            warn(w)
-    regions = robot_regions(robot)
-    if plot is not None:
-        from hound_id.mor.plot import plot_robot
 
-        save_figure(plot_robot(regions), plot)
+    def show(warnings: tuple[str, ...]) -> None:
+        for w in warnings:
+            warn(w)
+
+    run = robot_regions_of(path, on_warnings=show)
+    robot, regions = run.robot, run.regions
+    if plot is not None:
+        save_figure(run.figure(), plot)
     if json_out:
         data = regions.to_dict()
         data["plot"] = str(plot) if plot else None
@@ -359,20 +307,16 @@ def saturate(
 ) -> None:
     """Saturate a log of joint torque commands exactly as the method does in training. The log is
     streamed: memory stays bounded whatever its length."""
-    from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import PLOT_ROWS, saturate_file
+    from hound_id.mor.run import saturate_commands
     from hound_id.tables import SUFFIXES
 
     check_output(out, SUFFIXES, "table", inputs=(commands, robot))
     check_output(plot, (".png",), "plot", inputs=(commands, robot))
-    rob = load_robot(robot)
-    log = saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot is not None else 0)
-    if plot is not None and log.sample is not None:
-        from hound_id.mor.plot import plot_log_saturation
-        from hound_id.mor.region import operating_region
-
-        regions = tuple(operating_region(rob.motor_specs[m]) for m in rob.motors)
-        save_figure(plot_log_saturation(log.sample, regions), plot)
+    run = saturate_commands(commands, robot, out=out, plot=plot is not None)
+    log = run.summary
+    figure = run.figure() if plot is not None else None
+    if plot is not None and figure is not None:
+        save_figure(figure, plot)
     summary = log.to_dict()
     if json_out:
         summary.update(out=str(out) if out else None, plot=str(plot) if plot else None)

@@ -50,6 +50,7 @@ from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from datetime import datetime, timezone
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 from hound_id import __version__, io
@@ -126,6 +127,9 @@ class RecordResult:
     """Stretches without samples."""
     message: str = ""
     """Why a failed run stopped."""
+    metadata: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
+    """What the final sidecar says (schema ``hound-id/record/2``), read-only; empty in the running totals
+    given to ``on_progress``."""
 
 
 def check_settings(rate_hz: float, duration: float | None, flush_interval: float) -> None:
@@ -634,6 +638,7 @@ def record(
         if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
             status, message = "failed", "the recorder stopped on an unexpected error"
         final, data = snapshot()
+        final = dataclasses.replace(final, metadata=MappingProxyType(data))
         try:
             _write_sidecar(side, data)
         except OSError as err:

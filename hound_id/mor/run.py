@@ -1,0 +1,166 @@
+"""The verbs of ``hound-id mor --spec``, ``mor --robot`` and ``saturate``: files in, regions and clipping out.
+
+Each verb loads its inputs, computes, and returns a frozen value with what the command and
+``hound-id demo`` render; it prints nothing. The figures are drawn on demand from the value,
+so nothing is computed twice.
+"""
+
+from __future__ import annotations
+
+import os
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from hound_id import io
+
+if TYPE_CHECKING:
+    from matplotlib.figure import Figure
+
+    from hound_id.mor.joint_space import RobotRegions
+    from hound_id.mor.region import OperatingRegion
+    from hound_id.mor.robot import Robot
+    from hound_id.mor.saturation import LogSummary
+    from hound_id.mor.spec import MotorSpec
+
+
+def save_png(fig: Any, path: Path, dpi: int = 120) -> None:
+    """Save a matplotlib figure as PNG, atomically (the folder must exist)."""
+    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
+
+
+@dataclass(frozen=True, eq=False)
+class MotorRegions:
+    """A motor's region: the measured envelope's if the spec carries one, and the spec sheet's."""
+
+    spec: MotorSpec
+    """The motor spec."""
+    region: OperatingRegion
+    """The region its limits come from (the measured envelope's, else the spec sheet's)."""
+    sheet: OperatingRegion
+    """The spec sheet's region."""
+    warnings: tuple[str, ...]
+    """Plausibility warnings on the spec."""
+
+    @property
+    def measured(self) -> bool:
+        """Whether the region is a measured envelope's."""
+        return bool(self.spec.envelope)
+
+    def report(self) -> dict[str, Any]:
+        """The ``hound-id/mor/1`` JSON, with ``spec_sheet`` (None unless measured)."""
+        from hound_id.mor.region import motor_report
+
+        data = motor_report(self.spec, self.region)
+        data["spec_sheet"] = self.sheet.to_dict() if self.measured else None
+        return data
+
+    def figure(self) -> Figure:
+        """The region (against the spec sheet's when measured)."""
+        from hound_id.mor.plot import plot_region
+
+        return plot_region(self.region, self.sheet if self.measured else None)
+
+
+def motor_regions(path: str | Path) -> MotorRegions:
+    """Load a motor spec and build its regions (``hound-id mor --spec``)."""
+    from hound_id.mor.joint_space import motor_region
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.spec import load_motor_spec, spec_warnings
+
+    spec = load_motor_spec(path)
+    sheet = operating_region(spec)
+    region = motor_region(spec)  # the measured envelope, if the spec carries one
+    return MotorRegions(spec, region, sheet, tuple(spec_warnings(spec)))
+
+
+@dataclass(frozen=True, eq=False)
+class RobotRegionsRun:
+    """A robot's joint-space regions and URDF boxes."""
+
+    robot: Robot
+    """The robot."""
+    regions: RobotRegions
+    """Its joint-space regions."""
+    warnings: tuple[str, ...]
+    """Plausibility warnings on its motor specs (each spec once)."""
+
+    def figure(self) -> Figure:
+        """One panel per joint."""
+        from hound_id.mor.plot import plot_robot
+
+        return plot_robot(self.regions)
+
+
+def robot_regions_of(path: str | Path, on_warnings: Callable[[tuple[str, ...]], None] | None = None) -> RobotRegionsRun:
+    """Load a robot and build its joint-space regions (``hound-id mor --robot``).
+
+    Args:
+        path: Robot YAML.
+        on_warnings: Given the specs' warnings once the robot is loaded, before the regions are built (so they are
+            seen even when building fails).
+    """
+    from hound_id.mor.joint_space import robot_regions
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.spec import spec_warnings
+
+    robot = load_robot(path)
+    warnings = tuple(
+        w for spec in {s.name: s for s in robot.motor_specs.values()}.values() for w in spec_warnings(spec)
+    )
+    if on_warnings is not None:
+        on_warnings(warnings)
+    return RobotRegionsRun(robot, robot_regions(robot), warnings)
+
+
+@dataclass(frozen=True, eq=False)
+class SaturateRun:
+    """A command log saturated as training does."""
+
+    robot: Robot
+    """The robot whose motors and transmissions applied."""
+    summary: LogSummary
+    """The clipping per joint and motor (and the rows kept for the plot)."""
+
+    def figure(self) -> Figure | None:
+        """Each motor's commands against its spec-sheet region (None when no rows were kept for it)."""
+        from hound_id.mor.plot import plot_log_saturation
+        from hound_id.mor.region import operating_region
+
+        if self.summary.sample is None:
+            return None
+        regions = tuple(operating_region(self.robot.motor_specs[m]) for m in self.robot.motors)
+        return plot_log_saturation(self.summary.sample, regions)
+
+
+def saturate_commands(
+    commands: str | os.PathLike[str],
+    robot: str | Path,
+    out: str | os.PathLike[str] | None = None,
+    plot: bool = False,
+) -> SaturateRun:
+    """Saturate a log of joint torque commands (streamed: memory stays bounded), ``hound-id saturate``.
+
+    Args:
+        commands: CSV or Parquet with ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] columns.
+        robot: Robot YAML whose motors and transmissions apply.
+        out: Write the table with ``tau_sat_<joint>`` columns added here (None: not written).
+        plot: Keep up to :data:`hound_id.mor.saturation.PLOT_ROWS` rows for :meth:`SaturateRun.figure`.
+    """
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.saturation import PLOT_ROWS, saturate_file
+
+    rob = load_robot(robot)
+    return SaturateRun(rob, saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot else 0))
+
+
+__all__ = [
+    "MotorRegions",
+    "RobotRegionsRun",
+    "SaturateRun",
+    "motor_regions",
+    "robot_regions_of",
+    "saturate_commands",
+    "save_png",
+]

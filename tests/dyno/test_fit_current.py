@@ -1,0 +1,75 @@
+"""The fit-current verb on seeded logs with known truth: the ladder, the plot's fits, the outputs."""
+
+import pytest
+import yaml
+
+from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
+from hound_id.dyno.simulate.current import simulate
+from hound_id.errors import FitError, HoundIdError
+
+HIDDEN = ("linear", "saturation", "coulomb")
+
+
+@pytest.fixture(scope="module")
+def seeded(tmp_path_factory):
+    sim = simulate(HIDDEN, seed=3)
+    path = tmp_path_factory.mktemp("logs") / "coulomb_log.csv"
+    sim.frame.to_csv(path, index=False)
+    return path, sim.truth
+
+
+def test_auto_finds_the_hidden_effect_and_the_true_kt(seeded):
+    path, truth = seeded
+    result = fit_current(path, FitCurrentOptions(auto=True))
+    assert result.ladder is not None
+    assert result.ladder[0].model == ("linear", "saturation") and result.start.model == ("linear", "saturation")
+    assert "coulomb" in result.fit.model and [s.added for s in result.ladder[1:]][0] == "coulomb"
+    kt = result.fit.parameters["kt"]
+    assert abs(kt.value - truth["kt"]) < 5 * kt.stderr + 1e-3 * truth["kt"]
+    assert result.diagnosis.at_noise_floor
+    assert result.report["parameters"]["kt"]["value"] == kt.value
+    assert list(result.report_json())[-1] == "warnings" and "warnings" not in result.report
+    assert result.motor is None and result.figure is None  # neither --out nor --plot asked for
+
+
+def test_add_without_auto_diagnoses_once_and_the_plot_compares_with_the_start(seeded, tmp_path):
+    path, _ = seeded
+    options = FitCurrentOptions(add=("coulomb",), plot=tmp_path / "fit.png")
+    result = fit_current(path, options)
+    assert result.ladder is None and result.fit.model == HIDDEN
+    assert result.figure is not None
+    (label0, before), (label1, after) = result.figure.pairs
+    assert (label0, label1) == ("before: linear+saturation", "after: linear+saturation+coulomb")
+    assert before.model == ("linear", "saturation") and after is result.fit
+    assert before.rmse_test > after.rmse_test  # the missing Coulomb friction is in the residual before
+
+
+def test_progress_names_each_stage(seeded):
+    path, _ = seeded
+    seen: list[str] = []
+    fit_current(path, FitCurrentOptions(model="linear+saturation+coulomb"), on_progress=seen.append)
+    assert seen == ["fitting linear+saturation+coulomb", "diagnosing"]
+
+
+def test_adding_an_effect_the_model_has_is_refused(seeded):
+    path, _ = seeded
+    with pytest.raises(FitError, match="--add saturation: the model already has it"):
+        fit_current(path, FitCurrentOptions(add=("saturation",)))
+
+
+def test_outputs_are_written_plot_first_and_the_plot_removed_when_out_fails(seeded, tmp_path):
+    path, _ = seeded
+    plot, sub = tmp_path / "fit.png", tmp_path / "sub"
+    sub.mkdir()
+    out = sub / "fitted.yaml"
+    result = fit_current(path, FitCurrentOptions(auto=True, plot=plot, out=out))
+    assert result.motor is not None and result.motor["kt"] == result.fit.parameters["kt"].value
+    assert result.motor["name"] == path.stem  # no spec sheet: the motor is named after the log
+    write_outputs(result)
+    assert plot.read_bytes()[:4] == b"\x89PNG" and yaml.safe_load(out.read_text()) == result.motor
+    plot.unlink()
+    out.unlink()
+    sub.rmdir()  # --out cannot be written any more
+    with pytest.raises(HoundIdError):
+        write_outputs(result)
+    assert not plot.exists()  # both or neither
