@@ -55,6 +55,7 @@ from hound_id.dyno.current.fit import (
     solve_normal,
 )
 from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, best, climb, corrected, f_pvalue, rank, significant
+from hound_id.dyno.logs import MAD_TO_SIGMA
 from hound_id.errors import DynoDataError, FitError
 
 __all__ = [
@@ -74,18 +75,37 @@ __all__ = [
     "noise_floor",
 ]
 
-#: A held-out RMSE within this factor of the noise floor counts as at the floor.
+#: A held-out RMSE within this factor of the noise floor counts as at the floor (the floor estimate itself scatters by
+#: about 10 % on a block of a few thousand rows). Calibrated on
+#: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise and
+#: test_diagnose::test_noise_only_data_has_nothing_significant.
 FLOOR_FACTOR = 1.2
-#: A candidate must lower the cross-validated mean-square error by this fraction of the noise variance.
+#: A candidate must lower the cross-validated mean-square error by this fraction of the noise variance (an effect whose
+#: RMS is a fifth of the noise or more). Calibrated on
+#: test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 MATERIAL = 0.05
-#: A block disagrees when its held-out RMSE exceeds this many times both the median block's and its own noise.
+#: A block disagrees when its held-out RMSE exceeds this many times both the median block's and its own noise (3x: a
+#: motor switched off, not the scatter of block RMSEs). Calibrated on
+#: test_polled_rig::test_a_log_that_breaks_midway_is_flagged_with_its_times and
+#: test_polled_rig::test_a_flagged_training_fold_is_not_hidden_by_a_good_held_out_error.
 BLOCK_FACTOR = 3.0
-#: Kt whose standard error exceeds this fraction of its value is not determined by the log.
+#: Kt whose standard error exceeds this fraction of its value is not determined by the log (a 3-sigma interval would
+#: include zero). Calibrated on test_polled_rig::test_a_torque_sensor_the_motor_does_not_load_gives_no_kt.
 KT_UNDETERMINED = 1.0 / 3.0
-#: Residuals beyond this many noise-floor sigmas count as outliers in the summary.
+#: Residuals beyond this many noise-floor sigmas count as outliers in the summary, when they are at most OUTLIER_SHARE
+#: of the rows and carry OUTLIER_WEIGHT of the residual's sum of squares or more. Calibrated on
+#: test_diagnose::test_a_long_glitch_is_named_as_outliers_not_a_missing_effect.
 OUTLIER_SIGMAS = 8.0
-#: Effective number of values an order search scans (the residual's angular spectrum bins).
+OUTLIER_SHARE = 0.01
+OUTLIER_WEIGHT = 0.5
+#: Effective number of values an order search scans (the residual's angular spectrum bins), and of a continuous search
+#: (grid points plus bounded refinement evaluations, an upper bound): the Bonferroni factors of a searched effect.
+#: Calibrated on test_diagnose::test_noise_only_data_has_nothing_significant.
 ORDER_TRIALS = 511
+SEARCH_TRIALS = 30
+#: Fewest residual samples a noise floor is estimated from. Calibrated on
+#: test_diagnose::test_noise_floor_of_white_noise.
+MIN_FLOOR_ROWS = 10
 
 
 @dataclass(frozen=True)
@@ -153,10 +173,10 @@ class Diagnosis:
 def noise_floor(residual: Array) -> float:
     """Standard deviation of white measurement noise in a residual series [N m] (see module docstring)."""
     r = np.asarray(residual, float)
-    if r.size < 10:
+    if r.size < MIN_FLOOR_ROWS:
         return float("nan")
     d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
-    return float(1.4826 * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
 def _trials(name: str) -> int:
@@ -166,7 +186,7 @@ def _trials(name: str) -> int:
     h = e.hypers[0]
     if h.integer:
         return ORDER_TRIALS
-    return 30  # grid points plus bounded refinement evaluations (upper bound)
+    return SEARCH_TRIALS
 
 
 def candidates_for(model: Sequence[str], signals: Signals) -> tuple[list[str], list[str]]:
@@ -477,10 +497,10 @@ def _outliers(fit: FitResult, floor: float, signals: Signals) -> str | None:
     r = np.asarray(fit.residual)
     far = np.abs(r) > OUTLIER_SIGMAS * floor
     total = float(r @ r)
-    if not far.any() or total <= 0 or far.mean() > 0.01:
+    if not far.any() or total <= 0 or far.mean() > OUTLIER_SHARE:
         return None
     share = float(r[far] @ r[far]) / total
-    if share < 0.5:
+    if share < OUTLIER_WEIGHT:
         return None
     k = int(np.argmax(np.abs(r)))
     where = f"t = {signals.time[k]:.4g} s" if signals.timed else f"row {k}"
