@@ -17,6 +17,7 @@ TUNED = (
     "hound_id/dyno/envelope/offsets.py",
     "hound_id/dyno/envelope/evidence.py",
     "hound_id/dyno/envelope/compare.py",
+    "hound_id/dyno/envelope/report.py",
     "hound_id/dyno/current/diagnose.py",
 )
 #: Constants that are facts or formats, not tuning (a unit factor, a schema).

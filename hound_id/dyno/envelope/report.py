@@ -17,14 +17,16 @@ Array = NDArray[np.float64]
 
 SCHEMA = "hound-id/mor-compare/2"
 
-#: A bin off the final model by more than OFF_SIGMAS standard errors and OFF_FLOOR of the torque limit is not explained;
-#: a noise level above INFLATED x that of the bins whose samples spread less than WIDE x the typical is flagged.
+#: A bin off the final model by more than OFF_SIGMAS standard errors (5 sigma: chance once in 1.7 million bins) and
+#: OFF_FLOOR of the torque limit (1 %: smaller misses do not change a trainer's clip) is not explained. Calibrated on
+#: test_mor_compare_cli::test_out_is_refused_when_the_model_does_not_explain_the_log and
+#: test_hold_protocol::test_a_hot_winding_without_its_temperature_is_not_explained.
 OFF_SIGMAS = 5.0
-
 OFF_FLOOR = 0.01
-
+#: A noise level above INFLATED x that of the bins whose samples spread less than WIDE x the typical sample noise is
+#: flagged: a few wide bins (samples counted at the limit that were not) would let any model pass. Calibrated on
+#: test_hold_protocol::test_an_inflated_noise_level_is_flagged.
 INFLATED = 1.5
-
 WIDE = 3.0
 
 
