@@ -160,15 +160,15 @@ def test_damaged_bundles_are_named(fitted):
     from hound_id.errors import SpecError
 
     robot, _ = fitted
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     del bundle["saturation"]["A"]
     with pytest.raises(SpecError, match="not a complete hound-id bundle"):
         hound_id.runtime.from_bundle(bundle)
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     bundle["motors"] = bundle["motors"][:11]
     with pytest.raises(SpecError, match="12 joints but A is \\(12, 12\\), 11 motors"):
         hound_id.runtime.from_bundle(bundle)
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     bundle["saturation"]["A"] = np.zeros((12, 12)).tolist()
     with pytest.raises(SpecError, match="singular"):
         hound_id.runtime.from_bundle(bundle)

@@ -36,6 +36,7 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hound_id.errors import SpecError
+from hound_id.mor.envelope_effects import EFFECTS, EnvelopeEffect  # noqa: F401 - EnvelopeEffect re-exported
 from hound_id.mor.spec import MotorSpec
 
 #: Temperature at which a spec sheet's resistance holds [degC] (datasheets quote 20-25 degC).
@@ -49,85 +50,6 @@ EDGE_TOLERANCE = 1e-12
 EDGE_ITERATIONS = 100
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class EnvelopeEffect:
-    """One physical reason for the measured envelope to differ from the spec sheet's."""
-
-    name: str
-    physics: str
-    """One sentence of physics."""
-    parameter: str
-    unit: str
-    bounds: tuple[float, float]
-    """Physically sensible range of the parameter."""
-    neutral: float
-    """Value at which the effect does nothing."""
-    requires: tuple[str, ...] = ()
-    """Log channels or inputs it needs: ``temperature``, ``pole_pairs``, ``compensation``."""
-
-
-EFFECTS: dict[str, EnvelopeEffect] = {
-    e.name: e
-    for e in sorted(
-        [
-            EnvelopeEffect(
-                "bus_sag",
-                "the battery's internal resistance drops the bus voltage under motoring load",
-                "r_pack",
-                "ohm",
-                (0.0, 5.0),
-                0.0,
-            ),
-            EnvelopeEffect(
-                "regen_rise",
-                "regenerated current raises the bus voltage while braking",
-                "r_regen",
-                "ohm",
-                (0.0, 5.0),
-                0.0,
-            ),
-            EnvelopeEffect(
-                "thermal_resistance",
-                "the winding's copper resistance grows 0.39 %/K as it heats",
-                "alpha",
-                "1/K",
-                (0.0, 0.01),
-                0.0,
-                ("temperature",),
-            ),
-            EnvelopeEffect(
-                "inductance",
-                "the q-axis current needs p omega L i of voltage in quadrature at speed",
-                "inductance",
-                "H",
-                (0.0, 0.01),
-                0.0,
-                ("pole_pairs",),
-            ),
-            EnvelopeEffect(
-                "current_limit",
-                "the driver clamps the current below the spec sheet's limit",
-                "i_limit",
-                "A",
-                (0.0, np.inf),
-                np.inf,
-            ),
-            EnvelopeEffect(
-                "kt_saturation",
-                "the core saturates: torque per amp falls at high current, so each "
-                "newton metre costs more current and voltage",
-                "scale",
-                "-",
-                (0.0, 2.0),
-                0.0,
-                ("compensation",),
-            ),
-        ],  # fmt: skip
-        key=lambda e: e.name,
-    )
-}
 
 
 @dataclass(frozen=True)
@@ -360,7 +282,5 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
 
 def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]] | None:
     """The current-compensation polynomial of a fitted spec (``fit-current --out``), if it has one."""
-    comp = (spec.fit or {}).get("compensation")
-    if not comp:
-        return None
-    return tuple(int(p) for p in comp["powers"]), tuple(float(c) for c in comp["coefficients"])
+    comp = spec.fit.compensation if spec.fit is not None else None
+    return None if comp is None else (comp.powers, comp.coefficients)

@@ -21,7 +21,7 @@ def robot():
 
 
 def test_bundle_carries_the_robot(robot):
-    b = build_bundle(robot)
+    b = build_bundle(robot).to_dict()
     assert b["schema"] == SCHEMA and b["joints"] == list(robot.joints)
     regions = robot_regions(robot)
     for j in regions.joints:
@@ -43,7 +43,7 @@ def test_fits_replace_the_spec_sheet(robot, tmp_path):
     from tests.export.conftest import fitted_motor
 
     fitted = apply_fits(robot, [load_motor_spec(fitted_motor(tmp_path))])
-    b = build_bundle(fitted)
+    b = build_bundle(fitted).to_dict()
     m = b["motors"][0]
     assert m["fitted"] and m["kt"] == pytest.approx(0.1375)
     assert m["friction"]["coulomb"] == pytest.approx(0.08) and m["friction"]["viscous"] == pytest.approx(2e-4)
@@ -51,7 +51,7 @@ def test_fits_replace_the_spec_sheet(robot, tmp_path):
 
 
 def test_bundle_files_of_version_1_still_load():
-    b = load_bundle(V1)
+    b = load_bundle(V1).to_dict()
     assert b["schema"] == "hound-id/bundle/1" and len(b["joints"]) == 12
     assert b["motors"][0]["fitted"] and b["foot"]["mass"] < 0.05
     from hound_id.runtime import from_bundle

@@ -135,7 +135,7 @@ def test_fitted_spec_on_a_base_sheet(write_yaml, tmp_path):
     )
     assert fitted.kt == 0.093 and fitted.peak_torque == 2.6 and fitted.kv == 10
     assert fitted.assumed == ("resistance",)
-    assert fitted.fit == {"schema": "hound-id/fit/1"}
+    assert fitted.fit.to_dict() == {"schema": "hound-id/fit/1"}
     with pytest.raises(SpecError, match="field 'base': the spec sheet .*nope.yaml it names is not there"):
         load_motor_spec(write_yaml("orphan.yaml", "base: nope.yaml\nkt: 0.1\n"))
     with pytest.raises(SpecError, match="a fitted motor without a spec sheet lacks kv, bus_voltage.*--spec"):
