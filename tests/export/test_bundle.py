@@ -77,3 +77,26 @@ def test_bad_bundles_and_fits_are_refused(robot, tmp_path, write_yaml):
     other = load_motor_spec(fitted_motor(tmp_path, base="qdd_small.yaml"))
     with pytest.raises(SpecError, match="the fitted motor is 'qdd_small', but the robot's motors are hound_ilm85"):
         apply_fits(robot, [other])
+
+
+def test_the_bundle_is_a_frozen_value_that_writes_the_same_file(robot, tmp_path):
+    """build_bundle gives a frozen Bundle; its file content survives a write and a load unchanged, and the
+    version-1 sample (written before measured envelopes) loads with no envelope."""
+    import dataclasses
+
+    from hound_id.export.bundle import Bundle, BundleMotor
+    from tests.export.conftest import fitted_motor
+
+    b = build_bundle(apply_fits(robot, [load_motor_spec(fitted_motor(tmp_path))]))
+    assert isinstance(b, Bundle) and isinstance(b.motors[0], BundleMotor)
+    assert b.motors[0].friction["coulomb"] == pytest.approx(0.08) and b.joints == robot.joints
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        b.robot = "other"  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        b.saturation["A"] = None  # type: ignore[index]
+    path = tmp_path / "b.json"
+    path.write_text(json.dumps(b.to_dict()))
+    assert load_bundle(path) == b and load_bundle(path).to_dict() == b.to_dict()
+    assert json.dumps(load_bundle(path).to_dict()) == path.read_text()
+    old = load_bundle(V1)
+    assert all(m.envelope is None for m in old.motors) and "polylines" not in old.saturation
