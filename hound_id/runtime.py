@@ -9,13 +9,17 @@ of a hound-id bundle, for numpy arrays or torch tensors on any device.
 
 Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order of
 ``joint_names``; torch stays torch (same dtype and device, autograd intact). Only numpy (and
-torch, when given tensors) are imported; the clip is
-:class:`hound_id.mor.saturation.Saturation`, the same code ``hound-id saturate`` runs.
+torch, when given tensors) are imported, besides the standard library: of hound-id, only
+:mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation`
+(with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs.
+A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
+imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
 """
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+import json
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
@@ -24,8 +28,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
-from hound_id.errors import SaturationError
-from hound_id.mor.saturation import Saturation
+from hound_id.errors import SaturationError, SpecError
+from hound_id.mor.saturation import Saturation, polyline_of
+
+#: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
+#: reads, oldest first.
+READABLE = ("hound-id/bundle/1",)
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
 EPS_SPEED = 0.01
@@ -163,10 +171,8 @@ class Runtime:
         return out
 
 
-def _validated(bundle: dict[str, Any], source: str) -> tuple[NDArray[np.float64], dict[str, Any], list[Any]]:
+def _validated(bundle: Mapping[str, Any], source: str) -> tuple[NDArray[np.float64], dict[str, Any], list[Any]]:
     """(A, saturation block, motors) of a bundle, or SpecError naming what is wrong."""
-    from hound_id.errors import SpecError
-
     try:
         joints, motors, s = list(bundle["joints"]), list(bundle["motors"]), dict(bundle["saturation"])
         A = np.asarray(s["A"], dtype=float)
@@ -187,15 +193,16 @@ def _validated(bundle: dict[str, Any], source: str) -> tuple[NDArray[np.float64]
 _SAT_KEYS = ("stall_torque", "back_emf_damping", "torque_limit", "max_speed")
 
 
-def from_bundle(bundle: dict[str, Any], joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
-    """A runtime from a bundle dict (see :func:`load`).
+def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
+    """A runtime from a bundle: its dict (the file's content) or a :class:`hound_id.export.bundle.Bundle`
+    (see :func:`load`).
 
     ``joint_names`` is the order your simulator uses (Isaac Lab's ``asset.joint_names``, for
     instance, which is breadth-first): every joint-space array you pass and get back is then in
     that order. By default it is the bundle's order.
     """
-    from hound_id.errors import SpecError
-
+    if not isinstance(bundle, Mapping) and hasattr(bundle, "to_dict"):  # a typed Bundle: its file content
+        bundle = bundle.to_dict()
     A, arrays, motors = _validated(bundle, source)
     joints = list(bundle["joints"])
     if joint_names is not None:
@@ -208,8 +215,6 @@ def from_bundle(bundle: dict[str, Any], joint_names: Sequence[str] | None = None
             )
         A = A[[joints.index(j) for j in names], :]  # rows follow your joints; motors keep their order
         joints = names
-    from hound_id.mor.saturation import polyline_of
-
     lines = tuple(polyline_of(p) for p in bundle["saturation"].get("polylines") or [])
     clip = Saturation(
         joints=tuple(joints),
@@ -248,6 +253,32 @@ def load(path: str | Path, joint_names: Sequence[str] | None = None) -> Runtime:
     Pass ``joint_names`` when your simulator orders joints differently from the bundle (see
     :func:`from_bundle`); arrays are matched by position, so a wrong order gives wrong torques.
     """
-    from hound_id.export.bundle import load_bundle
+    return from_bundle(read_bundle(path), joint_names, source=str(path))
 
-    return from_bundle(load_bundle(path), joint_names, source=str(path))
+
+def read_bundle(path: str | Path) -> dict[str, Any]:
+    """The content of a bundle file (YAML or JSON) of any readable schema version (:data:`READABLE`), checked
+    for its schema and its top-level fields; SpecError names what is wrong.
+
+    JSON is read with the standard library; YAML needs PyYAML, imported only for it.
+    """
+    p = Path(path)
+    if p.suffix.lower() == ".json":
+        try:
+            data = json.loads(p.read_text())
+        except OSError as err:
+            raise SpecError(f"{p}: cannot read the bundle ({err.strerror or err})") from err
+        except json.JSONDecodeError as err:
+            raise SpecError(f"{p}: not JSON ({err.msg}, line {err.lineno})") from err
+    else:
+        from hound_id.io import read_yaml  # PyYAML: only for a YAML bundle
+
+        data = read_yaml(p, "bundle")
+    if not isinstance(data, dict):
+        raise SpecError(f"{p}: found {type(data).__name__}, expected a hound-id bundle (a YAML or JSON mapping)")
+    if data.get("schema") not in READABLE:
+        raise SpecError(f"{p}: schema {data.get('schema')!r}; this hound-id reads {', '.join(READABLE)}")
+    for key in ("joints", "motors", "saturation"):
+        if key not in data:
+            raise SpecError(f"{p}: field '{key}' missing; is this a hound-id bundle?")
+    return data

@@ -70,6 +70,32 @@ def test_runtime_imports_nothing_heavy():
     assert out.strip() == "[]"
 
 
+def test_runtime_imports_numpy_and_its_own_modules_only(fitted, tmp_path):
+    """``import hound_id.runtime`` and loading a JSON bundle import numpy, the standard library and the hound_id
+    modules tests/test_architecture.py names: no yaml, pint, scipy or spec files (torch only for tensors)."""
+    import json
+
+    from tests.test_architecture import RUNTIME_LOADS
+
+    robot, _ = fitted
+    path = tmp_path / "bundle.json"
+    path.write_text(json.dumps(build_bundle(robot).to_dict()))
+    code = (
+        "import json, sys\n"
+        "before = set(sys.modules)\n"
+        "import hound_id.runtime\n"
+        "sat = hound_id.runtime.load(sys.argv[1])\n"
+        "sat.current(sat.motor_torque(sat.saturate([[1e3] * 12], [[50.0] * 12])))\n"
+        "new = set(sys.modules) - before\n"
+        "print(json.dumps({'libraries': sorted({m.split('.')[0] for m in new} - set(sys.stdlib_module_names)), "
+        "'hound_id': sorted(m for m in new if m.split('.')[0] == 'hound_id')}))"
+    )
+    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True).stdout
+    loaded = json.loads(out)
+    assert loaded["libraries"] == ["hound_id", "numpy"]
+    assert set(loaded["hound_id"]) == RUNTIME_LOADS
+
+
 def readme_example(tag: str) -> str:
     text = (ROOT / "README.md").read_text()
     blocks = re.findall(r"```python\n(# example: " + tag + r"\n.*?)```", text, flags=re.S)
@@ -160,15 +186,15 @@ def test_damaged_bundles_are_named(fitted):
     from hound_id.errors import SpecError
 
     robot, _ = fitted
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     del bundle["saturation"]["A"]
     with pytest.raises(SpecError, match="not a complete hound-id bundle"):
         hound_id.runtime.from_bundle(bundle)
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     bundle["motors"] = bundle["motors"][:11]
     with pytest.raises(SpecError, match="12 joints but A is \\(12, 12\\), 11 motors"):
         hound_id.runtime.from_bundle(bundle)
-    bundle = build_bundle(robot)
+    bundle = build_bundle(robot).to_dict()
     bundle["saturation"]["A"] = np.zeros((12, 12)).tolist()
     with pytest.raises(SpecError, match="singular"):
         hound_id.runtime.from_bundle(bundle)

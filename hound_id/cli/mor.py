@@ -225,8 +225,8 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         table.add_row(*r)
     console.print(table)
     if spec.fit is not None:
-        model = "+".join(spec.fit.get("model", []))
-        rmse = (spec.fit.get("rmse") or {}).get("test")
+        model = "+".join(spec.fit.model)
+        rmse = spec.fit.rmse_test
         console.print(
             f"Kt and peak torque from the dyno fit in {path} (model {model}"
             + (f", held-out RMSE {rmse:.3g} N m)" if isinstance(rmse, float) else ")"),
@@ -236,10 +236,10 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
     if measured and spec.envelope:
         env = spec.envelope
-        effects = ", ".join(f"{k} = {v:.4g}" for k, v in (env.get("effects") or {}).items()) or "none"
+        effects = ", ".join(f"{k} = {v:.4g}" for k, v in env.effects.items()) or "none"
         console.print(
-            f"the region is the measured envelope ({effects}; {len(env['speeds'])}-point polyline from "
-            f"{env.get('source', 'mor --compare')}), the spec sheet's beyond its speeds; the saturation, the "
+            f"the region is the measured envelope ({effects}; {len(env.speeds)}-point polyline from "
+            f"{env.source}), the spec sheet's beyond its speeds; the saturation, the "
             f"bundle, the runtime and mor --robot use it. Its half-spaces are a convex cut inside the polyline, "
             f"short of it by up to {region.convexity_loss:.3g} N m",
             highlight=False,

@@ -17,28 +17,148 @@
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
 Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unless a field says
-joint. :func:`load_bundle` reads bundles of every schema version so far (there is one).
+joint. The bundle is a frozen :class:`Bundle` (one :class:`BundleMotor` per motor, nested blocks
+read-only); :meth:`Bundle.to_dict` is the file's content. :func:`load_bundle` reads bundles of every
+schema version so far (there is one).
 """
 
 from __future__ import annotations
 
 import json
 import math
-from dataclasses import replace
+from collections.abc import Mapping
+from dataclasses import dataclass, fields, replace
 from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 from hound_id.errors import SpecError
+from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import Robot
-from hound_id.mor.spec import MotorSpec
+from hound_id.mor.saturation import Saturation
+from hound_id.mor.spec import MotorSpec, plain, read_only
+from hound_id.runtime import READABLE, read_bundle
+
+__all__ = [
+    "FRICTION", "READABLE", "SCHEMA", "Bundle", "BundleMotor", "apply_fits", "build_bundle", "foot_from_json",
+    "load_bundle",
+]  # fmt: skip
 
 SCHEMA = "hound-id/bundle/1"
-#: Schemas :func:`load_bundle` reads, oldest first.
-READABLE = ("hound-id/bundle/1",)
 #: Friction effects of the fit that the runtime and the simulators use (motor side).
 FRICTION = ("coulomb", "viscous", "stribeck")
+
+
+@dataclass(frozen=True)
+class BundleMotor:
+    """One motor of a bundle, SI, motor side (nested blocks read-only)."""
+
+    name: str
+    """Motor name in the robot file."""
+    joint: str
+    """The joint listed with it (motor i goes with joint i)."""
+    spec: str
+    """Name of its motor spec."""
+    kt: float
+    """Torque constant [N m/A] (the fitted one where a fit was applied)."""
+    kv: float
+    """Speed constant [rad/s/V]."""
+    resistance: float
+    """Model resistance [ohm]."""
+    bus_voltage: float
+    """Bus voltage [V]."""
+    peak_torque: float
+    """Peak torque [N m]."""
+    max_current: float | None
+    """Driver current limit [A], if any."""
+    torque_limit: float
+    """min(peak torque, Kt i_max) [N m]."""
+    stall_torque: float
+    """Kt V_bus / R [N m]."""
+    no_load_speed: float
+    """No-load speed of its region [rad/s]."""
+    max_speed: float | None
+    """Rated maximum speed [rad/s], if any."""
+    rotor_inertia: float | None
+    """Rotor inertia [kg m^2], if known."""
+    halfspaces: Mapping[str, Any]
+    """The region's half-spaces: ``A`` (rows (a_tau, a_omega)), ``b`` and ``labels``."""
+    fitted: bool
+    """Whether a dyno fit was applied."""
+    effects: Mapping[str, Mapping[str, Any]]
+    """Every fitted parameter: value, stderr, unit, at_bound (empty without a fit)."""
+    friction: Mapping[str, float]
+    """coulomb [N m], viscous [N m s/rad], stribeck [N m], stribeck_speed [rad/s] (0 where not fitted)."""
+    compensation: Mapping[str, Any] | None
+    """The fit's current-compensation polynomial (powers, coefficients, ...), if any."""
+    envelope: Mapping[str, Any] | None = None
+    """The measured envelope as its spec carries it (``mor --compare --out``), if any."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The motor's entry in the bundle file."""
+        return {f.name: plain(getattr(self, f.name)) for f in fields(self)}
+
+
+@dataclass(frozen=True)
+class Bundle:
+    """A ``hound-id/bundle/1`` bundle (see the module docstring); :meth:`to_dict` is the file's content."""
+
+    schema: str
+    """``hound-id/bundle/1``."""
+    robot: str
+    """Robot name."""
+    units: str
+    """The units sentence."""
+    sources: Mapping[str, Any]
+    """Files it came from: robot, fits, foot, urdf (read-only)."""
+    joints: tuple[str, ...]
+    """Joint order of every joint-space array."""
+    motors: tuple[BundleMotor, ...]
+    """Motors in motor order (motor i goes with joint i)."""
+    transmissions: tuple[Mapping[str, Any], ...]
+    """Per transmission: kind, joints, motors, A (qd_joint = A thetad_motor)."""
+    joint_boxes: Mapping[str, Mapping[str, Any]]
+    """Per joint: inner and outer box (effort [N m], velocity [rad/s]) and whether it is coupled."""
+    reflected_inertia: tuple[tuple[float, ...], ...] | None
+    """A^-T diag(J) A^-1 [kg m^2], joint side, or None where a rotor inertia is unknown."""
+    saturation: Mapping[str, Any]
+    """The arrays :mod:`hound_id.runtime` rebuilds the clip from (A, stall_torque, ..., polylines)."""
+    foot: Mapping[str, Any] | None
+    """The optimised foot's inertial and contact sphere, if given."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The bundle file's content (plain dicts, lists and numbers; YAML and JSON agree)."""
+        out = {f.name: plain(getattr(self, f.name)) for f in fields(self)}
+        out["motors"] = [m.to_dict() for m in self.motors]
+        return out
+
+    @classmethod
+    def from_dict(cls, data: Mapping[str, Any], source: str = "bundle") -> Bundle:
+        """A bundle from a file's content (any readable schema version, as the current version)."""
+        try:
+            motors = tuple(
+                BundleMotor(
+                    **{f.name: read_only(m[f.name]) for f in fields(BundleMotor) if f.name != "envelope"},
+                    envelope=read_only(m.get("envelope")),  # bundles written before measured envelopes have none
+                )
+                for m in data["motors"]
+            )
+            return cls(
+                schema=str(data["schema"]),
+                robot=str(data.get("robot", "")),
+                units=str(data.get("units", "")),
+                sources=read_only(data.get("sources") or {}),
+                joints=tuple(str(j) for j in data["joints"]),
+                motors=motors,
+                transmissions=read_only(data.get("transmissions") or []),
+                joint_boxes=read_only(data.get("joint_boxes") or {}),
+                reflected_inertia=read_only(data.get("reflected_inertia")),
+                saturation=read_only(data["saturation"]),
+                foot=read_only(data.get("foot")),
+            )
+        except (KeyError, TypeError) as err:
+            raise SpecError(f"{source}: not a complete hound-id bundle ({type(err).__name__}: {err})") from err
 
 
 def apply_fits(robot: Robot, fitted: list[MotorSpec]) -> Robot:
@@ -62,23 +182,18 @@ def apply_fits(robot: Robot, fitted: list[MotorSpec]) -> Robot:
 
 
 def _effects(spec: MotorSpec) -> tuple[dict[str, Any], dict[str, float], dict[str, Any] | None]:
-    """Fitted parameters, friction terms and compensation of a spec's fit (empty without a fit)."""
+    """Fitted parameters (as the fit record writes them), friction terms and compensation of a spec's fit
+    (empty without a fit)."""
     if spec.fit is None:
         return {}, {k: 0.0 for k in (*FRICTION, "stribeck_speed")}, None
-    params = dict(spec.fit.get("parameters", {}))
-    friction = {k: float(params[k]["value"]) if k in params else 0.0 for k in FRICTION}
-    friction["stribeck_speed"] = float(params["stribeck_speed"]["value"]) if "stribeck_speed" in params else 0.0
-    comp = spec.fit.get("compensation")
-    return params, friction, (dict(comp) if comp else None)
+    written = spec.fit.to_dict()
+    friction = {k: spec.fit.value(k) for k in (*FRICTION, "stribeck_speed")}
+    comp = written.get("compensation")
+    return dict(written.get("parameters") or {}), friction, (dict(comp) if comp else None)
 
 
-def build_bundle(
-    robot: Robot, foot: dict[str, Any] | None = None, sources: dict[str, Any] | None = None
-) -> dict[str, Any]:
+def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict[str, Any] | None = None) -> Bundle:
     """The bundle of a robot (fits already applied with :func:`apply_fits`); see the module docstring."""
-    from hound_id.mor.joint_space import robot_regions
-    from hound_id.mor.saturation import Saturation
-
     regions = robot_regions(robot)
     sat = Saturation.from_robot(robot)
     motors = []
@@ -107,7 +222,7 @@ def build_bundle(
                 "effects": params,
                 "friction": friction,
                 "compensation": comp,
-                "envelope": dict(spec.envelope) if spec.envelope else None,
+                "envelope": spec.envelope.to_dict() if spec.envelope else None,
             }
         )
     rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
@@ -147,8 +262,8 @@ def build_bundle(
         "foot": foot,
     }
     # plain numbers and lists only (numpy scalars from the regions), so YAML and JSON agree
-    plain: dict[str, Any] = json.loads(json.dumps(bundle, default=lambda o: o.tolist()))
-    return plain
+    content: dict[str, Any] = json.loads(json.dumps(bundle, default=lambda o: o.tolist()))
+    return Bundle.from_dict(content)
 
 
 def _nan_to_none(values: Any) -> list[float | None]:
@@ -181,25 +296,6 @@ def foot_from_json(path: Path) -> dict[str, Any]:
     }
 
 
-def load_bundle(path: str | Path) -> dict[str, Any]:
-    """A bundle (YAML or JSON) of any readable schema version, as the current version's dict."""
-    p = Path(path)
-    if p.suffix.lower() == ".json":
-        try:
-            data = json.loads(p.read_text())
-        except OSError as err:
-            raise SpecError(f"{p}: cannot read the bundle ({err.strerror or err})") from err
-        except json.JSONDecodeError as err:
-            raise SpecError(f"{p}: not JSON ({err.msg}, line {err.lineno})") from err
-    else:
-        from hound_id.io import read_yaml
-
-        data = read_yaml(p, "bundle")
-    if not isinstance(data, dict):
-        raise SpecError(f"{p}: found {type(data).__name__}, expected a hound-id bundle (a YAML or JSON mapping)")
-    if data.get("schema") not in READABLE:
-        raise SpecError(f"{p}: schema {data.get('schema')!r}; this hound-id reads {', '.join(READABLE)}")
-    for key in ("joints", "motors", "saturation"):
-        if key not in data:
-            raise SpecError(f"{p}: field '{key}' missing; is this a hound-id bundle?")
-    return data
+def load_bundle(path: str | Path) -> Bundle:
+    """A bundle file (YAML or JSON) of any readable schema version (:data:`READABLE`), as the current version."""
+    return Bundle.from_dict(read_bundle(path), str(path))

@@ -1,8 +1,10 @@
 """Export formats: the bundle, Isaac Lab actuator fields, a URDF with limits, a MuJoCo model.
 
-Every writer takes an :class:`Export` (the robot with its fits, its bundle and its URDF) and a
-folder, writes its files atomically and returns what it wrote with a short report. They are
-registered in :data:`FORMATS` (sorted by name); ``hound-id export --format NAME`` runs one.
+Every writer takes an :class:`~hound_id.export.target.Export` (the robot with its fits, its bundle
+and its URDF) and a folder, writes its files atomically and returns what it wrote with a short
+report (:class:`~hound_id.export.target.Written`). They are registered in :data:`FORMATS` (sorted by
+name); ``hound-id export --format NAME`` runs one. A new format is one module importing
+:mod:`hound_id.export.target` (as :mod:`hound_id.export.mujoco` does) plus one line in :data:`FORMATS`.
 
 Joint-side numbers of an uncoupled joint with gear ratio G (motor turns per joint turn):
 torque G tau_m, speed omega_m / G, rotor inertia J G^2, Coulomb friction G f_c, viscous G^2 b.
@@ -14,8 +16,7 @@ runtime and the MuJoCo tendons.
 from __future__ import annotations
 
 import xml.etree.ElementTree as ET
-from collections.abc import Callable
-from dataclasses import dataclass
+from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
 
@@ -23,50 +24,11 @@ import numpy as np
 
 from hound_id import io
 from hound_id.errors import SpecError
-from hound_id.mor.robot import Robot
+from hound_id.export.bundle import BundleMotor
+from hound_id.export.mujoco import write_mujoco
+from hound_id.export.target import Export, Written, put_feet
 
 ISAACLAB_SCHEMA = "hound-id/isaaclab/1"
-
-
-@dataclass(frozen=True)
-class Export:
-    """What every format is written from."""
-
-    robot: Robot
-    """The robot, with fitted motor specs in place."""
-    bundle: dict[str, Any]
-    """Its ``hound-id/bundle/1`` content."""
-    mujoco_actuator: str = "dcmotor"
-    """``dcmotor`` (the region in MuJoCo) or ``motor`` (plain torque, saturate with the runtime)."""
-
-    @property
-    def A(self) -> np.ndarray:
-        return np.asarray(self.bundle["saturation"]["A"], dtype=float)
-
-    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
-        """Joint-side (Coulomb [N m], viscous [N m s/rad]) per joint (module docstring)."""
-        A_inv = np.linalg.inv(self.A)
-        fc = np.array([m["friction"]["coulomb"] for m in self.bundle["motors"]])
-        b = np.array([m["friction"]["viscous"] for m in self.bundle["motors"]])
-        coulomb = np.abs(A_inv.T) @ fc
-        viscous = np.diag(A_inv.T @ np.diag(b) @ A_inv)
-        return coulomb, viscous
-
-    def urdf(self) -> Path:
-        if self.robot.urdf is None:
-            raise SpecError(
-                f"robot {self.robot.name}: this format needs the robot's URDF; add 'urdf: my_robot.urdf' to the "
-                "robot file (relative to it), or pass --urdf"
-            )
-        return Path(self.robot.urdf)
-
-
-@dataclass(frozen=True)
-class Written:
-    """Files a writer produced, and what the user should know."""
-
-    files: tuple[str, ...]
-    notes: tuple[str, ...] = ()
 
 
 def _stem(ex: Export) -> str:
@@ -78,8 +40,9 @@ def write_bundle(ex: Export, out: Path) -> Written:
     import yaml
 
     y, j = out / f"{_stem(ex)}_bundle.yaml", out / f"{_stem(ex)}_bundle.json"
-    io.write_text(y, yaml.safe_dump(ex.bundle, sort_keys=False))
-    io.write_json(j, ex.bundle)
+    content = ex.bundle.to_dict()
+    io.write_text(y, yaml.safe_dump(content, sort_keys=False))
+    io.write_json(j, content)
     return Written((str(y), str(j)), ("load it in a trainer with hound_id.runtime.load",))
 
 
@@ -91,21 +54,21 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
     """
     b = ex.bundle
     coulomb, viscous = ex.joint_friction()
-    reflected = np.asarray(b["reflected_inertia"]) if b["reflected_inertia"] is not None else None
+    reflected = np.asarray(b.reflected_inertia) if b.reflected_inertia is not None else None
     joints: dict[str, Any] = {}
-    index = {j: i for i, j in enumerate(b["joints"])}
-    for tx in b["transmissions"]:
+    index = {j: i for i, j in enumerate(b.joints)}
+    for tx in b.transmissions:
         A = np.asarray(tx["A"], dtype=float)
         coupled = bool(np.any(A[~np.eye(len(A), dtype=bool)] != 0))
         for k, joint in enumerate(tx["joints"]):
             i = index[joint]
-            m = b["motors"][i]
+            m = b.motors[i]
             entry: dict[str, Any] = {
                 "coupled": coupled,
                 "armature": float(reflected[i, i]) if reflected is not None else 0.0,
                 "friction": float(coulomb[i]),
                 "viscous_friction": float(viscous[i]),
-                "inner_box": b["joint_boxes"][joint]["inner"],
+                "inner_box": dict(b.joint_boxes[joint]["inner"]),
             }
             if coupled:
                 entry["use"] = "hound_id.runtime"
@@ -120,16 +83,16 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                 gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
                 entry["gear_ratio"] = gear
                 entry["dcmotor"] = {
-                    "saturation_effort": m["stall_torque"] * gear,
-                    "effort_limit": m["torque_limit"] * gear,
-                    "velocity_limit": m["no_load_speed"] / gear,
-                    "armature": (m["rotor_inertia"] or 0.0) * gear**2,
+                    "saturation_effort": m.stall_torque * gear,
+                    "effort_limit": m.torque_limit * gear,
+                    "velocity_limit": m.no_load_speed / gear,
+                    "armature": (m.rotor_inertia or 0.0) * gear**2,
                     "friction": float(coulomb[i]),
                 }
-                if m.get("envelope"):  # DCMotor holds straight lines; the measured edge is a polyline
+                if m.envelope:  # DCMotor holds straight lines; the measured edge is a polyline
                     entry["use"] = "hound_id.runtime"
                     entry["reason"] = (
-                        f"motor {m['name']} has a measured envelope (mor --compare --out); DCMotor's straight lines "
+                        f"motor {m.name} has a measured envelope (mor --compare --out); DCMotor's straight lines "
                         f"allow up to {_over_promise(m) * gear:.4g} N m more than it at the joint. The dcmotor "
                         "fields hold the spec sheet; apply hound_id.runtime.load(bundle, joint_names).saturate(tau, "
                         "qd) for the measured edge"
@@ -137,7 +100,7 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
             joints[joint] = entry
     return {
         "schema": ISAACLAB_SCHEMA,
-        "robot": b["robot"],
+        "robot": b.robot,
         "units": "SI, joint side: N m, rad/s, kg m^2, N m s/rad",
         "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']))",
         "joints": joints,
@@ -154,12 +117,12 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
     }
 
 
-def _over_promise(motor: dict[str, Any]) -> float:
+def _over_promise(motor: BundleMotor) -> float:
     """The most the spec sheet's straight edges pass a motor's measured polyline edges [N m, motor side]."""
-    env = motor["envelope"]
+    env: Mapping[str, Any] = motor.envelope or {}
     points = np.asarray(env["speeds"], dtype=float)
-    stall, tl = motor["stall_torque"], motor["torque_limit"]
-    damping = stall / motor["no_load_speed"]
+    stall, tl = motor.stall_torque, motor.torque_limit
+    damping = stall / motor.no_load_speed
     corner = (stall - tl) / damping  # where the straight motoring line leaves the torque limit: the largest gap
     w = np.unique(np.concatenate([points, np.linspace(points[0], points[-1], 4001), [corner, -corner]]))
     w = w[(w >= points[0]) & (w <= points[-1])]
@@ -201,13 +164,13 @@ def limited_urdf(ex: Export, out_dir: Path | None) -> str:
     root = parse_urdf(path)
     rebase_meshes(root, path, out_dir)
     joints = {j.get("name"): j for j in root.iter("joint")}
-    missing = [j for j in ex.bundle["joints"] if j not in joints]
+    missing = [j for j in ex.bundle.joints if j not in joints]
     if missing:
         raise SpecError(f"{path}: joints {', '.join(missing)} of robot {ex.robot.name} are not in the URDF")
     coulomb, viscous = ex.joint_friction()
-    for i, name in enumerate(ex.bundle["joints"]):
+    for i, name in enumerate(ex.bundle.joints):
         joint = joints[name]
-        box = ex.bundle["joint_boxes"][name]["inner"]
+        box = ex.bundle.joint_boxes[name]["inner"]
         limit = joint.find("limit")
         if limit is None:
             limit = ET.SubElement(joint, "limit", lower="-3.14159265", upper="3.14159265")
@@ -218,34 +181,12 @@ def limited_urdf(ex: Export, out_dir: Path | None) -> str:
             dynamics = ET.SubElement(joint, "dynamics")
         dynamics.set("damping", _fmt(float(viscous[i])))
         dynamics.set("friction", _fmt(float(coulomb[i])))
-    foot = ex.bundle.get("foot")
+    foot = ex.bundle.foot
     if foot:
-        _put_feet(root, foot, path)
-    root.insert(0, ET.Comment(f" limits from hound-id ({ex.bundle['schema']}): inner boxes of the operating regions "))
+        put_feet(root, foot, path)
+    root.insert(0, ET.Comment(f" limits from hound-id ({ex.bundle.schema}): inner boxes of the operating regions "))
     ET.indent(root, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
-
-
-def _put_feet(root: ET.Element, foot: dict[str, Any], path: Path) -> None:
-    from hound_id.arrays import frozen
-    from hound_id.foot.geometry import MassProperties
-    from hound_id.foot.urdf import replace_foot
-
-    props = MassProperties(
-        mass=float(foot["mass"]), com=frozen(np.asarray(foot["com"])), inertia=frozen(np.asarray(foot["inertia"]))
-    )
-    feet = [link for link in root.iter("link") if str(link.get("name", "")).endswith("foot")]
-    if not feet:
-        raise SpecError(f"{path}: no link whose name ends in 'foot' to put the optimised foot on")
-    for link in feet:
-        replace_foot(
-            link,
-            props,
-            None,
-            float(foot["sphere_radius"]),
-            float(foot["sphere_centre_z"]),
-            f"optimised foot from {foot.get('source', 'hound-id foot')}",
-        )
 
 
 def write_urdf(ex: Export, out: Path) -> Written:
@@ -256,16 +197,10 @@ def write_urdf(ex: Export, out: Path) -> Written:
     return Written((str(path),), tuple(notes))
 
 
-def _write_mujoco(ex: Export, out: Path) -> Written:
-    from hound_id.export.mujoco import write_mujoco  # imports mujoco when used
-
-    return write_mujoco(ex, out)
-
-
 #: Every format, by name (sorted).
 FORMATS: dict[str, Callable[[Export, Path], Written]] = {
     "bundle": write_bundle,
     "isaaclab": write_isaaclab,
-    "mujoco": _write_mujoco,
+    "mujoco": write_mujoco,  # imports mujoco when it runs
     "urdf": write_urdf,
 }

@@ -28,7 +28,7 @@ import numpy as np
 
 from hound_id import io
 from hound_id.errors import SpecError
-from hound_id.export.formats import Export, Written
+from hound_id.export.target import Export, Written, put_feet
 
 #: Where the exported dcmotor differs from hound-id's clip, and by how much.
 DIFFERENCES = (
@@ -49,14 +49,13 @@ def _foot_urdf(ex: Export) -> str:
     """The robot's URDF for MuJoCo: optimised feet, no visuals, no joint dynamics (friction lives on the tendons)."""
     import xml.etree.ElementTree as ET
 
-    from hound_id.export.formats import _put_feet
     from hound_id.foot.urdf import parse_urdf, rebase_meshes
 
     path = ex.urdf()
     root = parse_urdf(path)
     rebase_meshes(root, path, None)
-    if ex.bundle.get("foot"):
-        _put_feet(root, ex.bundle["foot"], path)
+    if ex.bundle.foot:
+        put_feet(root, ex.bundle.foot, path)
     for link in root.iter("link"):
         for visual in link.findall("visual"):
             link.remove(visual)
@@ -78,7 +77,7 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
         raise SpecError(f"{ex.urdf()}: MuJoCo cannot read the URDF ({err})") from err
     spec.modelname = ex.robot.name
     joints = {j.name for j in spec.joints}
-    missing = [j for j in ex.bundle["joints"] if j not in joints]
+    missing = [j for j in ex.bundle.joints if j not in joints]
     if missing:
         raise SpecError(f"{ex.urdf()}: joints {', '.join(missing)} of robot {ex.robot.name} are not in the URDF")
     for joint in spec.joints:  # the URDF's effort limits would clamp the tendon actuators at the joints
@@ -86,29 +85,29 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
     base = spec.worldbody.first_body()
     base.add_freejoint(name="floating_base")
     spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
-    A_inv = np.linalg.inv(np.asarray(ex.bundle["saturation"]["A"], dtype=float))
-    for k, m in enumerate(ex.bundle["motors"]):
-        tendon = spec.add_tendon(name=f"{m['name']}_tendon")
-        for j, joint in enumerate(ex.bundle["joints"]):
+    A_inv = np.linalg.inv(ex.A)
+    for k, m in enumerate(ex.bundle.motors):
+        tendon = spec.add_tendon(name=f"{m.name}_tendon")
+        for j, joint in enumerate(ex.bundle.joints):
             if A_inv[k, j] != 0.0:
                 tendon.wrap_joint(joint, float(A_inv[k, j]))
-        tendon.armature = float(m["rotor_inertia"] or 0.0)
-        tendon.frictionloss = float(m["friction"]["coulomb"])
-        tendon.damping = [float(m["friction"]["viscous"]), 0.0, 0.0]  # linear: f = -a v
-        act = spec.add_actuator(name=m["name"], target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
+        tendon.armature = float(m.rotor_inertia or 0.0)
+        tendon.frictionloss = float(m.friction["coulomb"])
+        tendon.damping = [float(m.friction["viscous"]), 0.0, 0.0]  # linear: f = -a v
+        act = spec.add_actuator(name=m.name, target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
         if actuator == "dcmotor":
-            ke = 1.0 / float(m["kv"])
+            ke = 1.0 / float(m.kv)
             act.set_to_dcmotor(
                 motorconst=[ke, ke],
-                resistance=float(m["resistance"]) * ke / float(m["kt"]),
-                saturation=[float(m["torque_limit"]), 0.0, 0.0],
-                controller=[0.0, 0.0, 0.0, 0.0, 0.0, float(m["bus_voltage"])],
+                resistance=float(m.resistance) * ke / float(m.kt),
+                saturation=[float(m.torque_limit), 0.0, 0.0],
+                controller=[0.0, 0.0, 0.0, 0.0, 0.0, float(m.bus_voltage)],
                 ctrlspec=int(mujoco.mjtCtrlInput.mjINPUT_FF),
             )
         else:
             act.set_to_motor()
             act.forcelimited = True
-            act.forcerange = [-float(m["torque_limit"]), float(m["torque_limit"])]
+            act.forcerange = [-float(m.torque_limit), float(m.torque_limit)]
     _stand_key(spec)
     return spec
 
@@ -143,7 +142,7 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
     path = out / f"{io.file_stem(ex.robot.name, 'robot field name')}.xml"
     io.write_text(path, xml)
-    curved = [m["name"] for m in ex.bundle["motors"] if m.get("envelope")]
+    curved = [m.name for m in ex.bundle.motors if m.envelope]
     if curved and ex.mujoco_actuator == "dcmotor":
         note = (
             f"motors {', '.join(curved)} have a measured envelope (mor --compare --out): dcmotor holds the spec "

@@ -10,7 +10,8 @@ from typing import Any
 from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import apply_fits, build_bundle, foot_from_json
-from hound_id.export.formats import FORMATS, Export
+from hound_id.export.formats import FORMATS
+from hound_id.export.target import Export
 
 SCHEMA = "hound-id/export/1"
 
@@ -67,7 +68,7 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
         ex.urdf()  # fail before writing anything
     with io.staged_folder(out) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}
-    fitted = sorted({m["spec"] for m in ex.bundle["motors"] if m["fitted"]})
+    fitted = sorted({m.spec for m in ex.bundle.motors if m.fitted})
 
     def final(path: str) -> str:
         return str(out / Path(path).name)
@@ -79,6 +80,6 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
             name: {"files": [final(f) for f in w.files], "notes": list(w.notes)} for name, w in written.items()
         },
         "fitted_motors": fitted,
-        "foot": ex.bundle["foot"] is not None,
-        "joints": ex.bundle["joints"],
+        "foot": ex.bundle.foot is not None,
+        "joints": list(ex.bundle.joints),
     }

@@ -36,8 +36,8 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hound_id.errors import SpecError
+from hound_id.mor.envelope_effects import EFFECTS, EnvelopeEffect  # noqa: F401 - EnvelopeEffect re-exported
 from hound_id.mor.spec import MotorSpec
-from hound_id.parameter import Parameter
 
 #: Temperature at which a spec sheet's resistance holds [degC] (datasheets quote 20-25 degC).
 T_SPEC = 25.0
@@ -50,89 +50,6 @@ EDGE_TOLERANCE = 1e-12
 EDGE_ITERATIONS = 100
 
 Array = NDArray[np.float64]
-
-
-@dataclass(frozen=True)
-class EnvelopeEffect:
-    """One physical reason for the measured envelope to differ from the spec sheet's."""
-
-    name: str
-    physics: str
-    """One sentence of physics."""
-    param: Parameter
-    """Its one parameter: name, unit, physically sensible range (``lower``, ``upper``) and ``neutral`` value."""
-    requires: tuple[str, ...] = ()
-    """Log channels or inputs it needs: ``temperature``, ``pole_pairs``, ``compensation``."""
-
-    @property
-    def parameter(self) -> str:
-        """The parameter's name."""
-        return self.param.name
-
-    @property
-    def unit(self) -> str:
-        return self.param.unit
-
-    @property
-    def bounds(self) -> tuple[float, float]:
-        """Physically sensible range of the parameter."""
-        return self.param.lower, self.param.upper
-
-    @property
-    def neutral(self) -> float:
-        """Value at which the effect does nothing."""
-        return float("nan") if self.param.neutral is None else self.param.neutral
-
-
-EFFECTS: dict[str, EnvelopeEffect] = {
-    e.name: e
-    for e in sorted(
-        [
-            EnvelopeEffect(
-                "bus_sag",
-                "the battery's internal resistance drops the bus voltage under motoring load",
-                Parameter("r_pack", "ohm", "the pack's internal resistance", 0.0, 5.0, neutral=0.0),
-            ),
-            EnvelopeEffect(
-                "regen_rise",
-                "regenerated current raises the bus voltage while braking",
-                Parameter("r_regen", "ohm", "the bus's resistance to regenerated current", 0.0, 5.0, neutral=0.0),
-            ),
-            EnvelopeEffect(
-                "thermal_resistance",
-                "the winding's copper resistance grows 0.39 %/K as it heats",
-                Parameter("alpha", "1/K", "temperature coefficient of the winding resistance", 0.0, 0.01, neutral=0.0),
-                ("temperature",),
-            ),
-            EnvelopeEffect(
-                "inductance",
-                "the q-axis current needs p omega L i of voltage in quadrature at speed",
-                Parameter("inductance", "H", "q-axis inductance", 0.0, 0.01, neutral=0.0),
-                ("pole_pairs",),
-            ),
-            EnvelopeEffect(
-                "current_limit",
-                "the driver clamps the current below the spec sheet's limit",
-                Parameter("i_limit", "A", "the driver's current limit", 0.0, np.inf, neutral=np.inf),
-            ),
-            EnvelopeEffect(
-                "kt_saturation",
-                "the core saturates: torque per amp falls at high current, so each "
-                "newton metre costs more current and voltage",
-                Parameter(
-                    "scale",
-                    "-",
-                    "share of the fitted current-torque curve's departure from tau/Kt",
-                    0.0,
-                    2.0,
-                    neutral=0.0,
-                ),
-                ("compensation",),
-            ),
-        ],
-        key=lambda e: e.name,
-    )
-}
 
 
 @dataclass(frozen=True)
@@ -365,7 +282,5 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
 
 def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]] | None:
     """The current-compensation polynomial of a fitted spec (``fit-current --out``), if it has one."""
-    comp = (spec.fit or {}).get("compensation")
-    if not comp:
-        return None
-    return tuple(int(p) for p in comp["powers"]), tuple(float(c) for c in comp["coefficients"])
+    comp = spec.fit.compensation if spec.fit is not None else None
+    return None if comp is None else (comp.powers, comp.coefficients)

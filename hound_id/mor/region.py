@@ -20,13 +20,15 @@ returns there).
 from __future__ import annotations
 
 from dataclasses import dataclass, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hound_id.arrays import frozen
-from hound_id.mor.spec import MotorSpec
+
+if TYPE_CHECKING:  # at run time only motor_report needs the spec module: the saturation (and so the runtime)
+    from hound_id.mor.spec import MotorSpec  # imports this module without yaml or pint
 
 SCHEMA = "hound-id/mor/1"
 
@@ -183,13 +185,10 @@ def measured_region(spec: MotorSpec) -> OperatingRegion:
     state outside the polyline is inside, and ``convexity_loss`` says by how much the cut falls short of it.
     Characteristic speeds are read off the polygon; the back-EMF damping stays the spec sheet's.
     """
-    from hound_id.mor.saturation import polyline_of
-
     sheet = operating_region(spec)
-    line = polyline_of(spec.envelope)
-    if line is None:
+    if spec.envelope is None:
         raise ValueError(f"{spec.name}: the spec carries no measured envelope")
-    speeds, lower, upper = line
+    speeds, lower, upper = spec.envelope.polyline
     rows, rhs, labels = [list(r) for r in sheet.A], list(sheet.b), list(sheet.labels)
     for side, edge in ((1, upper), (-1, lower)):
         for k in range(speeds.size - 1):
@@ -212,7 +211,7 @@ def measured_region(spec: MotorSpec) -> OperatingRegion:
         vertices=frozen(_traced(speeds, lower, upper, sheet)),
         no_load_speed=_crossing(speeds, upper, 0.0, sheet.no_load_speed),
         corner_speed=_crossing(speeds, upper, float(np.nanmax(upper[speeds >= 0])) * (1 - 1e-9), 0.0),
-        source=f"measured envelope ({spec.envelope.get('source', 'mor --compare')})" if spec.envelope else "",
+        source=f"measured envelope ({spec.envelope.source})",
     )
     grid = np.linspace(speeds[0], speeds[-1], 4001)
     lo_cut, hi_cut = _slice(grid, region)

@@ -28,8 +28,9 @@ from __future__ import annotations
 import math
 import os
 import threading
+from collections.abc import Mapping
 from dataclasses import dataclass, field
-from typing import Any, NamedTuple
+from typing import TYPE_CHECKING, Any, NamedTuple
 
 import numpy as np
 from numpy.typing import NDArray
@@ -37,7 +38,10 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
 from hound_id.mor.region import SPEED_TOLERANCE, operating_region
-from hound_id.mor.robot import Robot
+
+if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
+    from hound_id.mor.robot import Robot
+    from hound_id.mor.spec import MeasuredEnvelope
 
 #: Cached operator sets (dtype, device, batch shape) kept per Saturation.
 _CACHE_SIZE = 16
@@ -559,8 +563,15 @@ def _scaled_matmul(x: Any, M: Any, cap: float) -> Any:
         return ((x / scale) @ M) * scale
 
 
-def polyline_of(envelope: Any) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
-    """(speeds, lower, upper) arrays of a motor spec's ``envelope`` block, or None."""
+def polyline_of(
+    envelope: MeasuredEnvelope | Mapping[str, Any] | None,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """(speeds, lower, upper) read-only arrays of a spec's measured envelope, or of a bundle's polyline
+    (``{speeds, lower, upper}`` with None where no torque is feasible), or None."""
+    if envelope is None:
+        return None
+    if not isinstance(envelope, Mapping):
+        return envelope.polyline
     if not envelope:
         return None
     return (

@@ -28,12 +28,16 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
 from pathlib import Path
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
+from hound_id.arrays import frozen
 from hound_id.errors import SpecError, where
 from hound_id.io import file_stem, read_yaml
+from hound_id.mor.envelope_effects import EFFECTS
 from hound_id.units import to_si
 
 SCHEMA = "hound-id/motor/1"
@@ -89,6 +93,157 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
 }
 
 
+def read_only(value: Any) -> Any:
+    """A deep read-only copy of parsed YAML/JSON data: mappings become mapping proxies, lists tuples."""
+    if isinstance(value, Mapping):
+        return MappingProxyType({k: read_only(v) for k, v in value.items()})
+    if isinstance(value, list | tuple):
+        return tuple(read_only(v) for v in value)
+    return value
+
+
+def plain(value: Any) -> Any:
+    """The plain dicts and lists of data made read-only by a record (the inverse of the read-only copy)."""
+    if isinstance(value, Mapping):
+        return {k: plain(v) for k, v in value.items()}
+    if isinstance(value, tuple):
+        return [plain(v) for v in value]
+    return value
+
+
+@dataclass(frozen=True)
+class FitParameter:
+    """One fitted parameter of a fit record."""
+
+    value: float
+    """Fitted value, in ``unit``."""
+    stderr: float | None
+    """Standard error, in ``unit`` (None where the fit gives none, e.g. a fixed order)."""
+    unit: str
+    """Unit of the value, e.g. ``N m/A``."""
+    at_bound: bool
+    """Whether the fit held the parameter at a physical bound."""
+
+
+@dataclass(frozen=True)
+class FitCompensation:
+    """The current-compensation polynomial of a fit: current [A] = sum c_k tau^k, tau the torque [N m]."""
+
+    powers: tuple[int, ...]
+    """Powers k (odd)."""
+    coefficients: tuple[float, ...]
+    """Coefficients c_k [A / (N m)^k]."""
+
+
+@dataclass(frozen=True)
+class FitRecord:
+    """The dynamometer fit a fitted spec carries (``fit:``, schema hound-id/fit/1 or /2, from ``fit-current --out``).
+
+    The typed fields are what hound-id reads; :meth:`to_dict` gives the block exactly as written.
+    """
+
+    schema: str | None
+    """The fit's schema, e.g. ``hound-id/fit/2``."""
+    model: tuple[str, ...]
+    """Effects of the fitted model, e.g. (linear, saturation, coulomb)."""
+    parameters: Mapping[str, FitParameter]
+    """Fitted parameters by name (read-only)."""
+    rmse_test: float | None
+    """Cross-validated (held-out) RMSE [N m], if the record gives one."""
+    peak_note: str
+    """The fit's sentence on its peak torque ('' if none)."""
+    compensation: FitCompensation | None
+    """The current-compensation polynomial, if the fit has one."""
+    written: Mapping[str, Any] = field(repr=False, compare=False)
+    """The block as written (read-only), for :meth:`to_dict`."""
+
+    def value(self, name: str, default: float = 0.0) -> float:
+        """A fitted parameter's value, or ``default`` where the fit has no such parameter."""
+        p = self.parameters.get(name)
+        return default if p is None else p.value
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``fit:`` block as written (plain dicts and lists)."""
+        out: dict[str, Any] = plain(self.written)
+        return out
+
+    @classmethod
+    def from_mapping(cls, data: Mapping[str, Any], source: str | None = None) -> FitRecord:
+        """Parse a spec's ``fit:`` block (any fit schema so far); SpecError names a malformed part."""
+        raw = data.get("parameters") or {}
+        params: dict[str, FitParameter] = {}
+        try:
+            for name, p in dict(raw).items():
+                stderr = p.get("stderr")
+                params[str(name)] = FitParameter(
+                    value=float(p["value"]),
+                    stderr=None if stderr is None else float(stderr),
+                    unit=str(p.get("unit", "")),
+                    at_bound=bool(p.get("at_bound", False)),
+                )
+            comp = data.get("compensation")
+            compensation = (
+                FitCompensation(tuple(int(k) for k in comp["powers"]), tuple(float(c) for c in comp["coefficients"]))
+                if comp
+                else None
+            )
+        except (AttributeError, KeyError, TypeError, ValueError) as err:
+            raise SpecError(
+                f"{where(source, 'fit')}: malformed fit record ({type(err).__name__}: {err}); give the file that "
+                "hound-id fit-current --out wrote"
+            ) from err
+        model = data.get("model", [])
+        rmse = data.get("rmse") or {}
+        test = rmse.get("test") if isinstance(rmse, Mapping) else None
+        peak = data.get("peak_torque")
+        schema = data.get("schema")
+        return cls(
+            schema=None if schema is None else str(schema),
+            model=tuple(str(m) for m in model) if isinstance(model, list | tuple) else (),
+            parameters=MappingProxyType(params),
+            rmse_test=test if isinstance(test, float) else None,
+            peak_note=str(peak.get("note") or "") if isinstance(peak, Mapping) else "",
+            compensation=compensation,
+            written=read_only(data),
+        )
+
+
+@dataclass(frozen=True)
+class MeasuredEnvelope:
+    """A measured torque-speed envelope a spec carries (``envelope:``, from ``mor --compare --out``): the
+    model's effects and its polyline edges over motor speed, motor side. Arrays are read-only copies.
+
+    The typed fields are what hound-id reads; :meth:`to_dict` gives the block exactly as written.
+    """
+
+    effects: Mapping[str, float]
+    """Envelope effects and their parameter values (units in :data:`hound_id.mor.envelope_effects.EFFECTS`)."""
+    speeds: NDArray[np.float64]
+    """Polyline speeds, increasing [rad/s]."""
+    lower: NDArray[np.float64]
+    """Lowest torque at each speed [N m] (NaN where no torque is feasible)."""
+    upper: NDArray[np.float64]
+    """Highest torque at each speed [N m] (NaN where no torque is feasible)."""
+    tolerance: float
+    """Accuracy of the polyline against the model [N m]."""
+    coverage: Mapping[str, Any] | None
+    """Speed ranges the log covered, per edge (read-only), if given."""
+    source: str
+    """What measured it (``mor --compare`` if the block does not say)."""
+    written: Mapping[str, Any] = field(repr=False, compare=False)
+    """The block as written (read-only), for :meth:`to_dict`."""
+
+    @property
+    def polyline(self) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+        """(speeds [rad/s], lower [N m], upper [N m]), read-only."""
+        return self.speeds, self.lower, self.upper
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``envelope:`` block as written (plain dicts and lists)."""
+        out: dict[str, Any] = plain(self.written)
+        return out
+
+
 @dataclass(frozen=True)
 class MotorSpec:
     """A motor as its spec sheet describes it, in SI units (motor side, before any gearbox)."""
@@ -121,9 +276,9 @@ class MotorSpec:
     """Fields whose values are assumed rather than sourced."""
     extrapolated: tuple[str, ...] = ()
     """Fields whose values a fit extrapolated beyond what it measured (e.g. a peak torque past the tested current)."""
-    fit: Mapping[str, Any] | None = field(default=None, compare=False)
+    fit: FitRecord | None = field(default=None, compare=False)
     """The dynamometer fit (schema hound-id/fit/2) whose Kt and peak torque this spec carries, if any."""
-    envelope: Mapping[str, Any] | None = field(default=None, compare=False)
+    envelope: MeasuredEnvelope | None = field(default=None, compare=False)
     """A measured envelope (``mor --compare --out``): effects and polyline edges over speed, or None."""
 
     @property
@@ -153,6 +308,8 @@ class MotorSpec:
         out: dict[str, Any] = {"schema": SCHEMA}
         for f in fields(self):
             value = getattr(self, f.name)
+            if isinstance(value, FitRecord | MeasuredEnvelope):
+                value = value.to_dict()
             out[f.name] = list(value) if isinstance(value, tuple) else value
         return out
 
@@ -183,8 +340,7 @@ def spec_warnings(spec: MotorSpec) -> tuple[str, ...]:
 
 def _fit_peak(spec: MotorSpec) -> str:
     """The fit's sentence on its peak torque, if the spec carries one."""
-    peak = (spec.fit or {}).get("peak_torque")
-    return str(peak.get("note") or "") if isinstance(peak, Mapping) else ""
+    return spec.fit.peak_note if spec.fit is not None else ""
 
 
 def _suggest(key: str) -> str:
@@ -310,13 +466,13 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         source=src,
         assumed=tuple(assumed),
         extrapolated=tuple(extrapolated),
-        fit=fit,
+        fit=None if fit is None else FitRecord.from_mapping(fit, source),
         envelope=_envelope(data.get("envelope"), source),
         **values,
     )
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
-        edges = [abs(v) for key in ("lower", "upper") for v in spec.envelope[key] if v is not None]
-        slack = float(spec.envelope.get("tolerance", 0.0)) + 1e-9 * spec.torque_limit
+        edges = [abs(v) for edge in (spec.envelope.lower, spec.envelope.upper) for v in edge if v == v]
+        slack = spec.envelope.tolerance + 1e-9 * spec.torque_limit
         if edges and max(edges) > spec.torque_limit + slack:
             raise SpecError(
                 f"{where(source, 'envelope')}: an edge reaches {max(edges):.4g} N m, past the torque limit "
@@ -325,7 +481,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     return spec
 
 
-def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
+def _envelope(data: Any, source: str | None) -> MeasuredEnvelope | None:
     """A spec's ``envelope`` block, checked: increasing speeds, lower <= upper, equal lengths."""
     if data is None:
         return None
@@ -345,8 +501,6 @@ def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
         raise SpecError(f"{where(source, 'envelope.effects')}: found {effects!r}, expected a mapping effect: value")
     if isinstance(tolerance, bool) or not isinstance(tolerance, int | float) or not tolerance >= 0:
         raise SpecError(f"{where(source, 'envelope.tolerance')}: found {tolerance!r}, expected a number >= 0 [N m]")
-    from hound_id.mor.envelope import EFFECTS  # envelope.py imports this module
-
     for key, value in effects.items():
         effect = EFFECTS.get(str(key))
         if effect is None:
@@ -365,7 +519,17 @@ def _envelope(data: Any, source: str | None) -> Mapping[str, Any] | None:
             f"{where(source, 'envelope')}: needs at least two increasing speeds with lower <= upper at each; "
             "write it with hound-id mor --compare --out"
         )
-    return dict(data)
+    coverage = data.get("coverage")
+    return MeasuredEnvelope(
+        effects=MappingProxyType({str(k): float(v) for k, v in effects.items()}),
+        speeds=frozen(speeds),
+        lower=frozen(lower),
+        upper=frozen(upper),
+        tolerance=float(tolerance),
+        coverage=read_only(coverage) if isinstance(coverage, Mapping) else None,
+        source=str(data.get("source", "mor --compare")),
+        written=read_only(data),
+    )
 
 
 def load_motor_spec(path: str | Path) -> MotorSpec:

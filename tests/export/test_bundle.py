@@ -21,7 +21,7 @@ def robot():
 
 
 def test_bundle_carries_the_robot(robot):
-    b = build_bundle(robot)
+    b = build_bundle(robot).to_dict()
     assert b["schema"] == SCHEMA and b["joints"] == list(robot.joints)
     regions = robot_regions(robot)
     for j in regions.joints:
@@ -43,7 +43,7 @@ def test_fits_replace_the_spec_sheet(robot, tmp_path):
     from tests.export.conftest import fitted_motor
 
     fitted = apply_fits(robot, [load_motor_spec(fitted_motor(tmp_path))])
-    b = build_bundle(fitted)
+    b = build_bundle(fitted).to_dict()
     m = b["motors"][0]
     assert m["fitted"] and m["kt"] == pytest.approx(0.1375)
     assert m["friction"]["coulomb"] == pytest.approx(0.08) and m["friction"]["viscous"] == pytest.approx(2e-4)
@@ -51,7 +51,7 @@ def test_fits_replace_the_spec_sheet(robot, tmp_path):
 
 
 def test_bundle_files_of_version_1_still_load():
-    b = load_bundle(V1)
+    b = load_bundle(V1).to_dict()
     assert b["schema"] == "hound-id/bundle/1" and len(b["joints"]) == 12
     assert b["motors"][0]["fitted"] and b["foot"]["mass"] < 0.05
     from hound_id.runtime import from_bundle
@@ -77,3 +77,26 @@ def test_bad_bundles_and_fits_are_refused(robot, tmp_path, write_yaml):
     other = load_motor_spec(fitted_motor(tmp_path, base="qdd_small.yaml"))
     with pytest.raises(SpecError, match="the fitted motor is 'qdd_small', but the robot's motors are hound_ilm85"):
         apply_fits(robot, [other])
+
+
+def test_the_bundle_is_a_frozen_value_that_writes_the_same_file(robot, tmp_path):
+    """build_bundle gives a frozen Bundle; its file content survives a write and a load unchanged, and the
+    version-1 sample (written before measured envelopes) loads with no envelope."""
+    import dataclasses
+
+    from hound_id.export.bundle import Bundle, BundleMotor
+    from tests.export.conftest import fitted_motor
+
+    b = build_bundle(apply_fits(robot, [load_motor_spec(fitted_motor(tmp_path))]))
+    assert isinstance(b, Bundle) and isinstance(b.motors[0], BundleMotor)
+    assert b.motors[0].friction["coulomb"] == pytest.approx(0.08) and b.joints == robot.joints
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        b.robot = "other"  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        b.saturation["A"] = None  # type: ignore[index]
+    path = tmp_path / "b.json"
+    path.write_text(json.dumps(b.to_dict()))
+    assert load_bundle(path) == b and load_bundle(path).to_dict() == b.to_dict()
+    assert json.dumps(load_bundle(path).to_dict()) == path.read_text()
+    old = load_bundle(V1)
+    assert all(m.envelope is None for m in old.motors) and "polylines" not in old.saturation

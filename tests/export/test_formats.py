@@ -104,8 +104,8 @@ def test_urdf_with_limits_loads_in_pinocchio(exported):
 
     ex, _, out = exported
     model = pin.buildModelFromUrdf(str(out / "hound_like_limits.urdf"))
-    boxes = ex.bundle["joint_boxes"]
-    for joint in ex.bundle["joints"]:
+    boxes = ex.bundle.joint_boxes
+    for joint in ex.bundle.joints:
         jid = model.getJointId(joint)
         v = model.joints[jid].idx_v
         assert model.effortLimit[v] == pytest.approx(boxes[joint]["inner"]["effort"], rel=1e-8)
@@ -141,7 +141,7 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported):
     assert sum(not f["coupled"] for f in fields["joints"].values()) == 4
     # coupled joints still get their reflected inertia (diagonal of A^-T diag(J) A^-1) and friction
     hfe = fields["joints"]["FL_HFE"]
-    assert hfe["armature"] == pytest.approx(ex.bundle["reflected_inertia"][1][1]) and hfe["friction"] > 0
+    assert hfe["armature"] == pytest.approx(ex.bundle.reflected_inertia[1][1]) and hfe["friction"] > 0
 
 
 def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):

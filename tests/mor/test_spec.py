@@ -135,7 +135,7 @@ def test_fitted_spec_on_a_base_sheet(write_yaml, tmp_path):
     )
     assert fitted.kt == 0.093 and fitted.peak_torque == 2.6 and fitted.kv == 10
     assert fitted.assumed == ("resistance",)
-    assert fitted.fit == {"schema": "hound-id/fit/1"}
+    assert fitted.fit.to_dict() == {"schema": "hound-id/fit/1"}
     with pytest.raises(SpecError, match="field 'base': the spec sheet .*nope.yaml it names is not there"):
         load_motor_spec(write_yaml("orphan.yaml", "base: nope.yaml\nkt: 0.1\n"))
     with pytest.raises(SpecError, match="a fitted motor without a spec sheet lacks kv, bus_voltage.*--spec"):
@@ -165,3 +165,42 @@ def test_a_measured_envelope_block_is_checked(write_yaml, change, match):
                                                   "envelope": envelope}))  # fmt: skip
     with pytest.raises(SpecError, match=match):
         load_motor_spec(path)
+
+
+def test_fit_and_envelope_are_frozen_typed_records(tmp_path):
+    """A fitted spec's fit and a measured envelope are frozen records with read-only arrays; each writes its block
+    back exactly as the file holds it."""
+    import dataclasses
+
+    import numpy as np
+    import yaml
+
+    from hound_id.mor.envelope import compensation_of
+    from hound_id.mor.spec import FitCompensation, FitRecord, MeasuredEnvelope
+    from tests.export.conftest import fitted_motor
+    from tests.mor.test_region import write_envelope_spec
+
+    path = fitted_motor(tmp_path)
+    spec = load_motor_spec(path)
+    assert isinstance(spec.fit, FitRecord) and spec.fit.model == ("linear", "coulomb", "viscous")
+    assert spec.fit.parameters["coulomb"].value == 0.08 and spec.fit.parameters["coulomb"].unit == "N m"
+    assert spec.fit.value("viscous") == 2e-4 and spec.fit.value("stribeck") == 0.0
+    assert spec.fit.compensation == FitCompensation((1, 3), (7.2727, 0.001))
+    assert compensation_of(spec) == ((1, 3), (7.2727, 0.001))
+    assert spec.fit.to_dict() == yaml.safe_load(path.read_text())["fit"]
+    with pytest.raises(dataclasses.FrozenInstanceError):
+        spec.fit.model = ()  # type: ignore[misc]
+    with pytest.raises(TypeError):
+        spec.fit.parameters["kt"] = None  # type: ignore[index]
+
+    env_path = write_envelope_spec(tmp_path / "env.yaml", {"bus_sag": 0.15})
+    env = load_motor_spec(env_path).envelope
+    assert isinstance(env, MeasuredEnvelope) and env.effects == {"bus_sag": 0.15}
+    assert env.source == "mor --compare" and env.coverage is None
+    written = yaml.safe_load(env_path.read_text())["envelope"]
+    assert env.to_dict() == written and env.tolerance == written["tolerance"]
+    for array in env.polyline:
+        assert not array.flags.writeable
+    assert np.array_equal(env.speeds, written["speeds"])
+    with pytest.raises(SpecError, match=r"field 'fit': malformed fit record \(KeyError"):
+        motor_spec_from_mapping(dict(BASE, fit={"parameters": {"kt": {"unit": "N m/A"}}}))

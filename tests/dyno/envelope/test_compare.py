@@ -231,7 +231,7 @@ def test_measured_envelope_reaches_the_saturation_the_bundle_and_the_runtime(tmp
     out = tmp_path / "ilm85_envelope.yaml"
     out.write_text(yaml.safe_dump(envelope_spec(MOTOR, out, result)))
     spec = load_motor_spec(out)
-    assert spec.kt == SPEC.kt and spec.envelope["effects"]["bus_sag"] == pytest.approx(0.15, rel=0.15)
+    assert spec.kt == SPEC.kt and spec.envelope.effects["bus_sag"] == pytest.approx(0.15, rel=0.15)
     robot = load_robot(ROBOT)
     robot = replace(robot, motor_specs={m: spec for m in robot.motor_specs})
     sat = Saturation.from_robot(robot)
@@ -240,9 +240,9 @@ def test_measured_envelope_reaches_the_saturation_the_bundle_and_the_runtime(tmp
     tau, qd = rng.uniform(-200, 200, (400, 12)), rng.uniform(-70, 70, (400, 12))
     tau_m = sat(tau, qd) @ sat.A
     omega = qd @ sat.A_inv.T
-    lo, hi = envelope(omega.ravel(), spec.envelope["effects"], EnvelopeInputs(SPEC))
-    tol = spec.envelope["tolerance"] * 2 + 1e-9
-    inside = np.isfinite(hi) & (np.abs(omega.ravel()) <= spec.envelope["speeds"][-1])  # past it: the spec's lines
+    lo, hi = envelope(omega.ravel(), spec.envelope.effects, EnvelopeInputs(SPEC))
+    tol = spec.envelope.tolerance * 2 + 1e-9
+    inside = np.isfinite(hi) & (np.abs(omega.ravel()) <= spec.envelope.speeds[-1])  # past it: the spec's lines
     assert inside.mean() > 0.5
     t = tau_m.ravel()[inside]
     assert np.all(t <= hi[inside] + tol) and np.all(t >= lo[inside] - tol)
@@ -314,7 +314,7 @@ def test_a_measured_envelope_sends_isaac_lab_joints_to_the_runtime(tmp_path):
     assert haa["use"] == "hound_id.runtime" and "measured envelope" in haa["reason"]
     # the largest gap is at the straight line's corner, where it leaves the torque limit (not a polyline point)
     corner = (SPEC.stall_torque - SPEC.torque_limit) / SPEC.back_emf_damping
-    gap = 9.0 * (SPEC.torque_limit - np.interp(corner, spec.envelope["speeds"], spec.envelope["upper"]))
+    gap = 9.0 * (SPEC.torque_limit - np.interp(corner, spec.envelope.speeds, spec.envelope.upper))
     assert float(haa["reason"].split("allow up to ")[1].split(" N m")[0]) == pytest.approx(gap, rel=0.01)
 
 

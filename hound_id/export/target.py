@@ -1,0 +1,87 @@
+"""What every export format is written from and returns: :class:`Export`, :class:`Written`, and the
+helpers more than one format uses (:func:`put_feet`).
+
+A format is one module with a writer ``write_x(ex: Export, out: Path) -> Written`` that imports this
+module (never another format), plus one line in :data:`hound_id.export.formats.FORMATS`.
+"""
+
+from __future__ import annotations
+
+import xml.etree.ElementTree as ET
+from collections.abc import Mapping
+from dataclasses import dataclass
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from hound_id.errors import SpecError
+from hound_id.export.bundle import Bundle
+from hound_id.mor.robot import Robot
+
+
+@dataclass(frozen=True)
+class Export:
+    """What every format is written from."""
+
+    robot: Robot
+    """The robot, with fitted motor specs in place."""
+    bundle: Bundle
+    """Its ``hound-id/bundle/1`` bundle."""
+    mujoco_actuator: str = "dcmotor"
+    """``dcmotor`` (the region in MuJoCo) or ``motor`` (plain torque, saturate with the runtime)."""
+
+    @property
+    def A(self) -> np.ndarray:
+        """The global velocity map qd_joint = A thetad_motor."""
+        return np.asarray(self.bundle.saturation["A"], dtype=float)
+
+    def joint_friction(self) -> tuple[np.ndarray, np.ndarray]:
+        """Joint-side (Coulomb [N m], viscous [N m s/rad]) per joint (see :mod:`hound_id.export.formats`)."""
+        A_inv = np.linalg.inv(self.A)
+        fc = np.array([m.friction["coulomb"] for m in self.bundle.motors])
+        b = np.array([m.friction["viscous"] for m in self.bundle.motors])
+        coulomb = np.abs(A_inv.T) @ fc
+        viscous = np.diag(A_inv.T @ np.diag(b) @ A_inv)
+        return coulomb, viscous
+
+    def urdf(self) -> Path:
+        """The robot's URDF, or SpecError saying how to give one."""
+        if self.robot.urdf is None:
+            raise SpecError(
+                f"robot {self.robot.name}: this format needs the robot's URDF; add 'urdf: my_robot.urdf' to the "
+                "robot file (relative to it), or pass --urdf"
+            )
+        return Path(self.robot.urdf)
+
+
+@dataclass(frozen=True)
+class Written:
+    """Files a writer produced, and what the user should know."""
+
+    files: tuple[str, ...]
+    notes: tuple[str, ...] = ()
+
+
+def put_feet(root: ET.Element, foot: Mapping[str, Any], path: Path) -> None:
+    """Put the optimised foot (a bundle's ``foot``) on every link of the URDF tree ``root`` whose name ends in
+    'foot'; ``path`` is the URDF, for messages."""
+    from hound_id.arrays import frozen
+    from hound_id.foot.geometry import MassProperties
+    from hound_id.foot.urdf import replace_foot
+
+    props = MassProperties(
+        mass=float(foot["mass"]), com=frozen(np.asarray(foot["com"])), inertia=frozen(np.asarray(foot["inertia"]))
+    )
+    feet = [link for link in root.iter("link") if str(link.get("name", "")).endswith("foot")]
+    if not feet:
+        raise SpecError(f"{path}: no link whose name ends in 'foot' to put the optimised foot on")
+    for link in feet:
+        replace_foot(
+            link,
+            props,
+            None,
+            float(foot["sphere_radius"]),
+            float(foot["sphere_centre_z"]),
+            f"optimised foot from {foot.get('source', 'hound-id foot')}",
+        )

@@ -1,0 +1,201 @@
+"""The package's architecture, read from the source with ``ast``: every import counts (module level, inside
+functions, under ``if TYPE_CHECKING:``), so an import circle cannot hide behind a function-level import.
+
+Rules: no import cycle among hound_id modules; mor, foot and export never import dyno; no module imports
+another module's private (``_name``) names; the trainer runtime imports only numpy, the standard library and
+the few hound_id modules of :data:`RUNTIME_IMPORTS` (torch only inside the functions given tensors).
+"""
+
+from __future__ import annotations
+
+import ast
+import sys
+from pathlib import Path
+
+from tests.conftest import ROOT
+
+PACKAGE = ROOT / "hound_id"
+#: hound_id modules runtime.py may import (directly, at any level): the clip and what it stands on, and io
+#: (PyYAML) inside the function that reads a YAML bundle.
+RUNTIME_IMPORTS = {"hound_id.arrays", "hound_id.errors", "hound_id.io", "hound_id.mor.saturation"}
+#: hound_id modules ``import hound_id.runtime`` loads (its module-level imports, followed through every module).
+RUNTIME_LOADS = {
+    "hound_id",
+    "hound_id.arrays",
+    "hound_id.errors",
+    "hound_id.mor",
+    "hound_id.mor.region",
+    "hound_id.mor.saturation",
+    "hound_id.runtime",
+}
+#: Libraries outside the standard library that runtime.py may import (torch only inside functions).
+RUNTIME_LIBRARIES = {"numpy", "torch"}
+
+
+def module_name(path: Path) -> str:
+    parts = path.relative_to(ROOT).with_suffix("").parts
+    return ".".join(parts[:-1] if parts[-1] == "__init__" else parts)
+
+
+MODULES = {module_name(p): p for p in sorted(PACKAGE.rglob("*.py"))}
+
+
+def _type_checking(node: ast.If) -> bool:
+    test = node.test
+    return (isinstance(test, ast.Name) and test.id == "TYPE_CHECKING") or (
+        isinstance(test, ast.Attribute) and test.attr == "TYPE_CHECKING"
+    )
+
+
+def imports(name: str) -> list[tuple[str, tuple[str, ...], bool]]:
+    """(imported module, names taken from it, eager) for every import in module ``name``; eager means it runs
+    when the module is imported (module level, not under TYPE_CHECKING)."""
+    path = MODULES[name]
+    package = name if path.name == "__init__.py" else name.rpartition(".")[0]
+    out: list[tuple[str, tuple[str, ...], bool]] = []
+
+    def visit(node: ast.AST, eager: bool) -> None:
+        for child in ast.iter_child_nodes(node):
+            if isinstance(child, ast.Import):
+                out.extend((a.name, (), eager) for a in child.names)
+            elif isinstance(child, ast.ImportFrom):
+                base = child.module or ""
+                if child.level:
+                    up = package.split(".")
+                    up = up[: len(up) - (child.level - 1)]
+                    base = ".".join([*up, base] if base else up)
+                names = tuple(a.name for a in child.names)
+                for n in names:  # ``from hound_id.mor import spec`` imports the module hound_id.mor.spec
+                    if f"{base}.{n}" in MODULES:
+                        out.append((f"{base}.{n}", (), eager))
+                out.append((base, tuple(n for n in names if f"{base}.{n}" not in MODULES), eager))
+            elif isinstance(child, ast.If) and _type_checking(child):
+                for part in child.body:
+                    visit(ast.Module(body=[part], type_ignores=[]), False)
+                for part in child.orelse:
+                    visit(ast.Module(body=[part], type_ignores=[]), eager)
+            elif isinstance(child, ast.FunctionDef | ast.AsyncFunctionDef | ast.Lambda):
+                visit(child, False)
+            else:
+                visit(child, eager)
+
+    visit(ast.parse(path.read_text(), str(path)), True)
+    return out
+
+
+IMPORTS = {name: imports(name) for name in MODULES}
+
+
+def internal(target: str) -> str | None:
+    """The hound_id module an import names (the module itself, or the nearest package above it), or None."""
+    while target and target not in MODULES:
+        target = target.rpartition(".")[0]
+    return target or None
+
+
+def graph(eager_only: bool = False) -> dict[str, set[str]]:
+    edges: dict[str, set[str]] = {name: set() for name in MODULES}
+    for name, found in IMPORTS.items():
+        for target, _, eager in found:
+            dep = internal(target)
+            if dep is not None and dep != name and (eager or not eager_only):
+                edges[name].add(dep)
+    return edges
+
+
+def cycles(edges: dict[str, set[str]]) -> list[list[str]]:
+    """Strongly connected groups of more than one module (Tarjan), each sorted."""
+    index: dict[str, int] = {}
+    low: dict[str, int] = {}
+    stack: list[str] = []
+    on: set[str] = set()
+    out: list[list[str]] = []
+    sys.setrecursionlimit(max(sys.getrecursionlimit(), 10 * len(edges)))
+
+    def strong(v: str) -> None:
+        index[v] = low[v] = len(index)
+        stack.append(v)
+        on.add(v)
+        for w in sorted(edges[v]):
+            if w not in index:
+                strong(w)
+                low[v] = min(low[v], low[w])
+            elif w in on:
+                low[v] = min(low[v], index[w])
+        if low[v] == index[v]:
+            group = []
+            while True:
+                w = stack.pop()
+                on.discard(w)
+                group.append(w)
+                if w == v:
+                    break
+            if len(group) > 1:
+                out.append(sorted(group))
+
+    for v in sorted(edges):
+        if v not in index:
+            strong(v)
+    return out
+
+
+def test_the_checker_sees_every_kind_of_import():
+    found = {(t, names, eager) for t, names, eager in IMPORTS["hound_id.mor.saturation"]}
+    assert ("hound_id.mor.region", ("SPEED_TOLERANCE", "operating_region"), True) in found
+    assert ("hound_id.mor.robot", ("Robot",), False) in found  # under TYPE_CHECKING
+    assert ("torch", (), False) in found  # inside a function
+    assert cycles({"a": {"b"}, "b": {"c"}, "c": {"a"}, "d": {"a"}}) == [["a", "b", "c"]]
+
+
+def test_no_import_cycle():
+    assert cycles(graph()) == []
+
+
+def test_mor_foot_and_export_never_import_dyno():
+    edges = graph()
+    wrong = sorted(
+        f"{name} -> {dep}"
+        for name, deps in edges.items()
+        if name.startswith(("hound_id.mor", "hound_id.foot", "hound_id.export"))
+        for dep in deps
+        if dep.startswith("hound_id.dyno")
+    )
+    assert wrong == []
+
+
+def test_no_module_imports_another_modules_private_names():
+    wrong = sorted(
+        f"{name}: {n} from {target}"
+        for name, found in IMPORTS.items()
+        for target, names, _ in found
+        if internal(target) not in (None, name)
+        for n in names
+        if n.startswith("_") and not n.startswith("__")
+    )
+    assert wrong == []
+
+
+def test_runtime_imports_only_what_its_docstring_says():
+    direct = {internal(t) for t, _, _ in IMPORTS["hound_id.runtime"]} - {None}
+    assert direct <= RUNTIME_IMPORTS, direct - RUNTIME_IMPORTS
+    libraries = {t.partition(".")[0] for t, _, _ in IMPORTS["hound_id.runtime"] if internal(t) is None}
+    assert libraries - set(sys.stdlib_module_names) <= RUNTIME_LIBRARIES
+    # what importing it loads: its module-level imports, followed, and the packages above each module
+    eager = graph(eager_only=True)
+    loaded, todo = set(), ["hound_id.runtime"]
+    while todo:
+        name = todo.pop()
+        if name in loaded:
+            continue
+        loaded.add(name)
+        parts = name.split(".")
+        todo.extend(".".join(parts[:k]) for k in range(1, len(parts)))
+        todo.extend(eager[name])
+    assert loaded == RUNTIME_LOADS
+    outside = {
+        t.partition(".")[0]
+        for name in loaded
+        for t, _, eager_import in IMPORTS[name]
+        if eager_import and internal(t) is None
+    }
+    assert outside - set(sys.stdlib_module_names) == {"numpy"}
