@@ -226,13 +226,11 @@ def step_compare(out: Path) -> StepResult:
 def step_export(out: Path) -> StepResult:
     """Export every format of the sample robot with the fitted motor and the new foot; run the MuJoCo model."""
     from hound_id.export.mujoco import rollout_check
-    from hound_id.export.run import export_robot, formats_from, prepare
+    from hound_id.export.run import ExportOptions, run_export
 
     fit, foot = out / "hound_ilm85_fitted.yaml", out / "foot" / "foot.json"
-    ex = prepare(
-        samples_dir() / "robots" / "hound_like.yaml", [fit] if fit.is_file() else [], foot if foot.is_file() else None
-    )
-    report = export_robot(ex, formats_from("all"), out / "export")
+    options = ExportOptions("all", (fit,) if fit.is_file() else (), foot if foot.is_file() else None)
+    report = run_export(samples_dir() / "robots" / "hound_like.yaml", out / "export", options)
     stats = rollout_check(out / "export" / "hound_like.xml", out / "export" / "hound_like_bundle.yaml", seconds=1.0)
     files = tuple(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
     io.write_json(out / "export" / "export.json", report | {"mujoco_check": stats})

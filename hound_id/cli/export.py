@@ -27,13 +27,9 @@ def export(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/export/1)."),
 ) -> None:
     """Export what hound-id identified to the formats trainers read."""
-    from hound_id.export.run import export_robot, formats_from, prepare
-    from hound_id.io import check_folder
+    from hound_id.export.run import ExportOptions, run_export
 
-    names = formats_from(fmt)
-    check_folder(out)
-    ex = prepare(robot, fit or [], foot, urdf, mujoco_actuator)
-    report = export_robot(ex, names, out)
+    report = run_export(robot, out, ExportOptions(fmt, tuple(fit or ()), foot, urdf, mujoco_actuator))
     if json_out:
         print_json(report)
         return

@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from collections.abc import Sequence
-from dataclasses import replace
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -14,6 +14,31 @@ from hound_id.export.formats import FORMATS
 from hound_id.export.target import Export
 
 SCHEMA = "hound-id/export/1"
+
+
+@dataclass(frozen=True)
+class ExportOptions:
+    """The options of ``hound-id export``, as the user gives them."""
+
+    formats: str = "bundle"
+    """``bundle,mujoco`` (comma-separated) or ``all``."""
+    fits: tuple[Path, ...] = ()
+    """Fitted motor specs from ``fit-current --out``."""
+    foot: Path | None = None
+    """``foot.json`` from ``hound-id foot --optimise``."""
+    urdf: Path | None = None
+    """The robot's URDF, instead of the robot file's ``urdf:``."""
+    mujoco_actuator: str = "dcmotor"
+    """``dcmotor`` (the region in MuJoCo) or ``motor`` (saturate with the runtime)."""
+
+
+def run_export(robot_path: Path, out: Path, options: ExportOptions = ExportOptions()) -> dict[str, Any]:
+    """``hound-id export``: check the options and ``out`` before any work, load the robot with its fits, URDF and
+    foot, write the formats into ``out`` (all or nothing); the ``hound-id/export/1`` report."""
+    names = formats_from(options.formats)
+    io.check_folder(out)
+    ex = prepare(robot_path, options.fits, options.foot, options.urdf, options.mujoco_actuator)
+    return export_robot(ex, names, out)
 
 
 def formats_from(text: str) -> list[str]:
