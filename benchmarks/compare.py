@@ -28,7 +28,6 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import time
 from pathlib import Path
@@ -36,17 +35,8 @@ from pathlib import Path
 import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/timing.py
 sys.path.insert(0, str(ROOT))  # the independent simulator lives with the tests
-
-
-def timed(fn, repeat: int) -> float:
-    """Median wall time of ``fn()`` over ``repeat`` calls [s]."""
-    times = []
-    for _ in range(repeat):
-        t0 = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - t0)
-    return statistics.median(times)
 
 
 def bisection_edge(omega, side, params, inputs, steps=60):
@@ -122,6 +112,9 @@ def scoreboard(spec, seeds: int) -> list[dict]:
                     })  # fmt: skip
                     progress.advance(task)
     return rows
+
+
+from timing import timed  # noqa: E402
 
 
 def main() -> None:

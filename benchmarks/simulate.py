@@ -23,18 +23,11 @@ import numpy as np
 
 ROOT = Path(__file__).resolve().parent.parent
 sys.path.insert(0, str(ROOT))  # this checkout's hound_id
+sys.path.insert(0, str(Path(__file__).resolve().parent))  # benchmarks/timing.py
+
+from timing import timed  # noqa: E402
 
 from hound_id.dyno.simulate.current import EFFECTS, TestPlan, simulate  # noqa: E402
-
-
-def median_time(fn, repeat: int) -> float:
-    """Median wall time of ``fn()`` over ``repeat`` calls [s]."""
-    times = []
-    for _ in range(repeat):
-        start = time.perf_counter()
-        fn()
-        times.append(time.perf_counter() - start)
-    return float(np.median(times))
 
 
 def main() -> None:
@@ -48,8 +41,8 @@ def main() -> None:
     rows = len(simulate(EFFECTS, rate_hz=rate).frame)
     columns = len(simulate(EFFECTS, rate_hz=rate / 100).frame.columns)
     rng = np.random.default_rng(0)
-    t_sim = median_time(lambda: simulate(EFFECTS, rate_hz=rate), args.repeat)
-    t_floor = median_time(lambda: np.column_stack([rng.standard_normal(rows) for _ in range(columns)]), args.repeat)
+    t_sim = timed(lambda: simulate(EFFECTS, rate_hz=rate), args.repeat)
+    t_floor = timed(lambda: np.column_stack([rng.standard_normal(rows) for _ in range(columns)]), args.repeat)
     result = {
         "schema": "hound-id/bench-simulate/1",
         "date": time.strftime("%Y-%m-%d"),

@@ -53,20 +53,11 @@ def record_cmd(
     """
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.acquire.recorder import check_free, check_settings, record
-    from hound_id.dyno.acquire.rig import load_rig
-    from hound_id.dyno.acquire.transport import RigReader
+    from hound_id.dyno.acquire.session import record_rig
 
-    check_output(out, (".csv",), "log")
-    check_settings(rate, duration, flush)
-    check_free(out)
     _quiet_and_terminable()
-    rig_spec = load_rig(rig)
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
-    with (
-        RigReader(rig_spec) as reader,
-        Progress(*columns, console=err_console, disable=not err_console.is_terminal) as progress,
-    ):
+    with Progress(*columns, console=err_console, disable=not err_console.is_terminal) as progress:
         task = progress.add_task("recording", total=duration, info="")
 
         def on_progress(r) -> None:  # type: ignore[no-untyped-def]
@@ -76,17 +67,7 @@ def record_cmd(
                 info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed} missed, {r.failed} in gaps",
             )
 
-        result = record(
-            reader.read_sample,
-            list(rig_spec.columns),
-            out,
-            rate_hz=rate,
-            duration=duration,
-            flush_interval=flush,
-            metadata={"rig": str(rig.resolve()), "rig_name": rig_spec.name},
-            live=lambda: {"transport_errors": reader.faults()},
-            on_progress=on_progress,
-        )
+        result = record_rig(rig, out, rate_hz=rate, duration=duration, flush_interval=flush, on_progress=on_progress)
     meta = dict(result.metadata)  # what the sidecar says
     if json_out:
         print_json(meta)
