@@ -30,11 +30,13 @@ from __future__ import annotations
 
 from collections.abc import Mapping
 from dataclasses import dataclass
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
+from hound_id.arrays import frozen
 from hound_id.errors import SpecError
 from hound_id.mor.envelope_effects import EFFECTS, EnvelopeEffect  # noqa: F401 - EnvelopeEffect re-exported
 from hound_id.mor.spec import MotorSpec
@@ -238,11 +240,48 @@ def effect_names(inputs: EnvelopeInputs) -> list[str]:
     return names
 
 
-#: Accuracy of the polyline boundary, as a share of the torque limit.
+#: Accuracy of the polyline boundary, as a share of the torque limit (0.2 %: far inside any sensor's accuracy).
 POLYLINE_TOLERANCE = 0.002
+#: The polyline starts from this many evenly spaced speeds across +-the no-load speed (one every 1/8 of it) and
+#: halves each segment that misses at most POLYLINE_REFINEMENTS times (down to 1/131072 of the speed range); the miss
+#: is probed at POLYLINE_PROBES of each segment.
+POLYLINE_POINTS = 17
+POLYLINE_REFINEMENTS = 14
+POLYLINE_PROBES = (0.25, 0.5, 0.75)
 
 
-def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: float | None = None) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Polyline:
+    """A model's edges as polylines over motor speed (:func:`polyline`); read-only arrays."""
+
+    speeds: Array
+    """Motor speeds [rad/s], ascending."""
+    upper: Array
+    """Upper edge at each speed [N m] (NaN where no torque is feasible)."""
+    lower: Array
+    """Lower edge [N m]."""
+    tolerance: float
+    """The accuracy asked for [N m]."""
+    max_error: float
+    """The largest miss of linear interpolation found at the probes [N m]."""
+    model: Mapping[str, float]
+    """The effects evaluated (temperature-dependent ones left out)."""
+    units: str = "rad/s, N m (motor side)"
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``polyline`` block of the ``hound-id/mor-compare/2`` JSON."""
+        return {
+            "speeds": self.speeds.tolist(),
+            "upper": self.upper.tolist(),
+            "lower": self.lower.tolist(),
+            "tolerance": self.tolerance,
+            "max_error": self.max_error,
+            "model": dict(self.model),
+            "units": self.units,
+        }
+
+
+def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: float | None = None) -> Polyline:
     """The model's edges as polylines over speed, refined until linear interpolation is within ``tolerance``
     [N m] (default :data:`POLYLINE_TOLERANCE` x the torque limit) of the model at a quarter, half and three
     quarters of every segment (``max_error`` is the largest miss found there).
@@ -254,11 +293,11 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
     plain = {k: v for k, v in model.items() if "temperature" not in EFFECTS[k].requires}
     ref = EnvelopeInputs(spec, compensation=inputs.compensation)
     top = spec.bus_voltage * spec.kv
-    speeds = np.linspace(-top, top, 17)
-    for _ in range(14):  # split every segment whose interpolation misses the model at 1/4, 1/2 or 3/4 of it
+    speeds = np.linspace(-top, top, POLYLINE_POINTS)
+    for _ in range(POLYLINE_REFINEMENTS):  # split every segment whose interpolation misses the model at a probe
         lo, hi = envelope(speeds, plain, ref)
         err = np.zeros(speeds.size - 1)
-        for f in (0.25, 0.5, 0.75):
+        for f in POLYLINE_PROBES:
             probe = speeds[:-1] + f * np.diff(speeds)
             plo, phi = envelope(probe, plain, ref)
             miss = np.maximum(np.abs(hi[:-1] + f * np.diff(hi) - phi), np.abs(lo[:-1] + f * np.diff(lo) - plo))
@@ -269,15 +308,8 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
         speeds = np.sort(np.concatenate([speeds, (speeds[:-1] + 0.5 * np.diff(speeds))[bad]]))
     else:  # refined to the limit: the edges of the last speeds
         lo, hi = envelope(speeds, plain, ref)
-    return {
-        "speeds": speeds.tolist(),
-        "upper": hi.tolist(),
-        "lower": lo.tolist(),
-        "tolerance": tol,
-        "max_error": float(np.nanmax(err)) if err.size else 0.0,
-        "model": plain,
-        "units": "rad/s, N m (motor side)",
-    }
+    max_error = float(np.nanmax(err)) if err.size else 0.0
+    return Polyline(frozen(speeds), frozen(hi), frozen(lo), tol, max_error, MappingProxyType(plain))
 
 
 def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]] | None:

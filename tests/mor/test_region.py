@@ -139,7 +139,7 @@ def write_envelope_spec(path, effects, motor=MOTOR):
     from hound_id.mor.envelope import EnvelopeInputs, polyline
 
     line = polyline(effects, EnvelopeInputs(load_motor_spec(motor)))
-    envelope = {k: line[k] for k in ("speeds", "lower", "upper", "tolerance")}
+    envelope = {k: line.to_dict()[k] for k in ("speeds", "lower", "upper", "tolerance")}
     data = {"schema": "hound-id/motor/1", "base": str(motor), "envelope": {"effects": effects, **envelope}}
     path.write_text(yaml.safe_dump(data))
     return path

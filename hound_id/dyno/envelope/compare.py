@@ -14,14 +14,22 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from dataclasses import dataclass, field, replace
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.dyno.envelope.evidence import bus_evidence, contradicts, current_evidence
-from hound_id.dyno.envelope.offsets import Offsets, isolated_bins, offsets, outside_stats, past_edges
+from hound_id.dyno.envelope.offsets import (
+    IsolatedBin,
+    Offsets,
+    OutsideStats,
+    isolated_bins,
+    offsets,
+    outside_stats,
+    past_edges,
+)
 from hound_id.dyno.envelope.walls import Walls, find_walls, inputs_for
 from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, climb, corrected, f_pvalue, rank, significant
 from hound_id.dyno.logs import EnvelopeLog
@@ -221,12 +229,13 @@ class Comparison:
     walls: Walls
     """The samples at the limit, found against the final model's edges."""
     ladder: tuple[Step[dict[str, float], Offsets], ...]
-    outside: dict[str, Any] = field(default_factory=dict)
+    outside: OutsideStats
+    """Where the log leaves the spec sheet's region."""
     baseline: Offsets | None = None
     """The spec sheet's offsets on the final walls (the fair 'before' of the final model)."""
-    unneeded: tuple[dict[str, Any], ...] = ()
+    unneeded: tuple[Unneeded, ...] = ()
     """Effects of the final model the log does not need once the others are in (:func:`unneeded`)."""
-    isolated: tuple[dict[str, Any], ...] = ()
+    isolated: tuple[IsolatedBin, ...] = ()
     """Single bins left out as chance walls (:func:`isolated_bins`): speed, edge, offset, se."""
     outside_final: float = 0.0
     """Share of the samples past the final model's edges (as :func:`outside_stats` counts them)."""
@@ -288,9 +297,30 @@ def compare(
     )
 
 
-def unneeded(
-    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs
-) -> list[dict[str, Any]]:
+@dataclass(frozen=True)
+class Unneeded:
+    """An effect of the final model the log does not need once the others are in (:func:`unneeded`)."""
+
+    effect: str
+    value: float
+    """Its fitted parameter [the effect's unit]."""
+    rmse_without: float
+    """The envelope error without it, the others refitted [N m]."""
+    p_value: float
+    """The drop's partial F-test p-value (uncorrected)."""
+    reason: str
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "effect": self.effect,
+            "value": self.value,
+            "rmse_without": self.rmse_without,
+            "p_value": self.p_value,
+            "reason": self.reason,
+        }
+
+
+def unneeded(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> list[Unneeded]:
     """The model's effects the log does not need once the others are in: each dropped in turn, the rest refitted;
     needed only if the drop is significant (partial F-test at :data:`ALPHA` / effects) and raises the envelope
     error by at least the noise level, as for adding one (the one rule,
@@ -308,16 +338,11 @@ def unneeded(
         if significant(corrected(p, 1, len(model)), material=without.rmse - full.rmse >= full.noise):
             continue
         others = ", ".join(f"{k} = {v:.4g} {EFFECTS[k].unit}" for k, v in rest.items())
-        out.append(
-            {
-                "effect": name,
-                "value": model[name],
-                "rmse_without": without.rmse,
-                "p_value": p,
-                "reason": f"without it (and {others} refitted) the envelope error is {without.rmse:.3g} N m against "
-                f"{full.rmse:.3g} N m with it over {n} bins (p = {p:.2g}): the log does not need it",
-            }
+        reason = (
+            f"without it (and {others} refitted) the envelope error is {without.rmse:.3g} N m against "
+            f"{full.rmse:.3g} N m with it over {n} bins (p = {p:.2g}): the log does not need it"
         )
+        out.append(Unneeded(name, model[name], without.rmse, p, reason))
     return out
 
 

@@ -14,6 +14,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, replace
+from types import MappingProxyType
 from typing import Any
 
 import numpy as np
@@ -115,7 +116,56 @@ def outside_mask(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> NDAr
     return past_edges(log, inputs, noise)[2]
 
 
-def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dict[str, Any]:
+@dataclass(frozen=True)
+class OutsideStats:
+    """Where a log leaves a region (:func:`outside_stats`)."""
+
+    fraction: float
+    """Share of the samples past the edges [0-1]."""
+    samples: int
+    """How many samples."""
+    threshold: float
+    """How far past an edge a sample must be to count [N m]."""
+    max_excess: float
+    """The furthest past [N m] (0 when none)."""
+    p95_excess: float
+    """95th percentile of how far past [N m] (0 when none)."""
+    by_quadrant: Mapping[str, int]
+    """Samples past the edges per quadrant (I, II, III, IV)."""
+    speed_range: tuple[float, float] | None
+    """Smallest and largest |motor speed| of those samples [rad/s] (None when none)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        """The ``outside`` block of the ``hound-id/mor-compare/2`` JSON."""
+        return {
+            "fraction": self.fraction,
+            "samples": self.samples,
+            "threshold": self.threshold,
+            "max_excess": self.max_excess,
+            "p95_excess": self.p95_excess,
+            "by_quadrant": dict(self.by_quadrant),
+            "speed_range": list(self.speed_range) if self.speed_range is not None else None,
+        }
+
+
+@dataclass(frozen=True)
+class IsolatedBin:
+    """A single bin left out as a chance wall (:func:`isolated_bins`)."""
+
+    speed: float
+    """Its speed [rad/s]."""
+    edge: str
+    """``upper`` or ``lower``."""
+    offset: float
+    """Its offset against the final model [N m]."""
+    se: float
+    """The offset's standard error [N m]."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"speed": self.speed, "edge": self.edge, "offset": self.offset, "se": self.se}
+
+
+def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> OutsideStats:
     """Where the log leaves the spec sheet's region: share of samples, how far, which quadrant and speeds.
 
     A sample is outside when it passes an edge by more than :data:`PAST_SIGMAS` x the torque noise of one sample
@@ -125,15 +175,15 @@ def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> dic
     excess, thr, out = past_edges(log, inputs, noise)
     t, w = log.torque[out], log.velocity[out]
     quadrant = np.where(t >= 0, np.where(w >= 0, "I", "II"), np.where(w < 0, "III", "IV"))
-    return {
-        "fraction": float(out.mean()),
-        "samples": int(out.sum()),
-        "threshold": thr,
-        "max_excess": float(excess[out].max()) if out.any() else 0.0,
-        "p95_excess": float(np.quantile(excess[out], 0.95)) if out.any() else 0.0,
-        "by_quadrant": {q: int(np.sum(quadrant == q)) for q in ("I", "II", "III", "IV")},
-        "speed_range": [float(np.abs(w).min()), float(np.abs(w).max())] if out.any() else None,
-    }
+    return OutsideStats(
+        fraction=float(out.mean()),
+        samples=int(out.sum()),
+        threshold=thr,
+        max_excess=float(excess[out].max()) if out.any() else 0.0,
+        p95_excess=float(np.quantile(excess[out], 0.95)) if out.any() else 0.0,
+        by_quadrant=MappingProxyType({q: int(np.sum(quadrant == q)) for q in ("I", "II", "III", "IV")}),
+        speed_range=(float(np.abs(w).min()), float(np.abs(w).max())) if out.any() else None,
+    )
 
 
 def coverage(off: Offsets) -> dict[str, list[float] | None]:
@@ -145,7 +195,7 @@ def coverage(off: Offsets) -> dict[str, list[float] | None]:
     return out
 
 
-def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list[dict[str, Any]]]:
+def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list[IsolatedBin]]:
     """Without a command channel, leave out single bins far off the final model whose neighbours agree with it:
     passes that happened to line up into a wall (a real departure spans a range of speeds). A bin is isolated when
     its offset exceeds :data:`ISOLATED` x the torque noise of one sample at the limit and the nearest bin on each
@@ -178,8 +228,8 @@ def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list
             isolated = False
         if isolated:
             drop.append((s, b))
-            found.append({"speed": float(off.speeds[k]), "edge": "upper" if s == 1 else "lower",
-                          "offset": float(off.offset[k]), "se": float(off.se[k])})  # fmt: skip
+            edge_name = "upper" if s == 1 else "lower"
+            found.append(IsolatedBin(float(off.speeds[k]), edge_name, float(off.offset[k]), float(off.se[k])))
     empty = np.array([], dtype=np.int64)
     for s, b in drop:
         sides[s][b] = empty

@@ -117,7 +117,7 @@ def verdict(c: Comparison) -> dict[str, Any]:
         rmse <= EXPLAINED * max(off.noise, 1e-12)
         and (not inflated or rmse <= EXPLAINED * typical)
         and not off_model
-        and (bool(c.final.model) or c.outside["fraction"] <= OUTSIDE_OK)
+        and (bool(c.final.model) or c.outside.fraction <= OUTSIDE_OK)
         and c.outside_final <= OUTSIDE_OK
     )
     return {"explained": bool(explained), "flags": flags}
@@ -143,8 +143,8 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "limit_method": c.walls.method,
         "limit_detection": c.walls.commanded.to_dict() if c.walls.commanded is not None else None,
         "bins_at_limit": int(last.offsets.offset.size),
-        "outside_fraction": c.outside["fraction"],
-        "outside": c.outside,
+        "outside_fraction": c.outside.fraction,
+        "outside": c.outside.to_dict(),
         "envelope_rmse": {"model": before.rmse, "with_added": last.offsets.rmse},
         **verdict(c),
         "outside_final": c.outside_final,
@@ -154,8 +154,8 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "model": last.model,
         "added": [s.added for s in c.ladder[1:]],
         "suggestions": [suggestion_dict(s) for s in last.suggestions],
-        "unneeded": list(c.unneeded),
-        "isolated_bins": list(c.isolated),
+        "unneeded": [u.to_dict() for u in c.unneeded],
+        "isolated_bins": [b.to_dict() for b in c.isolated],
         "ladder": [_rung(c, k) for k in range(len(c.ladder))],
         "bins": [
             {
@@ -174,7 +174,7 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
                 strict=True,
             )
         ],  # fmt: skip
-        "polyline": polyline(last.model, c.inputs),
+        "polyline": polyline(last.model, c.inputs).to_dict(),
         "units": "SI, motor side: N m, rad/s",
     }
 
@@ -190,11 +190,11 @@ def envelope_spec(spec_path: Path, out_path: Path, c: Comparison) -> dict[str, A
     raw = read_yaml(spec_path, "motor spec")
     line = polyline(c.final.model, c.inputs)
     env = {
-        "effects": line["model"],
-        "speeds": line["speeds"],
-        "lower": [None if not math.isfinite(v) else v for v in line["lower"]],
-        "upper": [None if not math.isfinite(v) else v for v in line["upper"]],
-        "tolerance": line["tolerance"],
+        "effects": dict(line.model),
+        "speeds": line.speeds.tolist(),
+        "lower": [None if not math.isfinite(v) else v for v in line.lower.tolist()],
+        "upper": [None if not math.isfinite(v) else v for v in line.upper.tolist()],
+        "tolerance": line.tolerance,
         "coverage": coverage(c.final.offsets),
         "units": "rad/s, N m (motor side); outside the coverage the polyline is the model's extrapolation",
         "source": f"hound-id mor --compare {c.log.source}",

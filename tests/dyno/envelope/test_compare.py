@@ -111,7 +111,7 @@ def test_a_wrong_add_does_not_hide_the_right_effect():
     assert top.effect == "bus_sag" and top.significant and top.value == pytest.approx(0.15, rel=0.05)
     assert top.refit["inductance"] < 0.1 * wrong.final.model["inductance"]  # the wrong effect falls back
     both = compare(log, inputs, add=["inductance", "bus_sag"])
-    assert [u["effect"] for u in both.unneeded] == ["inductance"]
+    assert [u.effect for u in both.unneeded] == ["inductance"]
     assert both.final.model["bus_sag"] == pytest.approx(0.15, rel=0.05)
     right = compare(log, inputs, add=["bus_sag"])
     assert right.unneeded == ()
@@ -122,7 +122,7 @@ def test_data_that_match_the_model_flag_nothing():
     result = compare(log, inputs, auto=True)
     assert len(result.ladder) == 1
     assert not any(s.significant for s in result.ladder[0].suggestions)
-    assert result.outside["fraction"] < 0.002  # noise only
+    assert result.outside.fraction < 0.002  # noise only
     assert comparison_json(result)["explained"] is True
     assert result.ladder[0].offsets.rmse < 2.5 * result.ladder[0].offsets.noise
 
@@ -142,10 +142,10 @@ def test_a_log_past_the_region_is_measured_and_located():
     log = EnvelopeLog(torque=d["torque"], velocity=d["velocity"])
     result = compare(log, EnvelopeInputs(SPEC))
     out = result.outside
-    assert out["fraction"] > 0.001 and out["max_excess"] > 0.5
-    q = out["by_quadrant"]
+    assert out.fraction > 0.001 and out.max_excess > 0.5
+    q = out.by_quadrant
     assert q["I"] > 0 and q["III"] > 0 and q["I"] + q["III"] > 5 * (q["II"] + q["IV"])  # motoring edges
-    assert out["speed_range"][0] > 0.85 * SPEC.bus_voltage * SPEC.kv  # only near the no-load speed
+    assert out.speed_range[0] > 0.85 * SPEC.bus_voltage * SPEC.kv  # only near the no-load speed
     assert comparison_json(result)["explained"] is False  # no candidate adds voltage: said, not hidden
 
 
@@ -161,11 +161,11 @@ def test_a_log_that_never_reaches_its_limits_is_refused(seed):
 def test_polyline_is_within_its_stated_accuracy():
     inputs = EnvelopeInputs(SPEC)
     line = polyline({"bus_sag": 0.15, "inductance": 1e-4}, inputs)
-    assert line["max_error"] <= line["tolerance"] == pytest.approx(0.002 * SPEC.torque_limit)
-    w = np.linspace(min(line["speeds"]), max(line["speeds"]), 2001)
+    assert line.max_error <= line.tolerance == pytest.approx(0.002 * SPEC.torque_limit)
+    w = np.linspace(min(line.speeds), max(line.speeds), 2001)
     lo, hi = envelope(w, {"bus_sag": 0.15, "inductance": 1e-4}, inputs)
     ok = np.isfinite(hi)
-    assert np.max(np.abs(np.interp(w[ok], line["speeds"], line["upper"]) - hi[ok])) < 2 * line["tolerance"]
+    assert np.max(np.abs(np.interp(w[ok], line.speeds, line.upper) - hi[ok])) < 2 * line.tolerance
 
 
 def test_loader_units_mapping_and_joint_side(tmp_path):
@@ -334,6 +334,6 @@ def test_a_jump_at_the_end_of_an_edge_is_isolated_but_a_departure_is_not():
                        np.full(n, 0.03))  # fmt: skip
 
     kept, found = isolated_bins(walls, offsets_with(-12.2), slope)
-    assert len(found) == 1 and found[0]["speed"] == 436.0 and kept.upper[3].size == 0
+    assert len(found) == 1 and found[0].speed == 436.0 and kept.upper[3].size == 0
     kept, found = isolated_bins(walls, offsets_with(-1.5), slope)  # 1.5 N m < 2 x 0.22 x 12 N m: a real departure
     assert found == [] and kept.upper[3].size == 10
