@@ -37,21 +37,16 @@ class StepResult:
 DPI = 110
 
 
-def _save_png(fig: object, path: Path) -> None:
-    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=DPI))  # type: ignore[attr-defined]
-
-
 def step_motor_regions(out: Path) -> StepResult:
     """Operating region of every sample motor: JSON and plot."""
-    from hound_id.mor.region import motor_report
     from hound_id.mor.run import motor_regions
 
     files, parts, figures = [], [], {}
     for spec_file in sorted((samples_dir() / "motors").glob("*.yaml")):
         run = motor_regions(spec_file)
         spec, region = run.spec, run.region
-        io.write_json(out / f"mor_{spec.name}.json", motor_report(spec, region))
-        _save_png(run.figure(), out / f"mor_{spec.name}.png")
+        io.write_json(out / f"mor_{spec.name}.json", run.report())  # what `mor --spec --json` prints
+        io.write_png(run.figure(), out / f"mor_{spec.name}.png", DPI)
         files += [f"mor_{spec.name}.json", f"mor_{spec.name}.png"]
         parts.append(f"{spec.name}: {region.torque_limit:.3g} N m up to {region.corner_speed:.4g} rad/s")
         figures[f"{spec.name}.corner_speed"] = region.corner_speed
@@ -74,7 +69,7 @@ def step_robot_regions(out: Path) -> StepResult:
         data = regions.to_dict()
         data["box_study"] = study.to_dict()
         io.write_json(out / f"mor_robot_{robot.name}.json", data)
-        _save_png(run.figure(), out / f"mor_robot_{robot.name}.png")
+        io.write_png(run.figure(), out / f"mor_robot_{robot.name}.png", DPI)
         files += [f"mor_robot_{robot.name}.json", f"mor_robot_{robot.name}.png"]
         parts.append(
             f"{robot.name}: {study.outer_infeasible:.1%} of commands inside the URDF outer box are infeasible "
@@ -94,7 +89,7 @@ def step_saturate_log(out: Path) -> StepResult:
     )
     summary = run.summary.to_dict()
     io.write_json(out / "saturate_hound_like_running.json", summary)
-    _save_png(run.figure(), out / "saturate_hound_like_running.png")
+    io.write_png(run.figure(), out / "saturate_hound_like_running.png", DPI)
     worst = max(summary["joints"], key=lambda j: j["max_clip"])
     return StepResult(
         "saturate a command log",
@@ -132,7 +127,7 @@ def step_fit_current(out: Path) -> StepResult:
         out=out / "hound_ilm85_fitted.yaml",
     )
     result = fit_current(samples_dir() / "dyno" / "ilm85_dyno.csv", options)
-    io.write_json(out / "fit_ilm85_dyno.json", result.report)
+    io.write_json(out / "fit_ilm85_dyno.json", result.report_json())  # what `fit-current --json` prints
     write_outputs(result, dpi=DPI)
     fit, diagnosis, peak = result.fit, result.diagnosis, result.peak
     rungs = " -> ".join(f"{s.added or '+'.join(s.model)} {s.fit.rmse_test:.3g}" for s in result.ladder or ())

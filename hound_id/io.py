@@ -207,6 +207,11 @@ def write_with(path: str | os.PathLike[str], writer: Callable[[IO[bytes]], Any])
         writer(handle)
 
 
+def write_png(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> None:
+    """Save a matplotlib figure as PNG atomically, at ``dpi`` dots per inch (the folder must exist)."""
+    write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
+
+
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
     """Write ``data`` as indented JSON atomically."""
     write_text(path, json.dumps(data, indent=2) + "\n")

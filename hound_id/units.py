@@ -195,3 +195,6 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
 RPM_PER_RAD_S = 60.0 / (2.0 * math.pi)
 #: deg/s per rad/s.
 DEG_S_PER_RAD_S = 180.0 / math.pi
+#: N cm and mN m per N m.
+NCM_PER_NM = 100.0
+MNM_PER_NM = 1000.0

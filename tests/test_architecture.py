@@ -1,8 +1,9 @@
 """The package's architecture, read from the source with ``ast``: every import counts (module level, inside
 functions, under ``if TYPE_CHECKING:``), so an import circle cannot hide behind a function-level import.
 
-Rules: no import cycle among hound_id modules; mor, foot and export never import dyno; no module imports
-another module's private (``_name``) names; the trainer runtime imports only numpy, the standard library and
+Rules: no import cycle among hound_id modules; each room imports only the rooms :data:`ALLOWED` gives it (the arrows
+of ARCHITECTURE.md); mor, foot and export never import dyno; no module imports another module's private (``_name``)
+names; the trainer runtime imports only numpy, the standard library and
 the few hound_id modules of :data:`RUNTIME_IMPORTS` (torch only inside the functions given tensors).
 """
 
@@ -30,6 +31,62 @@ RUNTIME_LOADS = {
 }
 #: Libraries outside the standard library that runtime.py may import (torch only inside functions).
 RUNTIME_LIBRARIES = {"numpy", "torch"}
+
+
+#: The rooms of the package, most specific first; a module belongs to the first room it is in or under. Modules in
+#: none of them (errors, units, io, tables, arrays, parameter, samples, the package itself) are the ground floor.
+ROOMS = (
+    "hound_id.__main__",
+    "hound_id.cli",
+    "hound_id.demo",
+    "hound_id.dyno.fit_current",
+    "hound_id.dyno.compare_envelope",
+    "hound_id.dyno.acquire",
+    "hound_id.dyno.current",
+    "hound_id.dyno.envelope",
+    "hound_id.dyno.identify",
+    "hound_id.dyno.simulate",
+    "hound_id.dyno.logs",
+    "hound_id.dyno.artefacts",
+    "hound_id.dyno",
+    "hound_id.export",
+    "hound_id.runtime",
+    "hound_id.foot",
+    "hound_id.mor",
+)
+GROUND = "ground"
+#: The arrows: which rooms each room may import (besides itself and the ground floor). ARCHITECTURE.md draws this.
+ALLOWED = {
+    "hound_id.__main__": {"hound_id.cli"},
+    "hound_id.cli": {
+        "hound_id.demo", "hound_id.dyno.fit_current", "hound_id.dyno.compare_envelope", "hound_id.dyno.acquire",
+        "hound_id.dyno.current", "hound_id.dyno.simulate", "hound_id.export", "hound_id.foot", "hound_id.mor",
+    },
+    "hound_id.demo": {"hound_id.dyno.fit_current", "hound_id.dyno.compare_envelope", "hound_id.export",
+                      "hound_id.foot", "hound_id.mor"},
+    "hound_id.dyno.fit_current": {"hound_id.dyno.current", "hound_id.dyno.logs", "hound_id.mor"},
+    "hound_id.dyno.compare_envelope": {"hound_id.dyno.envelope", "hound_id.dyno.identify", "hound_id.dyno.logs",
+                                       "hound_id.mor"},
+    "hound_id.dyno.acquire": {"hound_id.dyno.logs", "hound_id.dyno.simulate"},
+    "hound_id.dyno.current": {"hound_id.dyno.identify", "hound_id.dyno.logs", "hound_id.dyno.artefacts",
+                              "hound_id.mor"},
+    "hound_id.dyno.envelope": {"hound_id.dyno.identify", "hound_id.dyno.logs", "hound_id.mor"},
+    "hound_id.dyno.identify": set(),
+    "hound_id.dyno.simulate": {"hound_id.mor"},
+    "hound_id.dyno.logs": {"hound_id.dyno.artefacts"},
+    "hound_id.dyno.artefacts": set(),
+    "hound_id.dyno": set(),
+    "hound_id.export": {"hound_id.runtime", "hound_id.foot", "hound_id.mor"},
+    "hound_id.runtime": {"hound_id.mor"},
+    "hound_id.foot": {"hound_id.mor"},
+    "hound_id.mor": set(),
+    GROUND: set(),
+}  # fmt: skip
+
+
+def room_of(module: str) -> str:
+    """The room a module belongs to (:data:`ROOMS`), or :data:`GROUND`."""
+    return next((r for r in ROOMS if module == r or module.startswith(r + ".")), GROUND)
 
 
 def module_name(path: Path) -> str:
@@ -149,6 +206,22 @@ def test_the_checker_sees_every_kind_of_import():
 
 def test_no_import_cycle():
     assert cycles(graph()) == []
+
+
+def test_each_room_imports_only_the_rooms_its_arrows_allow():
+    assert set(ALLOWED) == {*ROOMS, GROUND}
+    assert room_of("hound_id.dyno.current.fit") == "hound_id.dyno.current" and room_of("hound_id.io") == GROUND
+    wrong = sorted(
+        f"{name} -> {dep}"
+        for name, deps in graph().items()
+        for dep in deps
+        if room_of(dep) not in {room_of(name), GROUND, *ALLOWED[room_of(name)]}
+    )
+    assert wrong == []
+
+
+def test_the_arrows_have_no_circle():
+    assert cycles({room: set(allowed) for room, allowed in ALLOWED.items()}) == []
 
 
 def test_mor_foot_and_export_never_import_dyno():

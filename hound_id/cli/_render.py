@@ -29,4 +29,4 @@ def warn(message: str) -> None:
 def save_figure(fig: Any, path: Path) -> None:
     """Save a matplotlib figure as PNG, atomically."""
     io.check_output(path, (".png",), "plot")
-    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=120))
+    io.write_png(fig, path)

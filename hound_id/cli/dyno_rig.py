@@ -111,40 +111,14 @@ def simulate_rig_cmd(
     ),
 ) -> None:
     """Serve a simulated motor and torque transducer over Modbus TCP (and a serial pty) on 127.0.0.1."""
-    import math
+    from hound_id.dyno.acquire.session import serve_simulated_rig
 
-    import yaml
-
-    from hound_id import io
-    from hound_id.dyno.acquire.simulated_rig import SimulatedRig, check_speedup
-    from hound_id.dyno.simulate.current import SimMotor, TestPlan
-    from hound_id.errors import DynoDataError
-
-    check_output(rig_out, (".yaml", ".yml"), "rig")
-    if duration is not None and not (math.isfinite(duration) and duration > 0):
-        raise DynoDataError(
-            f"--duration: found {duration:g}, expected a positive number of seconds (leave it out to serve until "
-            "Ctrl-C)",
-            duration=duration,
-        )
-    if not 0 <= port <= 65535:
-        raise DynoDataError(f"--port: found {port}, expected 0 to 65535 (0: any free port)", port=port)
-    if seed < 0:
-        raise DynoDataError(f"--seed: found {seed}, expected an integer >= 0", seed=seed)
-    check_speedup(speedup, "--speedup")
-    _quiet_and_terminable()
     names = tuple(e.strip() for e in effects.split(",") if e.strip())
-    # A polled rig samples at most about 1 kHz: the default plan's current edges take 10 ms, so they are resolved
-    test_plan, motor = TestPlan(current_rise_time=0.01), SimMotor()
-    if plan is not None:
-        from hound_id.dyno.acquire.plan import load_plan
-
-        test_plan, max_current = load_plan(plan)
-        motor = SimMotor(max_current=max_current)
-    sim = SimulatedRig(names, seed=seed, motor=motor, plan=test_plan, port=port, serial=serial, speedup=speedup)
-    sim.start()
+    _quiet_and_terminable()
+    sim = serve_simulated_rig(
+        names, rig_out, seed=seed, plan=plan, port=port, speedup=speedup, serial=serial, duration=duration
+    )
     try:
-        io.write_text(rig_out, yaml.safe_dump(sim.rig_mapping(), sort_keys=False))
         host, bound = sim.address
         console.print(
             f"simulated rig: Modbus TCP on {host}:{bound} (transducer unit 1, drive unit 2)"
@@ -153,7 +127,7 @@ def simulate_rig_cmd(
         )
         console.print(
             f"rig file: {rig_out}; hidden effects: {', '.join(names)}; seed {seed}; "
-            f"plan {sim.log.frame['time'].iloc[-1]:.0f} s at speedup {speedup:g}. Ctrl-C stops.",
+            f"plan {sim.period:.0f} s at speedup {speedup:g}. Ctrl-C stops.",
             highlight=False,
         )
         end = None if duration is None else time.monotonic() + duration

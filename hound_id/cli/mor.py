@@ -141,7 +141,7 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
         console.print(f"not needed: {name}: {item['reason']}; leave out --add {name}", highlight=False)
     suggestion = result.suggestion
     if suggestion is not None:
-        console.print(f"suggested: --add {suggestion['effect']}: {suggestion['reason']}", highlight=False)
+        console.print(f"suggested: --add {suggestion.effect}: {suggestion.reason}", highlight=False)
     elif result.verdict == "explained":
         console.print("no missing effect is significant: the model explains the envelope", highlight=False)
     else:

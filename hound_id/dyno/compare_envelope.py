@@ -19,6 +19,7 @@ from hound_id.errors import SpecError
 
 if TYPE_CHECKING:
     from hound_id.dyno.envelope.compare import Comparison
+    from hound_id.dyno.identify.engine import Suggestion
     from hound_id.dyno.logs import EnvelopeLog
     from hound_id.mor.spec import MotorSpec
 
@@ -85,10 +86,9 @@ class EnvelopeComparison:
         return ((self.ignored_warning,) if self.ignored_warning else ()) + self.flag_warnings
 
     @property
-    def suggestion(self) -> dict[str, Any] | None:
-        """The first significant candidate effect (JSON form), if any."""
-        significant = [s for s in self.data["suggestions"] if s["significant"]]
-        return significant[0] if significant else None
+    def suggestion(self) -> Suggestion | None:
+        """The first significant candidate effect on the final model, if any."""
+        return next((s for s in self.comparison.final.suggestions if s.significant), None)
 
 
 def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = CompareOptions()) -> EnvelopeComparison:
@@ -104,7 +104,9 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
         HoundIdError: A bad input (spec, robot, log, option, output path).
     """
     from hound_id.dyno.envelope.compare import compare
+    from hound_id.dyno.envelope.offsets import coverage
     from hound_id.dyno.envelope.report import comparison_json
+    from hound_id.dyno.envelope.report import verdict as verdict_of
     from hound_id.dyno.logs import load_envelope_log, parse_mapping
     from hound_id.mor.envelope import EnvelopeInputs, compensation_of
     from hound_id.mor.spec import load_motor_spec
@@ -123,22 +125,23 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
     log = load_envelope_log(log_path, columns, units, robot=robot, joint=options.joint)
     result = compare(log, EnvelopeInputs(spec, compensation=compensation_of(spec)), add=options.add, auto=options.auto)
     data = comparison_json(result)
-    if out is not None and not data["explained"]:
-        final, noise = data["envelope_rmse"]["with_added"], data["noise_level"]
+    judged = verdict_of(result)
+    if out is not None and not judged.explained:
+        final, noise = result.final.offsets.rmse, result.final.offsets.noise
         raise SpecError(
             f"--out {out}: the model does not explain {log.source} (envelope error {final:.3g} N m, "
             f"{final / max(noise, 1e-12):.0f}x the noise level"
-            + "".join(f"; {f['text']}" for f in data["flags"])
+            + "".join(f"; {f.text}" for f in judged.flags)
             + "); a measured envelope is written only when it explains the log: run without --out to see what is "
             "missing"
         )
-    cov = data["coverage"]
-    forward = max((cov["upper"] or [0.0, 0.0])[1], 0.0)  # the motoring edges: upper forward, lower backward
-    backward = max(-(cov["lower"] or [0.0, 0.0])[0], 0.0)
+    cov = coverage(result.final.offsets)
+    forward = max((cov.upper or (0.0, 0.0))[1], 0.0)  # the motoring edges: upper forward, lower backward
+    backward = max(-(cov.lower or (0.0, 0.0))[0], 0.0)
     verdict: Verdict
-    if any(s["significant"] for s in data["suggestions"]):
+    if any(s.significant for s in result.final.suggestions):
         verdict = "suggest"
-    elif data["explained"]:
+    elif judged.explained:
         verdict = "explained"
     else:
         verdict = "unexplained"
@@ -157,7 +160,7 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
             if log.ignored
             else None
         ),
-        flag_warnings=tuple(flag["text"] for flag in data["flags"]),
+        flag_warnings=tuple(flag.text for flag in judged.flags),
     )
 
 
@@ -181,7 +184,7 @@ def write_outputs(result: EnvelopeComparison, dpi: int = 120) -> None:
 
         fig = plot_compare(result.comparison)
         io.check_output(plot, (".png",), "plot")
-        io.write_with(plot, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
+        io.write_png(fig, plot, dpi)
     if out is not None:
         import yaml
 

@@ -320,7 +320,7 @@ def write_outputs(result: FitCurrentResult, dpi: int = 120) -> None:
     if plot is not None:
         fig = result.draw()
         io.check_output(plot, (".png",), "plot")
-        io.write_with(plot, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
+        io.write_png(fig, plot, dpi)
     if out is not None and motor_text is not None:
         try:
             io.write_text(out, motor_text)

@@ -265,7 +265,7 @@ def write_outputs(run: FootRun, dpi: int = 120) -> dict[str, str]:
 
         fig = plot_foot(run.report)
         io.check_output(plot, (".png",), "plot")
-        io.write_with(plot, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
+        io.write_png(fig, plot, dpi)
         files["plot"] = str(plot)
     return files
 

@@ -13,8 +13,6 @@ from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hound_id import io
-
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
@@ -23,11 +21,6 @@ if TYPE_CHECKING:
     from hound_id.mor.robot import Robot
     from hound_id.mor.saturation import LogSummary
     from hound_id.mor.spec import MotorSpec
-
-
-def save_png(fig: Any, path: Path, dpi: int = 120) -> None:
-    """Save a matplotlib figure as PNG, atomically (the folder must exist)."""
-    io.write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
 
 
 @dataclass(frozen=True, eq=False)
@@ -162,5 +155,4 @@ __all__ = [
     "motor_regions",
     "robot_regions_of",
     "saturate_commands",
-    "save_png",
 ]

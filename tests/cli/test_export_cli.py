@@ -52,3 +52,14 @@ def test_export_bad_input_is_one_line(tmp_path, args, fragments):
     proc = run_cli("export", "--robot", str(ROBOT), "--out", "out", *args, cwd=tmp_path)
     assert_one_line_error(proc, *fragments)
     assert not (tmp_path / "out").exists()
+
+
+def test_the_format_help_names_every_registered_format():
+    """`--format`'s help is written out (importing the registry would load numpy at every start of hound-id):
+    a new format added to FORMATS must be named there too."""
+    from hound_id.export.formats import FORMATS
+
+    proc = run_cli("export", "--help")
+    assert proc.returncode == 0
+    help_text = " ".join(proc.stdout.split())
+    assert all(name in help_text for name in FORMATS), (sorted(FORMATS), help_text)

@@ -1,4 +1,4 @@
-"""``hound-id dyno record``: a rig file in, a recorded log out (the verb the CLI calls).
+"""The verbs of ``hound-id dyno record`` (a rig file in, a recorded log out) and ``dyno simulate-rig``.
 
 It sits above :mod:`~hound_id.dyno.acquire.recorder` and :mod:`~hound_id.dyno.acquire.transport` (the transport
 imports the recorder's error type), so that neither has to import the other to run a session.
@@ -6,12 +6,17 @@ imports the recorder's error type), so that neither has to import the other to r
 
 from __future__ import annotations
 
-from collections.abc import Callable
+import math
+from collections.abc import Callable, Sequence
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from hound_id.dyno.acquire.recorder import RecordResult, check_free, check_settings, record
+from hound_id.errors import DynoDataError
 from hound_id.io import check_output
+
+if TYPE_CHECKING:
+    from hound_id.dyno.acquire.simulated_rig import SimulatedRig
 
 
 def record_rig(
@@ -44,3 +49,59 @@ def record_rig(
             live=lambda: {"transport_errors": reader.faults()},
             on_progress=on_progress,
         )
+
+
+#: Current rise time of the simulated rig's default test plan [s]: a polled rig samples at most about 1 kHz, so the
+#: plan's current edges take 10 ms and are resolved (a real drive's are sharper; the plan, not the rig, sets them).
+RIG_CURRENT_RISE = 0.01
+
+
+def serve_simulated_rig(
+    effects: Sequence[str],
+    rig_out: Path,
+    *,
+    seed: int = 0,
+    plan: Path | None = None,
+    port: int = 5020,
+    speedup: float = 1.0,
+    serial: bool = True,
+    duration: float | None = None,
+) -> SimulatedRig:
+    """``hound-id dyno simulate-rig``: check the options, start a simulated motor and torque transducer over Modbus
+    TCP (and a serial pty) on 127.0.0.1 playing ``plan`` (default: the standard plan with :data:`RIG_CURRENT_RISE`),
+    and write its rig file to ``rig_out``. Returns the running rig; the caller serves for ``duration`` (checked here)
+    and stops it."""
+    import yaml
+
+    from hound_id import io
+    from hound_id.dyno.acquire.simulated_rig import SimulatedRig, check_speedup
+    from hound_id.dyno.simulate.current import SimMotor, TestPlan
+
+    check_output(rig_out, (".yaml", ".yml"), "rig")
+    if duration is not None and not (math.isfinite(duration) and duration > 0):
+        raise DynoDataError(
+            f"--duration: found {duration:g}, expected a positive number of seconds (leave it out to serve until "
+            "Ctrl-C)",
+            duration=duration,
+        )
+    if not 0 <= port <= 65535:
+        raise DynoDataError(f"--port: found {port}, expected 0 to 65535 (0: any free port)", port=port)
+    if seed < 0:
+        raise DynoDataError(f"--seed: found {seed}, expected an integer >= 0", seed=seed)
+    check_speedup(speedup, "--speedup")
+    test_plan, motor = TestPlan(current_rise_time=RIG_CURRENT_RISE), SimMotor()
+    if plan is not None:
+        from hound_id.dyno.acquire.plan import load_plan
+
+        test_plan, max_current = load_plan(plan)
+        motor = SimMotor(max_current=max_current)
+    sim = SimulatedRig(
+        tuple(effects), seed=seed, motor=motor, plan=test_plan, port=port, serial=serial, speedup=speedup
+    )
+    sim.start()
+    try:
+        io.write_text(rig_out, yaml.safe_dump(sim.rig_mapping(), sort_keys=False))
+    except BaseException:
+        sim.stop()
+        raise
+    return sim

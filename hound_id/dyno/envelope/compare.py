@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 
 from hound_id.dyno.envelope.evidence import bus_evidence, contradicts, current_evidence
 from hound_id.dyno.envelope.offsets import (
+    MIN_BINS,
     IsolatedBin,
     Offsets,
     OutsideStats,
@@ -35,7 +36,7 @@ from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, climb, correc
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.errors import DynoDataError, SpecError
 from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names
-from hound_id.units import DEG_S_PER_RAD_S, RPM_PER_RAD_S
+from hound_id.units import DEG_S_PER_RAD_S, MNM_PER_NM, NCM_PER_NM, RPM_PER_RAD_S
 
 Array = NDArray[np.float64]
 
@@ -81,9 +82,6 @@ CURRENT_SEARCH = (0.05, 1.0001)
 #: Bounded scalar searches stop at this share of their interval (far below any effect's standard error). Calibrated on
 #: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
 SEARCH_TOLERANCE = 1e-5
-#: A comparison needs this many speed bins at the limit (an F-test on fewer has no degrees of freedom left). Calibrated
-#: on test_compare::test_a_log_that_never_reaches_its_limits_is_refused.
-MIN_BINS = 3
 #: A candidate is refuted when its share of samples past its edges also exceeds SPILL_GROWTH x the spec sheet's (a log
 #: that already spills over the sheet does not refute every effect). Calibrated on
 #: test_compare::test_a_candidate_the_log_passes_is_refuted.
@@ -91,6 +89,8 @@ SPILL_GROWTH = 2.0
 #: A logged channel's evidence is attached to a suggestion that explains more than this share of the envelope error (its
 #: own effect, not one that merely helps). Calibrated on test_compare::test_a_wrong_add_does_not_hide_the_right_effect.
 EVIDENCE_EXPLAINED = 0.5
+#: A refitted parameter is named in the reason when it moved by more than this share of itself (display only).
+MOVED = 1e-3
 #: Rungs of the automatic ladder past the spec sheet. Calibrated on
 #: test_mor_compare_cli::test_a_wrong_add_names_the_right_effect_and_then_says_it_is_not_needed.
 MAX_STEPS = 4
@@ -168,7 +168,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         moved = ", ".join(
             f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
             for k, v in refit.items()
-            if abs(v - model[k]) > 1e-3 * max(abs(model[k]), 1e-12)
+            if abs(v - model[k]) > MOVED * max(abs(model[k]), 1e-12)
         )
         out.append(
             Suggestion(
@@ -354,7 +354,7 @@ def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
     spec = inputs.spec
     overspeed = operating_region(spec).overspeed
     for name, values, limit, unit, units in (
-        ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", 100.0), ("mN*m", 1000.0))),
+        ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", NCM_PER_NM), ("mN*m", MNM_PER_NM))),
         ("velocity", log.velocity, overspeed, "rad/s", (("rpm", RPM_PER_RAD_S), ("deg/s", DEG_S_PER_RAD_S))),
     ):
         p99 = float(np.quantile(np.abs(values), IMPLAUSIBLE_QUANTILE))

@@ -26,6 +26,10 @@ from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
 
 Array = NDArray[np.float64]
 
+#: A comparison needs this many speed bins at the limit (an F-test on fewer has no degrees of freedom left), and so does
+#: looking for isolated bins among them. Calibrated on
+#: test_compare::test_a_log_that_never_reaches_its_limits_is_refused.
+MIN_BINS = 3
 #: A single bin this many sample noises off the final model, between bins that fit it, is a chance wall. Calibrated on
 #: test_compare::test_a_jump_at_the_end_of_an_edge_is_isolated_but_a_departure_is_not.
 ISOLATED = 5.0
@@ -186,13 +190,25 @@ def outside_stats(log: EnvelopeLog, inputs: EnvelopeInputs, noise: float) -> Out
     )
 
 
-def coverage(off: Offsets) -> dict[str, list[float] | None]:
+@dataclass(frozen=True)
+class Coverage:
+    """Motor speeds [rad/s] the bins at the limit span, per edge (None: no bin on that edge)."""
+
+    upper: tuple[float, float] | None
+    lower: tuple[float, float] | None
+
+    def to_dict(self) -> dict[str, list[float] | None]:
+        return {name: list(span) if span is not None else None for name, span in (("upper", self.upper),
+                ("lower", self.lower))}  # fmt: skip
+
+
+def coverage(off: Offsets) -> Coverage:
     """Motor speeds [rad/s] the bins at the limit span, per edge: where the data say anything."""
-    out: dict[str, list[float] | None] = {}
-    for side, name in ((1, "upper"), (-1, "lower")):
+    spans = []
+    for side in (1, -1):
         w = off.speeds[off.side == side]
-        out[name] = [float(w.min()), float(w.max())] if w.size else None
-    return out
+        spans.append((float(w.min()), float(w.max())) if w.size else None)
+    return Coverage(*spans)
 
 
 def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list[IsolatedBin]]:
@@ -202,7 +218,7 @@ def isolated_bins(walls: Walls, off: Offsets, slope: float) -> tuple[Walls, list
     side of the same edge lies within 3 standard errors of the model. The last bin of an edge (effects show at the
     ends of the speed range) is isolated only if it also jumps from its neighbour by more than an edge can change
     between their speeds, twice the back-EMF slope ``slope`` [N m s/rad] (plus 5 standard errors)."""
-    if walls.method != "wall" or off.offset.size < 3:
+    if walls.method != "wall" or off.offset.size < MIN_BINS:
         return walls, []
     noise = off.sample_noise
     sides = {1: list(walls.upper), -1: list(walls.lower)}

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import math
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
 
@@ -67,7 +68,33 @@ def _rung(c: Comparison, k: int) -> dict[str, Any]:
     }
 
 
-def verdict(c: Comparison) -> dict[str, Any]:
+@dataclass(frozen=True)
+class Flag:
+    """Why a model does not explain a log: one kind of evidence against it."""
+
+    kind: str
+    """``bins_off_model`` or ``noise_inflated``."""
+    bins: int
+    """How many speed bins show it."""
+    text: str
+    """What it is and where, in one sentence."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"kind": self.kind, "bins": self.bins, "text": self.text}
+
+
+@dataclass(frozen=True)
+class Verdict:
+    """Whether the final model explains the log (:func:`verdict`), and the flags that say why not."""
+
+    explained: bool
+    flags: tuple[Flag, ...]
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"explained": self.explained, "flags": [f.to_dict() for f in self.flags]}
+
+
+def verdict(c: Comparison) -> Verdict:
     """``explained`` and the ``flags`` that say why not: the model explains the log when its envelope error is at
     the noise level (:data:`EXPLAINED` x), no bin sits off it by more than :data:`OFF_SIGMAS` standard errors (the
     bin's, or the typical sample noise's if larger) and :data:`OFF_FLOOR` of the torque limit, and (against the spec
@@ -75,7 +102,7 @@ def verdict(c: Comparison) -> dict[str, Any]:
     than :data:`WIDE` x the typical sample noise (over :data:`INFLATED` x the other bins' noise level) would pass
     any model: it is flagged, and the error must also be at the other bins' level."""
     off, spec = c.final.offsets, c.inputs.spec
-    flags: list[dict[str, Any]] = []
+    flags: list[Flag] = []
     typical, off_model, inflated = off.noise, False, False
     if off.offset.size:
         # a bin's own spread is a noisy estimate of the noise (few independent samples): never below the typical one
@@ -89,29 +116,29 @@ def verdict(c: Comparison) -> dict[str, Any]:
                 for s, name in ((1, "upper"), (-1, "lower"))
                 if (far & (off.side == s)).any()
             )
-            flags.append({
-                "kind": "bins_off_model",
-                "bins": int(far.sum()),
-                "text": f"{int(far.sum())} bin{'s' if far.sum() > 1 else ''} sit{'' if far.sum() > 1 else 's'} off "
+            flags.append(Flag(
+                "bins_off_model",
+                int(far.sum()),
+                f"{int(far.sum())} bin{'s' if far.sum() > 1 else ''} sit{'' if far.sum() > 1 else 's'} off "
                 f"the model by more than {OFF_SIGMAS:g} standard errors and "
                 f"{OFF_FLOOR:.1%} of the torque limit ({where}), up to {off.offset[worst]:+.3g} N m "
                 f"({abs(off.offset[worst]) / max(se[worst], 1e-30):.0f} SE at {off.speeds[worst]:.4g} rad/s): the "
                 "model misses something there",
-            })  # fmt: skip
+            ))  # fmt: skip
         wide = off.spread > WIDE * off.sample_noise
         if wide.any() and not wide.all():
             typical = float(np.sqrt(np.mean(off.se[~wide] ** 2)))
             inflated = off.noise > INFLATED * typical
             if inflated:
-                flags.append({
-                    "kind": "noise_inflated",
-                    "bins": int(wide.sum()),
-                    "text": f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the "
+                flags.append(Flag(
+                    "noise_inflated",
+                    int(wide.sum()),
+                    f"the noise level {off.noise:.3g} N m is {off.noise / max(typical, 1e-30):.1f}x the "
                     f"{typical:.3g} N m of the other bins, from {int(wide.sum())} bin(s) at "
                     f"{_speeds(off.speeds[wide])} rad/s whose samples spread up to "
                     f"{float(np.max(off.spread[wide])):.3g} N m (typical sample noise {off.sample_noise:.3g} N m): "
                     "samples counted at the limit that were not, or an edge that moves within the bin",
-                })  # fmt: skip
+                ))  # fmt: skip
     rmse = off.rmse
     explained = (
         rmse <= EXPLAINED * max(off.noise, 1e-12)
@@ -120,7 +147,7 @@ def verdict(c: Comparison) -> dict[str, Any]:
         and (bool(c.final.model) or c.outside.fraction <= OUTSIDE_OK)
         and c.outside_final <= OUTSIDE_OK
     )
-    return {"explained": bool(explained), "flags": flags}
+    return Verdict(bool(explained), tuple(flags))
 
 
 def _speeds(w: Array) -> str:
@@ -146,9 +173,9 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
         "outside_fraction": c.outside.fraction,
         "outside": c.outside.to_dict(),
         "envelope_rmse": {"model": before.rmse, "with_added": last.offsets.rmse},
-        **verdict(c),
+        **verdict(c).to_dict(),
         "outside_final": c.outside_final,
-        "coverage": coverage(last.offsets),
+        "coverage": coverage(last.offsets).to_dict(),
         "noise_level": last.offsets.noise,
         "sample_noise": first.offsets.sample_noise,
         "model": last.model,
@@ -195,7 +222,7 @@ def envelope_spec(spec_path: Path, out_path: Path, c: Comparison) -> dict[str, A
         "lower": [None if not math.isfinite(v) else v for v in line.lower.tolist()],
         "upper": [None if not math.isfinite(v) else v for v in line.upper.tolist()],
         "tolerance": line.tolerance,
-        "coverage": coverage(c.final.offsets),
+        "coverage": coverage(c.final.offsets).to_dict(),
         "units": "rad/s, N m (motor side); outside the coverage the polyline is the model's extrapolation",
         "source": f"hound-id mor --compare {c.log.source}",
     }

@@ -41,6 +41,9 @@ Array = NDArray[np.float64]
 #: Lag searched between the command and the measured torque [rows]: 100 rows is 0.1 s at 1 kHz, ten times a current loop
 #: plus a filtered transducer. Calibrated on test_hold_protocol::test_the_lag_is_measured_from_the_log.
 LAG_MAX = 100
+#: ... and at most a LAG_LOG_DIVISOR-th of the log (a short log cannot show a long lag). Calibrated on
+#: test_hold_protocol::test_the_lag_is_measured_from_the_log.
+LAG_LOG_DIVISOR = 10
 #: The lag is refined to this fraction of a row (linear interpolation between rows). Calibrated on
 #: test_hold_protocol::test_the_lag_is_measured_from_the_log.
 LAG_STEP = 0.1
@@ -77,6 +80,9 @@ ORDERED_STEP = 0.1
 #: A bin has a wall when (q98 - q90) < WALL (q98 - q50) of its margins: the top tenth of the margins is packed ten times
 #: tighter than the upper half. Calibrated on test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
 WALL = 0.1
+#: Such a wall is the margins above q90 - WALL_BAND (q98 - q90): its top and as much again below. Calibrated on
+#: test_compare::test_the_hidden_effect_is_named_and_explains_the_envelope.
+WALL_BAND = 2.0
 #: ... and its top (q98 - q90) narrower than this share of the torque limit: piled up within the noise (3 % of a 9.7 N m
 #: limit is 0.3 N m, ten sensor sigmas). Calibrated on test_compare::test_data_that_match_the_model_flag_nothing.
 WALL_WIDTH = 0.03
@@ -92,6 +98,9 @@ WALL_CONTRAST = 0.2
 #: Such a wall is its margins within BAND robust spreads of their median (4 sigma keeps 99.99 % of Gaussian noise).
 #: Calibrated on test_hold_protocol::test_the_hidden_effect_is_named_first.
 BAND = 4.0
+#: A pile's band is re-centred on its median this many times (the first band is its top only). Calibrated on
+#: test_hold_protocol::test_the_hidden_effect_is_named_first.
+RECENTRE_PASSES = 2
 #: Speed bins across the logged range: BINS, or one per SAMPLES_PER_BIN samples for long logs, at most MAX_BINS, so that
 #: an edge falling steeply with speed stays nearly straight across one bin. Calibrated on
 #: test_compare::test_time_ordered_logs_without_a_command and benchmarks/compare.py (its scoreboard).
@@ -120,6 +129,9 @@ NEIGHBOURING_WALLS = 3
 #: A one-pass wall whose margins' slope in speed is this many standard errors from a plateau's tracks the edge.
 #: Calibrated on test_hold_protocol::test_the_hidden_effect_is_named_first.
 TRACK_SIGMAS = 5.0
+#: ... and within TRACK_SHARE of a plateau's slope of zero (a limit's margins are flat in speed). Calibrated on
+#: test_hold_protocol::test_the_hidden_effect_is_named_first.
+TRACK_SHARE = 0.5
 #: Passes of a wall whose levels differ at this significance are not one wall, unless they differ by less than
 #: LEVEL_FLOOR of the torque limit. Calibrated on
 #: test_hold_protocol::test_pulses_that_never_reach_the_limit_name_nothing_with_the_command.
@@ -241,7 +253,7 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     ordered = time_ordered(tau)
     lag = 0.0
     if ordered:  # a table of operating points (rows in no time order) has no lag to find
-        scores = [misfit(float(d)) for d in range(min(LAG_MAX, n // 10) + 1)]
+        scores = [misfit(float(d)) for d in range(min(LAG_MAX, n // LAG_LOG_DIVISOR) + 1)]
         best = int(np.argmin(scores))
         fine = np.arange(max(best - 1, 0), best + 1.0001, LAG_STEP)
         lag = float(fine[int(np.argmin([misfit(float(d)) for d in fine]))])
@@ -333,14 +345,14 @@ def _wall(members: NDArray[np.int64], m: Array, width: float) -> NDArray[np.int6
     if (q98 - q10) <= APPROACH * width / WALL_WIDTH:
         return np.array([], dtype=np.int64)
     if (q98 - q90) < WALL * (q98 - q50) and (q98 - q90) < width:
-        return members[m >= q90 - 2 * (q98 - q90)]
+        return members[m >= q90 - WALL_BAND * (q98 - q90)]
     top = m >= q98 - width
     below = (m >= q98 - 2 * width) & ~top
     if top.mean() >= PILE and below.sum() <= WALL_CONTRAST * top.sum():
         # a wall that holds much of the bin (a speed hold, pushed for long): centred on its median, as wide as its
         # noise either side
         band = top
-        for _ in range(2):
+        for _ in range(RECENTRE_PASSES):
             centre, spread = robust(m[band])
             band = np.abs(m - centre) <= BAND * max(spread, SPREAD_FLOOR * width)
         return members[band]
@@ -605,7 +617,7 @@ def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, 
     rho = float(np.clip(np.sum(resid[1:] * resid[:-1]) / max(float(np.sum(resid**2)), 1e-30), 0.0, RHO_MAX))
     se = float(np.std(resid)) / (float(np.std(x)) * math.sqrt(idx.size)) * math.sqrt((1 + rho) / (1 - rho))
     plateau = -side * slope_edge  # the margins' slope if the torque stayed put (margin = side (tau - edge))
-    return bool(abs(coef[0]) < 0.5 * abs(plateau) and abs(coef[0] - plateau) > TRACK_SIGMAS * se)
+    return bool(abs(coef[0]) < TRACK_SHARE * abs(plateau) and abs(coef[0] - plateau) > TRACK_SIGMAS * se)
 
 
 def _one_pass(idx: NDArray[np.int64], share: float = ONE_PASS_SHARE) -> bool:

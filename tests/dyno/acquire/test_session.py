@@ -29,3 +29,20 @@ def test_bad_settings_are_refused_before_the_rig_is_read(tmp_path):
     with pytest.raises(DynoDataError, match="--rate"):
         record_rig(tmp_path / "no-such-rig.yaml", tmp_path / "log.csv", rate_hz=1e9, duration=1.0, flush_interval=0.25)
     assert not (tmp_path / "log.csv").exists()
+
+
+def test_the_simulated_rig_verb_serves_and_writes_a_rig_file_the_recorder_reads(tmp_path):
+    from hound_id.dyno.acquire.session import serve_simulated_rig
+
+    rig_file = tmp_path / "sim.yaml"
+    sim = serve_simulated_rig(("linear",), rig_file, port=0, serial=False, speedup=10.0)
+    try:
+        assert sim.running and rig_file.is_file() and sim.period > 0
+        result = record_rig(rig_file, tmp_path / "log.csv", rate_hz=50.0, duration=0.4, flush_interval=0.1)
+        assert result.samples >= 10
+    finally:
+        sim.stop()
+    for kwargs, match in (({"port": 70000}, "--port"), ({"seed": -1}, "--seed"), ({"duration": 0.0}, "--duration")):
+        with pytest.raises(DynoDataError, match=match):
+            serve_simulated_rig(("linear",), tmp_path / "other.yaml", **kwargs)
+    assert not (tmp_path / "other.yaml").exists()
