@@ -19,9 +19,18 @@ TUNED = (
     "hound_id/dyno/envelope/compare.py",
     "hound_id/dyno/envelope/report.py",
     "hound_id/dyno/current/diagnose.py",
+    "hound_id/dyno/identify/engine.py",
+    "hound_id/dyno/current/fit.py",
+    "hound_id/dyno/current/curve.py",
+    "hound_id/dyno/logs.py",
+    "hound_id/dyno/artefacts.py",
 )
 #: Constants that are facts or formats, not tuning (a unit factor, a schema).
-NOT_TUNING = {"BUS_FLOOR", "SPREAD_FLOOR"}
+NOT_TUNING = {
+    "BUS_FLOOR",
+    "SPREAD_FLOOR",
+    "MAD_TO_SIGMA",  # logs.py: the Gaussian consistency constant of the MAD, 1 / Phi^-1(3/4), a fact of statistics
+}
 REFERENCE = re.compile(r"\b(test_[a-z0-9_]+)::(test_[a-z0-9_]+)\b")
 BENCHMARK = re.compile(r"\bbenchmarks/([a-z0-9_]+\.py)\b")
 
@@ -82,3 +91,21 @@ def test_each_threshold_names_its_reason_and_its_calibrating_test(module, name, 
         assert test in tests.get(file, set()), f"{module}: {name} names {file}::{test}, which does not exist"
     for script in benches:
         assert (ROOT / "benchmarks" / script).is_file(), f"{module}: {name} names benchmarks/{script}: missing"
+
+
+def test_an_envelope_log_needs_envelope_min_rows(tmp_path):
+    """ENVELOPE_MIN_ROWS has no scenario of its own elsewhere: one usable row fewer is refused, that many load."""
+    import numpy as np
+
+    from hound_id.dyno.logs import ENVELOPE_MIN_ROWS, load_envelope_log
+    from hound_id.errors import DynoDataError
+
+    path = tmp_path / "envelope.csv"
+    n = ENVELOPE_MIN_ROWS + 1
+    speed = np.linspace(0.0, 300.0, n)
+    rows = "\n".join(f"{t:.6g},{w:.6g}" for t, w in zip(5.0 - 0.01 * speed, speed, strict=True))
+    path.write_text("torque,velocity\nnan,0\n" + rows + "\n")
+    assert load_envelope_log(path).torque.size == n
+    path.write_text("torque,velocity\nnan,0\n" + "\n".join(rows.splitlines()[2:]) + "\n")
+    with pytest.raises(DynoDataError, match=rf"{ENVELOPE_MIN_ROWS - 1} usable rows; .* at least {ENVELOPE_MIN_ROWS}"):
+        load_envelope_log(path)
