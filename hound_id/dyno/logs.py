@@ -150,8 +150,10 @@ SENSOR_CHANNELS: tuple[str, ...] = ("current", "torque")
 #: glitches, a longer run is a real step (a staircase of steps of four samples or more loses no row). Calibrated on
 #: test_logs::test_a_165_amp_spike_in_a_13_amp_test_is_removed_and_reported,
 #: test_logs::test_a_torque_glitch_and_a_two_sample_glitch_are_removed,
-#: test_logs::test_a_three_sample_pulse_is_a_real_step_not_a_glitch and
-#: test_logs::test_no_staircase_with_steps_of_four_samples_or_more_loses_a_row.
+#: test_logs::test_a_three_sample_pulse_is_a_real_step_not_a_glitch,
+#: test_logs::test_no_staircase_with_steps_of_four_samples_or_more_loses_a_row,
+#: test_logs::test_a_spike_anywhere_is_removed_and_nothing_else and (the floor: the polled rig's coarse reply)
+#: test_polled_rig::test_a_clean_polled_log_recovers_the_truth_and_names_the_late_current.
 GLITCH_WINDOW = 7
 GLITCH_SIGMAS = 8.0
 GLITCH_FLOOR = 0.05
