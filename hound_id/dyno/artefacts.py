@@ -92,6 +92,7 @@ PLATEAU_RESOLUTION = 20.0
 MOVING_SIGMAS = 10.0
 #: ... and this share of the torque the plateau's current makes (Kt times the level): 3 %, so that a torque riding a
 #: little above the ramp's line (saturation) is no clamp. Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not,
 #: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed and
 #: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 MOVING_SHARE = 0.03
@@ -102,6 +103,7 @@ STUCK_QUANTA = 3.0
 #: The command asks for more than a plateau when the current it asks for (from the command-current relation of the rows
 #: off the plateau) exceeds the level by this share, in the median over the plateau's rows: 5 %, a margin over the
 #: scatter of that relation. Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not,
 #: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice and
 #: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 COMMAND_EXCESS = 0.05
