@@ -34,44 +34,83 @@ from numpy.typing import NDArray
 
 Array = NDArray[np.float64]
 
-#: Without a ramp up to a plateau, the torque must spread over this share of what the level makes for a clamp.
+#: Without a ramp up to a plateau, the torque must spread over this share of what the level makes for a clamp: a fifth,
+#: far beyond what friction (which changes with the speed) spreads it by at a held current. Calibrated on
+#: test_polled_rig::test_a_held_current_cannot_identify_kt and
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not.
 NO_RAMP_SHARE = 0.2
-#: A jump must exceed this many noise standard deviations of the channel to be a wrap candidate.
+#: Wrap-around (a polled reply's fixed range): a jump must exceed this many noise standard deviations of the channel to
+#: be a wrap candidate (a period is tens of amps against a noise of tens of mA); jumps whose sizes agree within this
+#: fraction share one period (jumps of one period differ only by the noise at their ends); at least this many jumps of
+#: one size make a wrap-around (one jump of the right size can be a step); a jump is a wrap when the torque moves less
+#: than this share of Kt times the jump (a real jump of one period moves it by all of Kt P). Calibrated on
+#: test_polled_rig::test_a_current_wrapped_past_its_range_is_restored_from_the_torque and
+#: test_polled_rig::test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap.
 WRAP_SIGMAS = 40.0
-#: Jumps whose sizes agree within this fraction share one wrap period.
 WRAP_TOLERANCE = 0.015
-#: Fewest jumps of one size that make a wrap-around.
 WRAP_MIN_JUMPS = 2
-#: A jump is a wrap when the torque moves less than this share of Kt times the jump.
 WRAP_SILENT = 0.2
-#: After undoing the wraps, the jumps start within this share of P/2 from the boundary +-P/2 ...
+#: After undoing the wraps, the jumps start within this share of P/2 from the boundary +-P/2 (a wrap happens at the edge
+#: of the range; noise moves it by a few per cent) ... Calibrated on
+#: test_polled_rig::test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap and
+#: test_polled_rig::test_a_current_wrapped_past_its_range_is_restored_from_the_torque.
 WRAP_EDGE = 0.1
-#: ... and, with fewer than WRAP_MANY jumps, this share of the samples lies well inside the range (|x| < P/4):
-#: a channel that only sits at the boundary and jumps twice (a spike of just the right size) is no wrap.
+#: ... and, with fewer than WRAP_MANY jumps, this share of the samples lies well inside the range (|x| < P/4): a channel
+#: that only sits at the boundary and jumps twice (a spike of just the right size) is no wrap; ten jumps of one size are
+#: no coincidence. Calibrated on
+#: test_polled_rig::test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap and
+#: test_logs::test_a_spike_anywhere_is_removed_and_nothing_else.
 WRAP_INNER = 0.05
 WRAP_MANY = 10
-#: Restoring the periods from the torque is kept when its squared correlation with the torque (all rows) is
-#: within this of folding's (rows off the boundary) and this much above the channel's as read.
+#: Restoring the periods from the torque is kept when its squared correlation with the torque (all rows) is within this
+#: of folding's (rows off the boundary) and this much above the channel's as read: two hundredths of R^2 is beyond the
+#: noise of either estimate on a log of thousands of rows. Calibrated on
+#: test_polled_rig::test_a_current_wrapped_past_its_range_is_restored_from_the_torque and
+#: test_polled_rig::test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap.
 WRAP_BETTER = 0.02
-#: Shortest run at a plateau that counts [samples].
+#: Plateaus (a clamped reply, a driver current limit): the shortest run at a plateau that counts [samples] (five: no
+#: glitch lasts that long); a plateau is within this many noise sigmas of its level (4 sigma keeps 99.99 % of the noise
+#: about it) and at least PLATEAU_FLOOR of the level (a noise-free reply). Calibrated on
+#: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed and
+#: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice.
 PLATEAU_MIN_RUN = 5
-#: A plateau is within this many noise sigmas of its level (and at least PLATEAU_FLOOR of the level).
 PLATEAU_SIGMAS = 4.0
 PLATEAU_FLOOR = 0.002
-#: A plateau level is a large magnitude: at least this share of the channel's largest |value| ...
+#: A plateau level is a large magnitude: at least this share of the channel's largest |value| (a clamp or a limit is at
+#: the channel's extreme, not an intermediate hold) ... Calibrated on
+#: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed and
+#: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice.
 PLATEAU_LEVEL = 0.5
 #: ... and this many times the channel's noise and its quantum (a current that never leaves zero has no plateau).
+#: Calibrated on test_logs::test_an_idle_stretch_at_exactly_zero_is_not_clipping and
+#: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed.
 PLATEAU_RESOLUTION = 20.0
-#: The torque "goes past" a plateau when it exceeds what the level makes by this many of its noise sigmas ...
+#: The torque "goes past" a plateau when it exceeds what the level makes by this many of its noise sigmas (well beyond
+#: the 90th percentile of the noise) ... Calibrated on
+#: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed and
+#: test_polled_rig::test_a_held_current_cannot_identify_kt.
 MOVING_SIGMAS = 10.0
-#: ... and this share of the torque the plateau's current makes (Kt times the level).
+#: ... and this share of the torque the plateau's current makes (Kt times the level): 3 %, so that a torque riding a
+#: little above the ramp's line (saturation) is no clamp. Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not,
+#: test_polled_rig::test_a_clamped_reply_is_named_and_its_rows_removed and
+#: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 MOVING_SHARE = 0.03
-#: A current stuck exactly at one value is a saturated ADC only where its noise exceeds this many quanta.
+#: A current stuck exactly at one value is a saturated ADC only where its noise exceeds this many quanta (with noise of
+#: a few quanta, a coarse reply repeats values exactly wherever it is flat). Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not.
 STUCK_QUANTA = 3.0
-#: The command asks for more than a plateau when the current it asks for (from the command-current relation of
-#: the rows off the plateau) exceeds the level by this share, in the median over the plateau's rows.
+#: The command asks for more than a plateau when the current it asks for (from the command-current relation of the rows
+#: off the plateau) exceeds the level by this share, in the median over the plateau's rows: 5 %, a margin over the
+#: scatter of that relation. Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not,
+#: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice and
+#: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 COMMAND_EXCESS = 0.05
-#: That relation must explain this share of the current's variance off the plateau.
+#: That relation must explain this share of the current's variance off the plateau (a weaker relation cannot say what
+#: the command asks for). Calibrated on
+#: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice and
+#: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 COMMAND_R2 = 0.9
 
 

@@ -104,9 +104,9 @@ UNITS: dict[str, str] = {
     "torque_cmd": "N*m",
     "current_cmd": "A",
 }
-#: Largest magnitude of each channel (SI) that any dynamometer can log; a value beyond is no
-#: measurement (an overflowed register, a garbage row) and is read as missing. A channel whose
-#: typical value lies beyond is in another unit or is the wrong column, and is refused.
+#: Largest magnitude of each channel (SI) that any dynamometer can log; a value beyond is no measurement (an overflowed
+#: register, a garbage row) and is read as missing. A channel whose typical value lies beyond is in another unit or is
+#: the wrong column, and is refused.
 BEYOND: dict[str, float] = {
     "current": 1e5,  # A
     "torque": 1e6,  # N m
@@ -134,34 +134,47 @@ NOTE_KINDS: tuple[str, ...] = (
     "current_limit",
 )
 
-#: Fewest rows a cleaned log may have.
+#: Fewest rows a cleaned log may have: two fit blocks' worth (hound_id.dyno.current.fit.MIN_BLOCK_ROWS each), the least
+#: that blocked cross-validation can hold out. Calibrated on test_logs::test_too_few_rows_are_refused.
 MIN_ROWS = 50
-#: An optional channel with non-finite values in at least this share of rows is dropped instead of its rows.
+#: An optional channel with non-finite values in at least this share of rows is dropped instead of its rows (5 %: a few
+#: gaps cost a few rows, a channel that is often missing would cost the log). Calibrated on
+#: test_logs::test_a_few_nans_in_an_optional_channel_drop_their_rows and
+#: test_logs::test_many_nans_in_an_optional_channel_drop_the_channel_not_the_rows.
 OPTIONAL_NAN_FRACTION = 0.05
 #: Channels checked for glitches.
 SENSOR_CHANNELS: tuple[str, ...] = ("current", "torque")
-#: Hampel window length [samples], centred.
+#: Glitches (a Hampel filter): a centred window of seven samples, whose median outvotes a run of up to three; a
+#: threshold of 8 noise standard deviations (no Gaussian sample of a million-row log gets there), floored at this share
+#: of the channel's 99th-percentile magnitude (for nearly noise-free channels); runs of at most two flagged samples are
+#: glitches, a longer run is a real step (a staircase of steps of four samples or more loses no row). Calibrated on
+#: test_logs::test_a_165_amp_spike_in_a_13_amp_test_is_removed_and_reported,
+#: test_logs::test_a_torque_glitch_and_a_two_sample_glitch_are_removed,
+#: test_logs::test_a_three_sample_pulse_is_a_real_step_not_a_glitch,
+#: test_logs::test_no_staircase_with_steps_of_four_samples_or_more_loses_a_row,
+#: test_logs::test_a_spike_anywhere_is_removed_and_nothing_else and (the floor: the polled rig's coarse reply)
+#: test_polled_rig::test_a_clean_polled_log_recovers_the_truth_and_names_the_late_current.
 GLITCH_WINDOW = 7
-#: Glitch threshold in noise standard deviations.
 GLITCH_SIGMAS = 8.0
-#: Glitch threshold floor as a share of the channel's 99th-percentile magnitude (for nearly noise-free channels).
 GLITCH_FLOOR = 0.05
-#: Longest run of flagged samples that still counts as a glitch; a longer run is a real step.
 GLITCH_MAX_RUN = 2
 #: Gaussian consistency constant of the median absolute deviation.
 MAD_TO_SIGMA = 1.4826
-#: Shortest run at a channel's extreme that counts as ADC saturation [samples].
+#: ADC saturation of the torque: a noisy channel stuck exactly at its extreme for at least this many samples (longer
+#: than any glitch, GLITCH_MAX_RUN), looked for only where the noise exceeds this many quanta of the channel (with
+#: fewer, a coarse channel repeats values exactly wherever it is flat), on at least this share of the rows (one in a
+#: thousand), at a level of at least this share of the channel's largest |value| (an idle stretch at exactly 0 is not
+#: ADC saturation). Calibrated on test_logs::test_a_clipped_torque_channel_loses_its_clipped_rows,
+#: test_logs::test_a_noisy_torque_clipped_during_flat_current_steps_is_caught and
+#: test_logs::test_an_idle_stretch_at_exactly_zero_is_not_clipping.
 CLIP_MIN_RUN = 5
-#: ADC saturation is looked for only where the noise exceeds this many quanta of the channel.
 CLIP_QUANTA = 3.0
-#: Smallest share of rows at the extreme for ADC saturation.
 CLIP_MIN_FRACTION = 0.001
-#: A clip level is a large magnitude: at least this share of the channel's largest |value|.
-#: (An idle stretch at exactly 0 A is not ADC saturation.)
 CLIP_MIN_LEVEL = 0.5
-#: The other channel (torque for current, current for torque) must vary by more than this many of its noise
-#: standard deviations over the stuck rows; otherwise the plateau is real (a commanded step, a current limit).
-#: Correlation of torque with current below which a negative slope means a reversed sensor.
+#: Correlation of torque with current below which a negative slope means a reversed sensor: a clearly falling torque,
+#: not a noisy or unloaded one (the fit's own slope checks judge those). Calibrated on
+#: test_logs::test_a_reversed_torque_sensor_is_refused_with_the_fix and
+#: test_logs::test_flip_torque_on_a_sensor_mounted_the_right_way_is_refused.
 FLIP_CORRELATION = -0.5
 
 # channel -> (what it is, example units) for messages.
@@ -1219,7 +1232,9 @@ def _current_plateaus(
     return data, rows, limit
 
 
-#: Sample rates a time column is expected to have [Hz]: a log outside them with no unit may be in ms or us.
+#: Sample rates a time column is expected to have [Hz]: a log outside them with no unit may be in ms or us (10 Hz to 10
+#: kHz spans the dynamometers' logging rates). Calibrated on
+#: test_polled_rig::test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted.
 TIME_RATES = (10.0, 10_000.0)
 
 
@@ -1352,9 +1367,10 @@ def _orient_torque(
 
 Array = NDArray[np.float64]
 
-#: Channels of a comparison log; the first two are required.
 #: Usable rows a comparison needs: ten speed bins' worth of samples (hound_id.dyno.envelope.walls.MIN_SAMPLES each).
+#: Calibrated on test_logs::test_an_envelope_log_needs_envelope_min_rows.
 ENVELOPE_MIN_ROWS = 400
+#: Channels of a comparison log; the first two are required.
 ENVELOPE_CHANNELS = ("torque", "velocity", "torque_cmd", "current", "temperature", "bus_voltage")
 
 

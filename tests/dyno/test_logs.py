@@ -637,3 +637,21 @@ def test_a_noisy_torque_clipped_during_flat_current_steps_is_caught():
     clipped = [n for n in log.notes if n.kind == "adc_saturation"]
     assert {n.channel for n in clipped} == {"torque"} and len(clipped) == 2
     assert np.abs(log.torque).max() < 6.0
+
+
+def test_an_envelope_log_needs_envelope_min_rows(tmp_path):
+    """ENVELOPE_MIN_ROWS has no scenario of its own elsewhere: one usable row fewer is refused, that many load."""
+    import numpy as np
+
+    from hound_id.dyno.logs import ENVELOPE_MIN_ROWS, load_envelope_log
+    from hound_id.errors import DynoDataError
+
+    path = tmp_path / "envelope.csv"
+    n = ENVELOPE_MIN_ROWS + 1
+    speed = np.linspace(0.0, 300.0, n)
+    rows = "\n".join(f"{t:.6g},{w:.6g}" for t, w in zip(5.0 - 0.01 * speed, speed, strict=True))
+    path.write_text("torque,velocity\nnan,0\n" + rows + "\n")
+    assert load_envelope_log(path).torque.size == n
+    path.write_text("torque,velocity\nnan,0\n" + "\n".join(rows.splitlines()[2:]) + "\n")
+    with pytest.raises(DynoDataError, match=rf"{ENVELOPE_MIN_ROWS - 1} usable rows; .* at least {ENVELOPE_MIN_ROWS}"):
+        load_envelope_log(path)

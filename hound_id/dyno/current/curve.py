@@ -22,9 +22,15 @@ from numpy.typing import ArrayLike
 from hound_id.dyno.current.effects import Signals, get
 from hound_id.dyno.current.fit import Array, FitResult
 
-#: Relative deviation from the linear line that defines the peak torque.
+#: Relative deviation from the linear line that defines the peak torque: where the torque has fallen 20 % below Kt i,
+#: the simulator's (and the spec sheets') convention for the end of the useful current range (each saturation form of
+#: the simulator drops Kt by 20 % at the motor's maximum current). Calibrated on
+#: test_curve::test_peak_torque_of_the_quadratic_curve and
+#: test_current::test_each_saturation_form_drops_kt_20_percent_at_max_current.
 PEAK_DEVIATION = 0.20
-#: How far past the measured current the peak may be extrapolated before giving up.
+#: How far past the measured current the peak may be extrapolated before giving up: ten times, beyond which the fitted
+#: curve says nothing and the advice is to test at higher current. Calibrated on test_curve::test_no_saturation_no_peak
+#: and test_fit_cli::test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked.
 EXTRAPOLATION_LIMIT = 10.0
 
 

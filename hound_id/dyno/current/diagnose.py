@@ -54,7 +54,18 @@ from hound_id.dyno.current.fit import (
     solve_bounded,
     solve_normal,
 )
-from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, best, climb, corrected, f_pvalue, rank, significant
+from hound_id.dyno.identify.engine import (
+    ALPHA,
+    MAX_STEPS,
+    Step,
+    Suggestion,
+    best,
+    climb,
+    corrected,
+    f_pvalue,
+    rank,
+    significant,
+)
 from hound_id.dyno.logs import MAD_TO_SIGMA
 from hound_id.errors import DynoDataError, FitError
 
@@ -512,7 +523,13 @@ def _outliers(fit: FitResult, floor: float, signals: Signals) -> str | None:
 
 
 def auto(
-    signals: Signals, torque: Array, start: FitResult, *, max_steps: int = 10, alpha: float = ALPHA, on_step: Any = None
+    signals: Signals,
+    torque: Array,
+    start: FitResult,
+    *,
+    max_steps: int = MAX_STEPS,
+    alpha: float = ALPHA,
+    on_step: Any = None,
 ) -> list[Step[tuple[str, ...], FitResult]]:
     """Add the most explaining significant (physical, material) effect until none is left; the ladder of fits
     (:func:`hound_id.dyno.identify.engine.climb`; each rung's ``fit`` and ``diagnosis``).

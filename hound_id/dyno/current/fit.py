@@ -41,25 +41,44 @@ from hound_id.errors import DynoDataError, FitError
 
 Array = NDArray[np.float64]
 
-#: Largest number of contiguous time blocks (clusters of the robust standard errors).
+#: Largest number of contiguous time blocks (clusters of the robust standard errors): 50 blocks of a 60 s log are 1.2 s
+#: each, long enough to span a plateau of the test plan (so that slow drifts stay within a cluster) and short enough to
+#: date where a log breaks to about a second; the smallest number of rows in a block keeps each block's statistics
+#: meaningful on short logs; folds of blocks, each held out once: ten, the usual cross-validation compromise between
+#: held-out rows per fold and refits. Calibrated on test_fit::test_blocks_cover_every_row_once_and_folds_are_contiguous
+#: and test_polled_rig::test_a_log_that_breaks_midway_is_flagged_with_its_times.
 MAX_BLOCKS = 50
-#: Smallest number of rows in a block.
 MIN_BLOCK_ROWS = 25
-#: Number of cross-validation folds (contiguous groups of blocks), each held out once.
 FOLDS = 10
-#: Rows used to evaluate hyper-parameter candidates (a strided subset of the log).
+#: Rows used to evaluate hyper-parameter candidates (a strided subset of the log): a 100 s log at 1 kHz is searched
+#: whole; a million-row log every tenth row, which keeps its fit within the benchmark's time target while 100,000 rows
+#: still place a hyper-parameter far inside its standard error. Calibrated on benchmarks/fit_current.py and
+#: test_fit::test_nonlinear_parameters_are_found.
 SEARCH_ROWS = 100_000
-#: Gauss-Newton iterations for the delay.
+#: Gauss-Newton iterations for the delay: the step converges quadratically from the grid's start, so twelve leave a
+#: margin over the few it takes on the simulated and polled logs. Calibrated on
+#: test_fit::test_nonlinear_parameters_are_found and test_fit::test_delay_has_a_standard_error.
 DELAY_ITERATIONS = 12
-#: Half-width of the delay window [s]: a transducer filter or a bus adds milliseconds, not more.
+#: Half-width of the delay window [s]: a transducer filter or a bus adds milliseconds, not more (the polled rig's late
+#: current is 4 ms; 80 ms is refused). Calibrated on test_polled_rig::test_a_delay_outside_its_window_is_refused and
+#: test_polled_rig::test_the_delay_is_signed_and_both_signs_are_named.
 DELAY_WINDOW = 0.03
-#: Variance inflation beyond which the log cannot tell a parameter from the others (R^2 > 0.9999). The
-#: library's effects on a well-designed test stay below 1.5e3 (saturation family beside each other).
+#: Variance inflation beyond which the log cannot tell a parameter from the others (R^2 > 0.9999). The library's effects
+#: on a well-designed test stay below 1.5e3 (saturation family beside each other); one quadrant (Kt against gear
+#: friction) or a held current (Kt against the offset) go far beyond. Calibrated on
+#: test_polled_rig::test_one_quadrant_cannot_tell_kt_from_gear_friction,
+#: test_polled_rig::test_a_held_current_cannot_identify_kt, test_fit_cli::test_logs_that_identify_nothing_are_refused
+#: and test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 VIF_MAX = 1.0e4
-#: Largest delay window [s]: a slower log (two samples further apart) cannot show a rig's lag.
+#: Largest delay window [s]: a slower log (two samples further apart) cannot show a rig's lag; a time column in ms read
+#: as seconds (1 s steps) lies far beyond. Calibrated on
+#: test_polled_rig::test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted.
 DELAY_MAX = 0.25
-#: A parameter held at its bound is reported as wanting an unphysical value when the unconstrained fit puts it
-#: this many standard errors beyond the bound (closer, the bound is simply where the truth may be).
+#: A parameter held at its bound is reported as wanting an unphysical value when the unconstrained fit puts it this many
+#: standard errors beyond the bound (closer, the bound is simply where the truth may be: 3 sigma is one false report in
+#: 740 bounded parameters). Calibrated on
+#: test_polled_rig::test_a_clean_polled_log_recovers_the_truth_and_names_the_late_current and
+#: test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 UNPHYSICAL_SIGMAS = 3.0
 #: Name of the torque offset the identifiability check always allows for.
 OFFSET = "a torque offset"
@@ -766,15 +785,19 @@ def reversed_sensor_error(kt: float) -> DynoDataError:
     )
 
 
-#: The plain torque-per-amp slope must lie this many (cluster-robust) standard errors from zero to be read.
+#: The sign of Kt (a reversed sensor, or a torque that does not follow the current): the plain torque-per-amp slope must
+#: lie this many (cluster-robust) standard errors from zero to be read (3 sigma: a drifting, unloaded sensor reads as no
+#: slope); the block sign test must reach this significance (one false sign in a thousand logs); the blocks' median
+#: slope and the agreeing half's slope count only over at least this many blocks (in which the current moves, for the
+#: median; too few blocks give no median to trust); a block's current moves when its standard deviation reaches this
+#: many noise sigmas (well clear of the reply's noise and quanta); the agreeing half of the blocks must explain at least
+#: half the torque's variance (the half is picked for fitting well, which flatters its standard error). Calibrated on
+#: test_polled_rig::test_a_torque_sensor_the_motor_does_not_load_gives_no_kt and
+#: test_polled_rig::test_negative_kt_is_never_accepted.
 SLOPE_SIGMAS = 3.0
-#: Significance of the block sign test of the slope.
 SIGN_ALPHA = 0.001
-#: Fewest blocks in which the current moves for the block-by-block slope to count.
 MIN_SIGN_BLOCKS = 8
-#: A block's current must have a standard deviation of this many noise sigmas for its slope to count.
 MOVING_NOISE = 5.0
-#: Share of the torque's variance the current must explain on the agreeing half of the blocks.
 HALF_EXPLAINED = 0.5
 
 

@@ -24,8 +24,19 @@ from typing import Any, Generic, TypeVar
 
 from hound_id.errors import HoundIdError
 
-#: Family-wise false-alarm rate of the significance tests (after the multiple-comparison corrections).
+#: Family-wise false-alarm rate of the significance tests (after the multiple-comparison corrections): one ladder in a
+#: hundred adds an effect that noise alone made look significant, while the hidden effects of the simulated logs (each
+#: sized well above the default noise) stay significant. Calibrated on
+#: test_engine::test_a_p_value_just_below_alpha_after_correction_is_significant_and_just_above_is_not,
+#: test_diagnose::test_noise_only_data_has_nothing_significant and
+#: test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 ALPHA = 0.01
+#: Rungs the automatic ladder may add past its start (each rung is a refit): a guard against a runaway ladder that never
+#: cuts a real one, which stops at the noise floor first. The current family can add at most 9 effects to its default
+#: model (13 effects less linear, saturation and saturation's two other forms); the sample dyno log hides 5. Calibrated
+#: on test_fit_cli::test_sample_auto_finds_every_hidden_effect and
+#: test_engine::test_max_steps_bounds_the_automatic_rungs.
+MAX_STEPS = 10
 
 M = TypeVar("M")
 R = TypeVar("R")
@@ -175,7 +186,7 @@ def climb(
     *,
     add: Sequence[str] = (),
     auto: bool = False,
-    max_steps: int = 10,
+    max_steps: int = MAX_STEPS,
     on_step: Callable[[Step[M, R]], None] | None = None,
     at_floor: Callable[[Step[M, R]], bool] | None = None,
     untestable: Callable[[str], Exception] = _untestable,
