@@ -92,8 +92,8 @@ __all__ = [
 #: test_diagnose::test_noise_only_data_has_nothing_significant.
 FLOOR_FACTOR = 1.2
 #: A candidate must lower the cross-validated mean-square error by this fraction of the noise variance (an effect whose
-#: RMS is a fifth of the noise or more). Calibrated on
-#: test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
+#: RMS is a fifth of the noise or more). Calibrated on test_diagnose::test_a_real_effect_is_suggested_only_when_material
+#: and test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 MATERIAL = 0.05
 #: A block disagrees when its held-out RMSE exceeds this many times both the median block's and its own noise (3x: a
 #: motor switched off, not the scatter of block RMSEs). Calibrated on
@@ -101,7 +101,8 @@ MATERIAL = 0.05
 #: test_polled_rig::test_a_flagged_training_fold_is_not_hidden_by_a_good_held_out_error.
 BLOCK_FACTOR = 3.0
 #: Kt whose standard error exceeds this fraction of its value is not determined by the log (a 3-sigma interval would
-#: include zero). Calibrated on test_polled_rig::test_a_torque_sensor_the_motor_does_not_load_gives_no_kt.
+#: include zero). Calibrated on test_diagnose::test_kt_is_undetermined_past_a_third_of_its_value and
+#: test_polled_rig::test_a_torque_sensor_the_motor_does_not_load_gives_no_kt.
 KT_UNDETERMINED = 1.0 / 3.0
 #: Residuals beyond this many noise-floor sigmas count as outliers in the summary, when they are at most OUTLIER_SHARE
 #: of the rows and carry OUTLIER_WEIGHT of the residual's sum of squares or more. Calibrated on

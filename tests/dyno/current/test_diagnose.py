@@ -93,3 +93,36 @@ def test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra(k):
     assert final.diagnosis.at_noise_floor and not final.diagnosis.flags
     assert final.fit.rmse_test <= 1.05 * sim.truth["noise_std"]
     assert not final.fit.unphysical
+
+
+@pytest.mark.parametrize(("share", "flagged"), [(0.25, False), (0.45, True)])
+def test_kt_is_undetermined_past_a_third_of_its_value(share, flagged):
+    """The boundary of KT_UNDETERMINED (1/3): a standard error of 25 % of Kt is a determined Kt, 45 % is not."""
+    import dataclasses
+
+    signals, torque, _ = simulated(DEFAULT, 70)
+    fit = fit_model(signals, torque, DEFAULT)
+    kt = fit.parameters["kt"]
+    loose = dataclasses.replace(kt, stderr=share * abs(kt.value))
+    d = diagnose(signals, torque, dataclasses.replace(fit, parameters={**fit.parameters, "kt": loose}))
+    assert any("is not determined by this log" in f for f in d.flags) is flagged
+    assert d.at_noise_floor is not flagged
+
+
+@pytest.mark.parametrize(("coulomb", "material"), [(0.0029, False), (0.0041, True)])
+def test_a_real_effect_is_suggested_only_when_material(coulomb, material):
+    """The boundary of MATERIAL (5 % of the noise variance): a Coulomb step of 0.0029 N m against 0.0155 N m of noise
+    lowers the cross-validated error by about 3.6 % of the noise variance, 0.0041 N m by about 7 %. Both are real
+    (p < 1e-30); only the second is worth a parameter."""
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.logs import log_from_frame
+    from hound_id.dyno.simulate.current import simulate
+
+    sim = simulate((*DEFAULT, "coulomb"), seed=80, truth={"coulomb": coulomb})
+    log = log_from_frame(sim.frame, source="material")
+    signals = Signals.from_log(log)
+    d = diagnose(signals, log.torque, fit_model(signals, log.torque, DEFAULT))
+    top = next(s for s in d.suggestions if s.effect == "coulomb")
+    assert top.p_adjusted < 1e-30
+    assert top.significant is material
+    assert ("immaterial" in top.reason) is not material
