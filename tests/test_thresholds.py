@@ -6,6 +6,7 @@ name tests as ``test_file::test_name`` (or a script in benchmarks/), each of whi
 """
 
 import ast
+import functools
 import re
 from pathlib import Path
 
@@ -67,6 +68,7 @@ def thresholds(path: Path) -> list[tuple[str, str]]:
     return out
 
 
+@functools.cache
 def _test_names() -> dict[str, set[str]]:
     names: dict[str, set[str]] = {}
     for f in (ROOT / "tests").rglob("test_*.py"):

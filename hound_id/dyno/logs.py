@@ -73,6 +73,8 @@ from hound_id.arrays import frozen
 from hound_id.dyno.artefacts import asked_at_boundary, at_boundary, find_plateaus, find_wraps, quantum
 from hound_id.errors import DynoDataError, SpecError
 
+Array = NDArray[np.float64]
+
 if TYPE_CHECKING:  # pragma: no cover
     import pandas as pd
 
@@ -1364,8 +1366,6 @@ def _orient_torque(
 
 
 # --- torque-speed logs for the envelope comparison (hound-id mor --compare) ---
-
-Array = NDArray[np.float64]
 
 #: Usable rows a comparison needs: ten speed bins' worth of samples (hound_id.dyno.envelope.walls.MIN_SAMPLES each).
 #: Calibrated on test_logs::test_an_envelope_log_needs_envelope_min_rows.

@@ -15,6 +15,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
+from functools import cached_property
 from typing import Any
 
 import numpy as np
@@ -35,7 +36,7 @@ from hound_id.dyno.envelope.walls import Walls, find_walls, inputs_for
 from hound_id.dyno.identify.engine import ALPHA, Step, Suggestion, climb, corrected, f_pvalue, rank, significant
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.errors import DynoDataError, SpecError
-from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, effect_names
+from hound_id.mor.envelope import EFFECTS, EnvelopeInputs, Polyline, effect_names, polyline
 from hound_id.units import DEG_S_PER_RAD_S, MNM_PER_NM, NCM_PER_NM, RPM_PER_RAD_S
 
 Array = NDArray[np.float64]
@@ -243,6 +244,12 @@ class Comparison:
     @property
     def final(self) -> Step[dict[str, float], Offsets]:
         return self.ladder[-1]
+
+    @cached_property
+    def polyline(self) -> Polyline:
+        """The final model's edges as polylines (:func:`~hound_id.mor.envelope.polyline`), computed once for the JSON
+        and the spec file."""
+        return polyline(self.final.model, self.inputs)
 
 
 def compare(

@@ -198,8 +198,7 @@ class Coverage:
     lower: tuple[float, float] | None
 
     def to_dict(self) -> dict[str, list[float] | None]:
-        return {name: list(span) if span is not None else None for name, span in (("upper", self.upper),
-                ("lower", self.lower))}  # fmt: skip
+        return {"upper": list(self.upper) if self.upper else None, "lower": list(self.lower) if self.lower else None}
 
 
 def coverage(off: Offsets) -> Coverage:

@@ -12,7 +12,6 @@ from numpy.typing import NDArray
 
 from hound_id.dyno.envelope.compare import EXPLAINED, OUTSIDE_OK, Comparison, Suggestion
 from hound_id.dyno.envelope.offsets import coverage
-from hound_id.mor.envelope import polyline
 
 Array = NDArray[np.float64]
 
@@ -201,7 +200,7 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
                 strict=True,
             )
         ],  # fmt: skip
-        "polyline": polyline(last.model, c.inputs).to_dict(),
+        "polyline": c.polyline.to_dict(),
         "units": "SI, motor side: N m, rad/s",
     }
 
@@ -209,13 +208,13 @@ def comparison_json(c: Comparison) -> dict[str, Any]:
 def envelope_spec(spec_path: Path, out_path: Path, c: Comparison) -> dict[str, Any]:
     """A motor spec file (``hound-id/motor/1``) with the measured envelope, for the saturation and the export:
     the spec sheet (by ``base:``, relative to ``out_path``) plus ``envelope`` = the model's effects and its
-    polyline edges (:func:`polyline`)."""
+    polyline edges (:func:`~hound_id.mor.envelope.polyline`)."""
     import os
 
     from hound_id.io import read_yaml
 
     raw = read_yaml(spec_path, "motor spec")
-    line = polyline(c.final.model, c.inputs)
+    line = c.polyline
     env = {
         "effects": dict(line.model),
         "speeds": line.speeds.tolist(),
