@@ -164,6 +164,10 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
         console.print(f"motor spec with the measured envelope written to {out}", highlight=False)
 
 
+#: A region with more vertices than this (curved edges) has them in --json only.
+VERTICES_SHOWN = 12
+
+
 def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     from hound_id.mor.run import motor_regions
 
@@ -198,9 +202,10 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         row(
             "torque limit",
             f"{region.torque_limit:.4g} N m",
-            "driver-limited" if region.torque_limit < spec.peak_torque else "peak torque",
+            "driver-limited" if run.bindings[0].limit == "current" else "peak torque",
         ),
-        row("stall torque Kt V/R", f"{region.stall_torque:.4g} N m", ""),
+        row("current at the torque limit", f"{region.limit_x / spec.current_curve.kt:.4g} A", ""),
+        row("stall torque Kt V/R (linear)", f"{region.stall_torque:.4g} N m", ""),
     ]
     for name, a, b in (
         ("no-load speed", region.no_load_speed, sheet.no_load_speed),
@@ -232,8 +237,34 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
             + (f", held-out RMSE {rmse:.3g} N m)" if isinstance(rmse, float) else ")"),
             highlight=False,
         )
-    verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
-    console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
+    curve = spec.current_curve
+    console.print(
+        f"current-torque curve: {curve.source or curve.form}"
+        + (f", k = {curve.k_sat:.4g} N m/A^2" if curve.form == "quadratic" else ""),
+        highlight=False,
+    )
+    console.print("which limit binds (motor side, omega >= 0; the region is point-symmetric):", highlight=False)
+    for b in run.bindings:
+        console.print(f"  {b.speeds[0]:.4g} to {b.speeds[1]:.4g} rad/s: {b.limit}: {b.detail}", highlight=False)
+    lk = run.linear_kt
+    if lk.largest > 0:
+        console.print(
+            f"a linear-Kt region (tau = Kt i) would promise up to {lk.largest:.3g} N m ({lk.share:.1%}) more (largest "
+            f"at {lk.at_speed:.4g} rad/s): torque limit {lk.torque_limit[0]:.4g} instead of {lk.torque_limit[1]:.4g} N m, "
+            f"corner speed {lk.corner_speed[0]:.4g} instead of {lk.corner_speed[1]:.4g} rad/s",
+            highlight=False,
+        )
+    if region.convexity_loss > 1e-6 * region.torque_limit and not measured:
+        console.print(
+            f"the region's half-spaces are a convex cut inside its curved edges, short of them by up to "
+            f"{region.convexity_loss:.3g} N m (past the no-load speed); the saturation uses the exact edges",
+            highlight=False,
+        )
+    if len(region.vertices) <= VERTICES_SHOWN:
+        verts = ", ".join(f"({t:.3g} N m, {w:.4g} rad/s)" for t, w in region.vertices)
+        console.print(f"vertices (counter-clockwise): {verts}", highlight=False)
+    else:
+        console.print(f"{len(region.vertices)} vertices along the curved edges (--json or --plot)", highlight=False)
     if measured and spec.envelope:
         env = spec.envelope
         effects = ", ".join(f"{k} = {v:.4g}" for k, v in env.effects.items()) or "none"

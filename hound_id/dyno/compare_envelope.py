@@ -108,7 +108,7 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
     from hound_id.dyno.envelope.report import comparison_json
     from hound_id.dyno.envelope.report import verdict as verdict_of
     from hound_id.dyno.logs import load_envelope_log, parse_mapping
-    from hound_id.mor.envelope import EnvelopeInputs, compensation_of
+    from hound_id.mor.envelope import EnvelopeInputs, fitted_curve
     from hound_id.mor.spec import load_motor_spec
 
     plot, out, robot_path = options.plot, options.out, options.robot
@@ -123,7 +123,7 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
     columns = options.columns if isinstance(options.columns, dict) else parse_mapping(options.columns, "--columns")
     units = options.units if isinstance(options.units, dict) else parse_mapping(options.units, "--units")
     log = load_envelope_log(log_path, columns, units, robot=robot, joint=options.joint)
-    result = compare(log, EnvelopeInputs(spec, compensation=compensation_of(spec)), add=options.add, auto=options.auto)
+    result = compare(log, EnvelopeInputs(spec, curve=fitted_curve(spec)), add=options.add, auto=options.auto)
     data = comparison_json(result)
     judged = verdict_of(result)
     if out is not None and not judged.explained:

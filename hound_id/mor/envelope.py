@@ -20,7 +20,13 @@ that satisfy every condition at once,
 * ``inductance`` (L [H]): the q-axis current needs p omega L i of voltage in quadrature;
 * ``current_limit`` (I_lim [A]): the driver clamps the current below the spec's limit;
 * ``kt_saturation`` (s [-]): i(tau) follows the fitted current-torque curve of ``fit-current
-  --out`` (its compensation polynomial), s scaling its departure from tau/Kt.
+  --out`` (its exact inverse, :class:`hound_id.mor.current_curve.CurrentCurve`), s scaling its
+  departure from tau/Kt.
+
+The model starts from the linear-Kt region (:func:`hound_id.mor.region.linear_region`): the torque cap
+is the peak torque and the current limit is applied through i(tau), so with no effect the cap is
+min(peak torque, Kt i_max), the spec sheet's linear figure (``MotorSpec.linear_torque_limit``); a
+measured current-torque curve enters only as ``kt_saturation``, which the log must show.
 
 :func:`envelope` evaluates the boundary by bisection on the torque (the feasible set at one
 speed is an interval around the zero-voltage torque), vectorised over speeds.
@@ -38,6 +44,7 @@ from numpy.typing import ArrayLike, NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SpecError
+from hound_id.mor.current_curve import CurrentCurve
 from hound_id.mor.envelope_effects import EFFECTS, EnvelopeEffect  # noqa: F401 - EnvelopeEffect re-exported
 from hound_id.mor.spec import MotorSpec
 
@@ -61,8 +68,8 @@ class EnvelopeInputs:
     spec: MotorSpec
     temperature: Array | None = None
     """Winding temperature per point [degC], if logged."""
-    compensation: tuple[tuple[int, ...], tuple[float, ...]] | None = None
-    """(powers, coefficients) of current [A] = sum c_k tau^k from fit-current, if given."""
+    curve: CurrentCurve | None = None
+    """The fitted current-torque curve (``fit-current --out``), if given."""
 
 
 def _checked(params: Mapping[str, float], inputs: EnvelopeInputs) -> dict[str, float]:
@@ -80,7 +87,7 @@ def _checked(params: Mapping[str, float], inputs: EnvelopeInputs) -> dict[str, f
             missing = (
                 (need == "temperature" and inputs.temperature is None)
                 or (need == "pole_pairs" and not inputs.spec.pole_pairs)
-                or (need == "compensation" and inputs.compensation is None)
+                or (need == "current_curve" and inputs.curve is None)
             )
             if missing:
                 raise SpecError(f"envelope: {name} needs {need}, which this comparison does not have")
@@ -99,11 +106,9 @@ def bus_voltage(v0: float, r_x: Array | float, power: Array) -> Array:
 
 def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
     linear = tau / inputs.spec.kt
-    if scale == 0.0 or inputs.compensation is None:
+    if scale == 0.0 or inputs.curve is None:
         return linear
-    powers, coefficients = inputs.compensation
-    curve = sum(c * tau**p for p, c in zip(powers, coefficients, strict=True))  # odd powers: odd in tau
-    return np.asarray(linear + scale * (curve - linear), dtype=float)
+    return np.asarray(linear + scale * (inputs.curve.current(tau) - linear), dtype=float)
 
 
 def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: EnvelopeInputs) -> NDArray[np.bool_]:
@@ -122,7 +127,7 @@ def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: Enve
     r_x = np.where(power > 0.0, p.get("bus_sag", 0.0), p.get("regen_rise", 0.0))
     v_avail = bus_voltage(spec.bus_voltage, r_x, power)
     i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
-    ok = (np.abs(v_req) <= v_avail) & (np.abs(i) <= i_limit) & (np.abs(tau) <= spec.torque_limit)
+    ok = (np.abs(v_req) <= v_avail) & (np.abs(i) <= i_limit) & (np.abs(tau) <= spec.linear_torque_limit)
     if spec.max_speed is not None:  # past the rated speed only braking passes, as in the region
         ok &= ~((np.abs(omega) > spec.max_speed) & (tau * omega > 0))
     return np.asarray(ok)
@@ -150,7 +155,7 @@ def edge(omega: ArrayLike, side: int, params: Mapping[str, float], inputs: Envel
     spec = inputs.spec
     p = _checked(params, inputs)
     w = np.asarray(omega, dtype=float)
-    cap = spec.torque_limit
+    cap = spec.linear_torque_limit
     i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
     start = min(cap, 0.999 * spec.kt * i_limit)  # inside the current limit too (linear curve)
     tau0 = np.clip(-spec.kt * w / (spec.resistance * spec.kv), -start, start)
@@ -193,9 +198,9 @@ def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
     spec = inputs.spec
     i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
     scale = p.get("kt_saturation", 0.0)
-    cap = np.array([spec.torque_limit])
+    cap = np.array([spec.linear_torque_limit])
     if abs(motor_current(cap, inputs, scale)[0]) <= i_limit:
-        return spec.torque_limit
+        return spec.linear_torque_limit
     lo, hi = np.array([0.0]), cap
     for _ in range(BISECTION_STEPS):
         mid = 0.5 * (lo + hi)
@@ -289,9 +294,9 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
     Temperature-dependent effects are evaluated at the spec's reference temperature.
     """
     spec = inputs.spec
-    tol = tolerance if tolerance is not None else POLYLINE_TOLERANCE * spec.torque_limit
+    tol = tolerance if tolerance is not None else POLYLINE_TOLERANCE * spec.linear_torque_limit
     plain = {k: v for k, v in model.items() if "temperature" not in EFFECTS[k].requires}
-    ref = EnvelopeInputs(spec, compensation=inputs.compensation)
+    ref = EnvelopeInputs(spec, curve=inputs.curve)
     top = spec.bus_voltage * spec.kv
     speeds = np.linspace(-top, top, POLYLINE_POINTS)
     for _ in range(POLYLINE_REFINEMENTS):  # split every segment whose interpolation misses the model at a probe
@@ -312,7 +317,6 @@ def polyline(model: Mapping[str, float], inputs: EnvelopeInputs, tolerance: floa
     return Polyline(frozen(speeds), frozen(hi), frozen(lo), tol, max_error, MappingProxyType(plain))
 
 
-def compensation_of(spec: MotorSpec) -> tuple[tuple[int, ...], tuple[float, ...]] | None:
-    """The current-compensation polynomial of a fitted spec (``fit-current --out``), if it has one."""
-    comp = spec.fit.compensation if spec.fit is not None else None
-    return None if comp is None else (comp.powers, comp.coefficients)
+def fitted_curve(spec: MotorSpec) -> CurrentCurve | None:
+    """The fitted current-torque curve of a fitted spec (``fit-current --out``), if it has one."""
+    return spec.fit.curve if spec.fit is not None else None

@@ -26,7 +26,7 @@ class EnvelopeEffect:
     param: Parameter
     """Its one parameter: name, unit, physically sensible range (``lower``, ``upper``) and ``neutral`` value."""
     requires: tuple[str, ...] = ()
-    """Log channels or inputs it needs: ``temperature``, ``pole_pairs``, ``compensation``."""
+    """Log channels or inputs it needs: ``temperature``, ``pole_pairs``, ``current_curve`` (a fitted one)."""
 
     @property
     def parameter(self) -> str:
@@ -91,7 +91,7 @@ EFFECTS: dict[str, EnvelopeEffect] = {
                     2.0,
                     neutral=0.0,
                 ),
-                ("compensation",),
+                ("current_curve",),
             ),
         ],
         key=lambda e: e.name,

@@ -55,13 +55,16 @@ def _box(ax, effort: float, velocity: float, **kw) -> None:  # type: ignore[no-u
     ax.plot(xs, ys, **kw)
 
 
-def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -> Figure:
+def plot_region(
+    region: OperatingRegion, sheet: OperatingRegion | None = None, linear: OperatingRegion | None = None
+) -> Figure:
     """The motor's region in (torque, speed) with quadrants labelled, against the URDF box.
 
     The URDF box is what a rectangular joint limit would claim: the torque limit at
     every speed up to the no-load (or rated maximum) speed. Its corners in the
     motoring quadrants (1 and 3) lie outside the region. With ``sheet`` (the region is a
-    measured envelope) the spec sheet's region is drawn dashed.
+    measured envelope) the spec sheet's region is drawn dashed; with ``linear`` the linear-Kt region
+    (:func:`hound_id.mor.region.linear_region`), dotted.
     """
     fig = new_figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
@@ -71,6 +74,14 @@ def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -
     ax.plot(*_closed(v).T, color="tab:blue", lw=1.8)
     if sheet is not None:
         ax.plot(*_closed(sheet.vertices).T, color="0.3", lw=1.2, ls="--", label="spec sheet region")
+    if linear is not None:
+        ax.plot(
+            *_closed(linear.vertices).T,
+            color="tab:purple",
+            lw=1.2,
+            ls="-.",
+            label=f"linear-Kt region (tau = Kt i): |tau|<={linear.torque_limit:.3g} N m, what a linear model promises",
+        )
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
     _box(
         ax,
@@ -90,7 +101,8 @@ def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -
         lw=1.6,
         label=f"inner box: |tau|<={region.inner_box[0]:.3g} N m, |omega|<={region.inner_box[1]:.4g} rad/s",
     )
-    tl, w = region.torque_limit, max(region.overspeed, w_box)
+    tl = max(region.torque_limit, linear.torque_limit if linear is not None else 0.0)
+    w = max(region.overspeed, w_box, linear.overspeed if linear is not None else 0.0)
     ax.axhline(0, color="0.4", lw=0.8)
     ax.axvline(0, color="0.4", lw=0.8)
     for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
@@ -112,7 +124,7 @@ def plot_region(region: OperatingRegion, sheet: OperatingRegion | None = None) -
     ax.set_xlabel("motor torque tau [N m]")
     ax.set_ylabel("motor speed omega [rad/s]")
     ax.set_title(
-        f"{region.motor}: stall {region.stall_torque:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
+        f"{region.motor}: torque limit {region.torque_limit:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
         f"overspeed {region.overspeed:.4g} rad/s",
         fontsize=9,
     )

@@ -2,23 +2,32 @@
 
 For x = (tau, omega) the quasi-static DC model gives (paper, eq. 2)
 
-    -V_bus <= (R/Kt) tau + omega/Kv <= V_bus,
+    -V_bus <= R i(tau) + omega/Kv <= V_bus,    |i(tau)| <= i_max,    |tau| <= tau_peak,
 
-intersected with |tau| <= tau_lim, where tau_lim = min(tau_peak, Kt i_max), and
-with |omega| <= omega_max when the spec gives a maximum speed. The band between
-the voltage lines is a parallelogram; cut by the torque limits it is a hexagon,
-wider in the braking quadrants (2 and 4), where back-EMF adds to the bus.
+with i(tau) the current the motor's current-torque curve needs for the torque
+(:mod:`hound_id.mor.current_curve`: the fit's curve, or the quadratic through the spec
+sheet's 20 % point), and |omega| <= omega_max when the spec gives a maximum speed. So at
+each speed the current lies in a window, [(-V - omega/Kv)/R, (V - omega/Kv)/R] cut to
++-I (I the current the torque limit needs), and the torque interval is the curve's image
+of that window. With a linear curve (i = tau/Kt) the region is the paper's hexagon: the
+band between the voltage lines cut by |tau| <= min(tau_peak, Kt i_max). With a
+saturating curve the torque limit is the curve's torque at the driver's limit,
+tau_lim = min(tau_peak, g(i_max)), and the voltage edges bend: they are polylines here
+(refined to :data:`EDGE_TOLERANCE` of the torque limit), concave where the motor drives
+and convex in the braking quadrants past the no-load speed; the half-spaces are then a
+conservative convex cut and ``convexity_loss`` says by how much.
 
-Characteristic values (physics notes): stall torque Kt V/R, no-load speed Kv V,
-corner speed Kv (V - R tau_lim/Kt) (the highest speed with full motoring torque;
-clipped to [0, max_speed]: 0 when the torque limit exceeds the stall torque),
-overspeed Kv (V + R tau_lim/Kt) (past it not even full braking torque keeps the
-current inside its limit; see :func:`torque_interval` for what the saturation
-returns there).
+Characteristic values (physics notes): no-load speed Kv V; corner speed Kv (V - R I)
+(the highest speed with full motoring torque; clipped to [0, max_speed]: 0 when I
+exceeds the stall current V/R); overspeed Kv (V + R I): past it even the full
+opposing voltage cannot hold the current at I, and the back-EMF drives a braking
+current of at least (omega/Kv - V)/R through the inverter whatever is commanded
+(:func:`torque_interval` returns that torque there).
 """
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass, replace
 from typing import TYPE_CHECKING, Any
 
@@ -26,15 +35,21 @@ import numpy as np
 from numpy.typing import ArrayLike, NDArray
 
 from hound_id.arrays import frozen
+from hound_id.mor.current_curve import CurrentCurve
 
 if TYPE_CHECKING:  # at run time only motor_report needs the spec module: the saturation (and so the runtime)
     from hound_id.mor.spec import MotorSpec  # imports this module without yaml or pint
 
-SCHEMA = "hound-id/mor/1"
+SCHEMA = "hound-id/mor/2"
 
 #: Relative tolerance on the rated maximum speed before the braking-only rule applies,
 #: so states computed on the boundary (polygon vertices) count as inside.
 SPEED_TOLERANCE = 1e-9
+#: Accuracy of a curved region's polyline edges, as a share of the torque limit: linear interpolation between its
+#: points misses the exact edge by at most this (1e-4: 0.8 mN m for the sample motor, far below any torque sensor).
+EDGE_TOLERANCE = 1e-4
+#: The curved edges are refined by halving any segment that misses at its midpoint, at most so many times.
+EDGE_REFINEMENTS = 20
 
 
 @dataclass(frozen=True)
@@ -56,12 +71,12 @@ class OperatingRegion:
     no_load_speed: float
     """Kv V_bus [rad/s]: speed on the voltage line at zero torque."""
     corner_speed: float
-    """Highest speed at which the full torque limit can motor [rad/s]: Kv (V_bus - R tau_lim / Kt)
-    clipped to [0, max_speed] (0 when the torque limit exceeds the stall torque)."""
+    """Highest speed at which the full torque limit can motor [rad/s]: Kv (V_bus - R I), I the current the torque
+    limit needs, clipped to [0, max_speed] (0 when I exceeds the stall current V_bus / R)."""
     overspeed: float
-    """Kv (V_bus + R tau_lim / Kt) [rad/s]: beyond it the full braking torque exceeds the voltage line."""
+    """Kv (V_bus + R I) [rad/s]: beyond it even the full opposing voltage cannot hold the current at I."""
     torque_limit: float
-    """tau_lim = min(peak torque, Kt i_max) [N m]."""
+    """tau_lim = min(peak torque, g(i_max)) [N m], g the current-torque curve (Kt i_max for a linear one)."""
     max_speed: float | None
     """Rated maximum speed [rad/s] if the spec gives one."""
     back_emf_damping: float
@@ -71,7 +86,18 @@ class OperatingRegion:
     source: str = "spec sheet"
     """What bounds the region: ``spec sheet``, or the measured envelope (:func:`measured_region`)."""
     convexity_loss: float = 0.0
-    """For a measured envelope: the most the convex region falls inside the polyline edges [N m]."""
+    """For curved or measured edges: the most the convex half-space cut falls inside the edges [N m]."""
+    curve: CurrentCurve | None = None
+    """The current-torque curve the edges follow (None: linear, tau = Kt i)."""
+    linear_limit: float | None = None
+    """Kt I [N m]: the linear-equivalent torque of the current the torque limit needs (None: the torque limit)."""
+    linear_torque_limit: float | None = None
+    """What a linear-Kt model takes for the torque limit, min(peak torque, Kt i_max) [N m] (None: the same)."""
+
+    @property
+    def limit_x(self) -> float:
+        """Kt I [N m] (:attr:`linear_limit`, or the torque limit for a linear region)."""
+        return self.torque_limit if self.linear_limit is None else self.linear_limit
 
     def contains(self, tau: ArrayLike, omega: ArrayLike, rtol: float = 1e-9) -> NDArray[np.bool_]:
         """Whether each (tau [N m], omega [rad/s]) pair lies in the region (with a relative tolerance)."""
@@ -80,7 +106,8 @@ class OperatingRegion:
         return np.all(slack <= rtol * np.maximum(self.b, 1.0), axis=-1)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready content, schema ``hound-id/mor/1`` (SI, motor side)."""
+        """JSON-ready content, schema ``hound-id/mor/2`` (SI, motor side; /2 added the current-torque curve, the
+        limit current and the linear-Kt torque limit, and the curve-limited torque limit replaced Kt i_max)."""
         return {
             "schema": SCHEMA,
             "motor": self.motor,
@@ -96,16 +123,26 @@ class OperatingRegion:
             "inner_box": {"torque": self.inner_box[0], "speed": self.inner_box[1]},
             "source": self.source,
             "convexity_loss": self.convexity_loss,
-            "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V"},
+            "current_curve": None if self.curve is None else self.curve.to_dict(),
+            "limit_current": None if self.curve is None else self.limit_x / self.curve.kt,
+            "linear_torque_limit": self.torque_limit if self.linear_torque_limit is None else self.linear_torque_limit,
+            "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V", "current": "A"},
         }
 
 
 def motor_report(spec: MotorSpec, region: OperatingRegion | None = None) -> dict[str, Any]:
-    """The ``hound-id/mor/1`` content for a motor: its region, its spec (SI) and the spec's warnings."""
+    """The ``hound-id/mor/2`` content for a motor: its region, its spec (SI), the spec's warnings, which limit binds
+    where (of the spec sheet's region), and what the linear-Kt region over-promises."""
     from hound_id.mor.spec import spec_warnings
 
-    data = (region or operating_region(spec)).to_dict()
-    data.update(spec=spec.to_dict(), warnings=list(spec_warnings(spec)))
+    sheet = operating_region(spec)
+    data = (region or sheet).to_dict()
+    data.update(
+        spec=spec.to_dict(),
+        warnings=list(spec_warnings(spec)),
+        bindings=[b.to_dict() for b in bindings(sheet, spec)],
+        linear_kt=overpromise(linear_region(spec), sheet).to_dict(),
+    )
     return data
 
 
@@ -142,13 +179,57 @@ def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
 
 
 def operating_region(spec: MotorSpec) -> OperatingRegion:
-    """Build the operating region of a motor from its spec."""
+    """The operating region of a motor from its spec and its current-torque curve (module docstring)."""
+    curve = spec.current_curve
+    if curve.form == "linear":
+        return replace(linear_region(spec), curve=curve)
+    tl = spec.torque_limit
+    X = curve.kt * spec.limit_current
+    stall = curve.kt * spec.bus_voltage / spec.resistance  # linear-equivalent: Kt times the stall current V/R
+    damping = curve.kt / (spec.resistance * spec.kv)
+    corner = max((stall - X) / damping, 0.0)
+    if spec.max_speed is not None:
+        corner = min(corner, spec.max_speed)
+    base = replace(
+        linear_region(spec),
+        corner_speed=corner,
+        overspeed=(stall + X) / damping,
+        torque_limit=tl,
+        stall_torque=stall,
+        back_emf_damping=damping,
+        curve=curve,
+        linear_limit=X,
+        linear_torque_limit=spec.linear_torque_limit,
+    )
+    speeds, lower, upper = curved_edges(base)
+    # The half-spaces: the edges' segments where they are concave (the upper edge up to the no-load speed, where the
+    # current is positive; the lower edge likewise), and past them the voltage lines, tau <= S - D omega, which touch
+    # the curved edges at the no-load speeds and lie inside them beyond (a curve bends away from its tangent there).
+    nl = stall / damping
+    rows: list[tuple[str, tuple[float, float], float]] = [
+        ("voltage+", (1.0, damping), stall),
+        ("voltage-", (-1.0, -damping), stall),
+        ("torque+", (1.0, 0.0), tl),
+        ("torque-", (-1.0, 0.0), tl),
+    ]
+    if spec.max_speed is not None:
+        rows += [("speed+", (0.0, 1.0), spec.max_speed), ("speed-", (0.0, -1.0), spec.max_speed)]
+    cut_upper = np.where(speeds <= nl * (1 + 1e-12), upper, np.nan)
+    cut_lower = np.where(speeds >= -nl * (1 + 1e-12), lower, np.nan)
+    region = _cut(base, rows, speeds, cut_lower, cut_upper, "curve", edges=(lower, upper))
+    vertices = _ring(speeds, lower, upper)
+    return replace(region, vertices=frozen(vertices), inner_box=_traced_box(vertices))
+
+
+def linear_region(spec: MotorSpec) -> OperatingRegion:
+    """The paper's hexagon with linear Kt: what the region would be if torque followed current, tau = Kt i, up to
+    min(peak torque, Kt i_max). :func:`operating_region` is this region for a linear curve; for a saturating one
+    it shows how much the linear model over-promises."""
     r_over_kt = spec.resistance / spec.kt
-    inv_kv = 1.0 / spec.kv
-    tau_lim = spec.torque_limit
+    tau_lim = spec.linear_torque_limit
     rows = [
-        ("voltage+", (r_over_kt, inv_kv), spec.bus_voltage),
-        ("voltage-", (-r_over_kt, -inv_kv), spec.bus_voltage),
+        ("voltage+", (r_over_kt, 1.0 / spec.kv), spec.bus_voltage),
+        ("voltage-", (-r_over_kt, -1.0 / spec.kv), spec.bus_voltage),
         ("torque+", (1.0, 0.0), tau_lim),
         ("torque-", (-1.0, 0.0), tau_lim),
     ]
@@ -176,6 +257,90 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
     )
 
 
+def curved_edges(region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(speeds [rad/s], lower [N m], upper [N m]) of a region's edges from -overspeed to +overspeed, refined until
+    linear interpolation misses :func:`torque_interval` by at most :data:`EDGE_TOLERANCE` x the torque limit at
+    every segment's midpoint. The breakpoints of the edges (the corner speeds, where the current limit stops
+    binding; the no-load speeds; the rated speeds) are points of the polyline."""
+    d, stall, X = region.back_emf_damping, region.stall_torque, region.limit_x
+    top = region.overspeed
+    marks = [(stall - X) / d, stall / d, (stall + X) / d, (X - stall) / d, -stall / d]
+    if region.max_speed is not None:
+        marks += [region.max_speed, region.max_speed * (1 + 2 * SPEED_TOLERANCE)]
+    marks = [m for m in marks if abs(m) < top]
+    speeds = np.unique(np.concatenate([np.linspace(-top, top, 17), marks, np.negative(marks)]))
+    tol = EDGE_TOLERANCE * region.torque_limit
+    for _ in range(EDGE_REFINEMENTS):
+        lo, hi = torque_interval(speeds, region)
+        mid = 0.5 * (speeds[:-1] + speeds[1:])
+        mlo, mhi = torque_interval(mid, region)
+        miss = np.maximum(np.abs(0.5 * (hi[:-1] + hi[1:]) - mhi), np.abs(0.5 * (lo[:-1] + lo[1:]) - mlo))
+        bad = miss > tol
+        if not bad.any():
+            break
+        speeds = np.sort(np.concatenate([speeds, mid[bad]]))
+    lo, hi = torque_interval(speeds, region)
+    return frozen(speeds), frozen(lo), frozen(hi)
+
+
+def _cut(
+    base: OperatingRegion,
+    rows: list[tuple[str, tuple[float, float], float]],
+    speeds: NDArray[np.float64],
+    lower: NDArray[np.float64],
+    upper: NDArray[np.float64],
+    name: str,
+    edges: tuple[NDArray[np.float64], NDArray[np.float64]] | None = None,
+) -> OperatingRegion:
+    """``base`` with half-spaces ``rows`` plus one under each segment of the polyline edges (over each edge's line
+    extended; segments with a NaN end give none), labelled ``name+k`` / ``name-k``, and the most the cut falls inside
+    the region's ``edges`` (lower, upper; default the polyline's) as ``convexity_loss``."""
+    A_rows = [list(r[1]) for r in rows]
+    rhs = [float(r[2]) for r in rows]
+    labels = [r[0] for r in rows]
+    for side, edge in ((1, upper), (-1, lower)):
+        for k in range(speeds.size - 1):
+            w0, w1, t0, t1 = speeds[k], speeds[k + 1], edge[k], edge[k + 1]
+            if not (np.isfinite(t0) and np.isfinite(t1)):
+                continue
+            slope = (t1 - t0) / (w1 - w0)
+            offset = side * (t0 - slope * w0)  # side * tau - side * slope * omega <= offset
+            if offset <= 1e-9 * base.torque_limit:  # a segment through the origin: the other rows bound it
+                continue
+            A_rows.append([float(side), float(-side * slope)])
+            rhs.append(float(offset))
+            labels.append(f"{name}{'+' if side > 0 else '-'}{k}")
+    region = replace(base, A=frozen(np.array(A_rows)), b=frozen(np.array(rhs)), labels=tuple(labels))
+    grid = np.linspace(speeds[0], speeds[-1], 4001)
+    lo_cut, hi_cut = _slice(grid, region)
+    true_lo, true_hi = edges if edges is not None else (lower, upper)
+    with np.errstate(invalid="ignore"):
+        loss = max(
+            float(np.nanmax(np.interp(grid, speeds, true_hi) - hi_cut, initial=0.0)),
+            float(np.nanmax(lo_cut - np.interp(grid, speeds, true_lo), initial=0.0)),
+        )
+    return replace(region, convexity_loss=max(loss, 0.0))
+
+
+def _ring(speeds: NDArray[np.float64], lower: NDArray[np.float64], upper: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Vertices (tau, omega), counter-clockwise from the largest torque, of the region between two edges."""
+    ok = np.isfinite(lower) & np.isfinite(upper) & (lower <= upper + 1e-12)
+    w, lo, hi = speeds[ok], lower[ok], upper[ok]
+    ring = np.vstack([np.column_stack([hi, w]), np.column_stack([lo, w])[::-1]])
+    scale = np.abs(ring).max(axis=0)
+    unit = ring / scale
+    # drop repeated points and points on the straight line through their neighbours (flat torque limits)
+    keep = np.any(np.abs(unit - np.roll(unit, 1, axis=0)) > 1e-9, axis=1)
+    unit = unit[keep]
+    before, after = np.roll(unit, 1, axis=0), np.roll(unit, -1, axis=0)
+    cross = (unit[:, 0] - before[:, 0]) * (after[:, 1] - before[:, 1]) - (unit[:, 1] - before[:, 1]) * (
+        after[:, 0] - before[:, 0]
+    )
+    ring = unit[np.abs(cross) > 1e-9] * scale
+    start = int(np.lexsort((-ring[:, 1], -ring[:, 0]))[0])  # max torque, then max speed
+    return np.roll(ring, -start, axis=0)
+
+
 def measured_region(spec: MotorSpec) -> OperatingRegion:
     """The region a measured envelope (``mor --compare --out``) leaves: the spec sheet's region cut by one
     half-space under each segment of the envelope's polyline edges (over each edge's line extended).
@@ -184,42 +349,24 @@ def measured_region(spec: MotorSpec) -> OperatingRegion:
     bends the motoring edge back towards the spec sheet's line near the no-load speed) the cut is conservative: no
     state outside the polyline is inside, and ``convexity_loss`` says by how much the cut falls short of it.
     Characteristic speeds are read off the polygon; the back-EMF damping stays the spec sheet's.
+
+    The envelope's model (:mod:`hound_id.mor.envelope`) starts from the linear-Kt region (a measured curve enters
+    it as the ``kt_saturation`` effect), so the sheet here is :func:`linear_region`.
     """
-    sheet = operating_region(spec)
+    sheet = linear_region(spec)
     if spec.envelope is None:
         raise ValueError(f"{spec.name}: the spec carries no measured envelope")
     speeds, lower, upper = spec.envelope.polyline
-    rows, rhs, labels = [list(r) for r in sheet.A], list(sheet.b), list(sheet.labels)
-    for side, edge in ((1, upper), (-1, lower)):
-        for k in range(speeds.size - 1):
-            w0, w1, t0, t1 = speeds[k], speeds[k + 1], edge[k], edge[k + 1]
-            if not (np.isfinite(t0) and np.isfinite(t1)):
-                continue
-            slope = (t1 - t0) / (w1 - w0)
-            offset = side * (t0 - slope * w0)  # side * tau - side * slope * omega <= offset
-            if offset <= 1e-9 * spec.torque_limit:  # a segment through the origin: the speed rows bound it
-                continue
-            rows.append([float(side), float(-side * slope)])
-            rhs.append(float(offset))
-            labels.append(f"envelope{'+' if side > 0 else '-'}{k}")
-    A, b = np.array(rows), np.array(rhs)
+    rows = [(label, (float(a[0]), float(a[1])), float(b)) for label, a, b in zip(sheet.labels, sheet.A, sheet.b, strict=True)]
+    region = _cut(sheet, rows, speeds, lower, upper, "envelope")
     region = replace(
-        sheet,
-        A=frozen(A),
-        b=frozen(b),
-        labels=tuple(labels),
+        region,
         vertices=frozen(_traced(speeds, lower, upper, sheet)),
         no_load_speed=_crossing(speeds, upper, 0.0, sheet.no_load_speed),
         corner_speed=_crossing(speeds, upper, float(np.nanmax(upper[speeds >= 0])) * (1 - 1e-9), 0.0),
         source=f"measured envelope ({spec.envelope.source})",
     )
-    grid = np.linspace(speeds[0], speeds[-1], 4001)
-    lo_cut, hi_cut = _slice(grid, region)
-    loss = max(
-        float(np.nanmax(np.interp(grid, speeds, upper) - hi_cut)),
-        float(np.nanmax(lo_cut - np.interp(grid, speeds, lower))),
-    )
-    return replace(region, convexity_loss=max(loss, 0.0), inner_box=_traced_box(region.vertices))
+    return replace(region, inner_box=_traced_box(region.vertices))
 
 
 def _traced_box(vertices: NDArray[np.float64], points: int = 20001) -> tuple[float, float]:
@@ -275,21 +422,7 @@ def _traced(
     inside = (w >= speeds[0]) & (w <= speeds[-1])
     lo = np.where(inside, np.interp(w, speeds, lower), lo)
     hi = np.where(inside, np.interp(w, speeds, upper), hi)
-    ok = np.isfinite(lo) & np.isfinite(hi) & (lo <= hi + 1e-12)
-    w, lo, hi = w[ok], lo[ok], hi[ok]
-    ring = np.vstack([np.column_stack([hi, w]), np.column_stack([lo, w])[::-1]])
-    scale = np.abs(ring).max(axis=0)
-    unit = ring / scale
-    # drop repeated points and points on the straight line through their neighbours (flat torque limits)
-    keep = np.any(np.abs(unit - np.roll(unit, 1, axis=0)) > 1e-9, axis=1)
-    unit = unit[keep]
-    before, after = np.roll(unit, 1, axis=0), np.roll(unit, -1, axis=0)
-    cross = (unit[:, 0] - before[:, 0]) * (after[:, 1] - before[:, 1]) - (unit[:, 1] - before[:, 1]) * (
-        after[:, 0] - before[:, 0]
-    )
-    ring = unit[np.abs(cross) > 1e-9] * scale
-    start = int(np.lexsort((-ring[:, 1], -ring[:, 0]))[0])  # max torque, then max speed
-    return np.roll(ring, -start, axis=0)
+    return _ring(w, lo, hi)
 
 
 def _crossing(speeds: NDArray[np.float64], edge: NDArray[np.float64], level: float, default: float) -> float:
@@ -368,19 +501,138 @@ def _inner_box(stall: float, no_load: float, tau_lim: float, max_speed: float | 
 def torque_interval(omega: ArrayLike, region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Feasible motor torque interval [lo, hi] at speed ``omega`` [rad/s].
 
-    Inside |omega| <= overspeed this is exactly the region's slice at that speed.
-    Past overspeed the slice is empty; the interval collapses to the full braking
-    torque, -sign(omega) tau_lim, which is what a current-limited drive applies
-    when the back-EMF outruns the bus (and what Isaac Lab's ``DCMotor`` returns).
-    Past ``max_speed`` (if given) only braking torque (sign opposite to omega, or
-    zero) passes, as a drive's speed limiter does.
+    In the linear-equivalent torque x = Kt i the drive can make any current whose voltage fits the bus,
+    x in [-S - D omega, S - D omega] (S = Kt V/R, D = Kt/(R Kv)), and the driver holds |x| <= X (X = Kt I, I the
+    current the torque limit needs). The interval is the curve's image of that window (x -> g(x/Kt), exactly x for
+    a linear curve): inside |omega| <= overspeed the region's slice at that speed.
+
+    Past overspeed the window misses [-X, X]: even the full opposing voltage cannot hold the current at I, and the
+    back-EMF drives a braking current (|omega|/Kv - V)/R through the inverter (its diodes, when the switches are
+    off) whatever is commanded. The interval collapses to the torque of that current, g((V - omega/Kv)/R) for
+    omega > 0, beyond the torque limit and growing with the speed (held at the curve's top past it, where neither
+    the fit nor the spec sheet says more). Isaac Lab's ``DCMotor`` returns the torque limit there instead.
+
+    Past ``max_speed`` (if given) only braking torque (sign opposite to omega, or zero) passes, as a drive's speed
+    limiter does.
     """
     omega = np.asarray(omega, float)
-    tl = region.torque_limit
-    lo = np.clip(-region.stall_torque - region.back_emf_damping * omega, -tl, tl)
-    hi = np.clip(region.stall_torque - region.back_emf_damping * omega, -tl, tl)
+    X = region.limit_x
+    x_hi = region.stall_torque - region.back_emf_damping * omega
+    x_lo = -region.stall_torque - region.back_emf_damping * omega
+    hi = np.maximum(np.minimum(x_hi, X), x_lo)  # past overspeed both collapse onto the end nearest the window
+    lo = np.minimum(np.maximum(x_lo, -X), x_hi)
+    if region.curve is not None and region.curve.form != "linear":
+        hi = region.curve.torque(hi / region.curve.kt)
+        lo = region.curve.torque(lo / region.curve.kt)
     if region.max_speed is not None:
         limit = region.max_speed * (1.0 + SPEED_TOLERANCE)
         hi = np.where(omega > limit, np.minimum(hi, 0.0), hi)
         lo = np.where(omega < -limit, np.maximum(lo, 0.0), lo)
     return lo, hi
+
+
+@dataclass(frozen=True)
+class Binding:
+    """Which limit bounds the motoring edge of a region over a range of speeds."""
+
+    limit: str
+    """``torque`` (the peak torque), ``current`` (the driver's current limit), ``voltage`` (the bus), ``speed`` (the
+    rated maximum speed: braking only) or ``back-EMF`` (past overspeed: the braking current the back-EMF forces)."""
+    speeds: tuple[float, float]
+    """From and to [rad/s] (motor side, omega >= 0; the region is point-symmetric)."""
+    detail: str
+    """One sentence with the numbers."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {"limit": self.limit, "speeds": list(self.speeds), "detail": self.detail}
+
+
+def bindings(region: OperatingRegion, spec: MotorSpec) -> tuple[Binding, ...]:
+    """Which limit bounds the upper (motoring, then least-braking) edge at each speed from 0 up past overspeed."""
+    out: list[Binding] = []
+    curve = region.curve
+    i_lim = region.limit_x / (curve.kt if curve is not None else spec.kt)
+    driver = spec.max_current is not None and abs(i_lim - spec.max_current) <= 1e-9 * spec.max_current
+    top = region.max_speed if region.max_speed is not None else math.inf
+    corner, nl, over = region.corner_speed, min(region.no_load_speed, top), region.overspeed
+    flat = "current" if driver else "torque"
+    what = (
+        f"the driver's current limit {i_lim:.4g} A makes {region.torque_limit:.4g} N m on the curve"
+        if driver
+        else f"the peak torque {region.torque_limit:.4g} N m (current {i_lim:.4g} A)"
+    )
+    if corner > 0:
+        out.append(Binding(flat, (0.0, corner), what))
+    if nl > corner:
+        out.append(
+            Binding(
+                "voltage",
+                (corner, nl),
+                "the bus voltage: the current the bus can push, (V - omega/Kv)/R, through the current-torque curve",
+            )
+        )
+    if region.max_speed is not None and region.max_speed < over:
+        out.append(Binding("speed", (region.max_speed, over), "past the rated speed only braking torque passes"))
+    elif over > nl:
+        out.append(
+            Binding(
+                "voltage",
+                (nl, over),
+                "past the no-load speed the back-EMF forces a braking current of at least (omega/Kv - V)/R",
+            )
+        )
+    out.append(
+        Binding(
+            "back-EMF",
+            (over, math.inf),
+            f"past overspeed {over:.4g} rad/s the braking current exceeds {i_lim:.4g} A whatever is commanded; the "
+            "torque is the curve's at (omega/Kv - V)/R",
+        )
+    )
+    return tuple(out)
+
+
+@dataclass(frozen=True)
+class Overpromise:
+    """How much a linear-Kt region promises that the curve-limited region does not."""
+
+    torque_limit: tuple[float, float]
+    """Torque limit, linear-Kt and curve-limited [N m]."""
+    corner_speed: tuple[float, float]
+    """Corner speed, linear-Kt and curve-limited [rad/s]."""
+    largest: float
+    """Largest excess of the linear region's edges over the curved region's at one speed [N m]."""
+    at_speed: float
+    """Where (motor speed [rad/s], the motoring side)."""
+    share: float
+    """Largest excess relative to the curved region's torque there [-]."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "torque_limit": {"linear_kt": self.torque_limit[0], "curve": self.torque_limit[1]},
+            "corner_speed": {"linear_kt": self.corner_speed[0], "curve": self.corner_speed[1]},
+            "largest_excess": self.largest,
+            "at_speed": self.at_speed,
+            "relative_excess": self.share,
+            "units": "N m, rad/s (motor side)",
+        }
+
+
+#: Speeds at which the linear and the curved regions are compared (across +-overspeed).
+OVERPROMISE_POINTS = 4001
+
+
+def overpromise(linear: OperatingRegion, curved: OperatingRegion) -> Overpromise:
+    """Compare the linear-Kt region with the curve-limited one on a grid of speeds up to the curved overspeed."""
+    w = np.linspace(0.0, curved.overspeed, OVERPROMISE_POINTS)
+    lo_l, hi_l = torque_interval(w, linear)
+    lo_c, hi_c = torque_interval(w, curved)
+    excess = np.maximum(hi_l - hi_c, 0.0)
+    k = int(np.argmax(excess))
+    return Overpromise(
+        torque_limit=(linear.torque_limit, curved.torque_limit),
+        corner_speed=(linear.corner_speed, curved.corner_speed),
+        largest=float(excess[k]),
+        at_speed=float(w[k]),
+        share=float(excess[k] / max(abs(hi_c[k]), 1e-12)),
+    )

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from hound_id.mor.joint_space import RobotRegions
-    from hound_id.mor.region import OperatingRegion
+    from hound_id.mor.region import Binding, OperatingRegion, Overpromise
     from hound_id.mor.robot import Robot
     from hound_id.mor.saturation import LogSummary
     from hound_id.mor.spec import MotorSpec
@@ -37,12 +37,26 @@ class MotorRegions:
     """Plausibility warnings on the spec."""
 
     @property
+    def bindings(self) -> tuple[Binding, ...]:
+        """Which limit bounds the spec sheet's region where."""
+        from hound_id.mor.region import bindings
+
+        return bindings(self.sheet, self.spec)
+
+    @property
+    def linear_kt(self) -> Overpromise:
+        """What the linear-Kt region promises beyond the spec sheet's curve-limited one."""
+        from hound_id.mor.region import linear_region, overpromise
+
+        return overpromise(linear_region(self.spec), self.sheet)
+
+    @property
     def measured(self) -> bool:
         """Whether the region is a measured envelope's."""
         return bool(self.spec.envelope)
 
     def report(self) -> dict[str, Any]:
-        """The ``hound-id/mor/1`` JSON, with ``spec_sheet`` (None unless measured)."""
+        """The ``hound-id/mor/2`` JSON, with ``spec_sheet`` (None unless measured)."""
         from hound_id.mor.region import motor_report
 
         data = motor_report(self.spec, self.region)
@@ -52,8 +66,12 @@ class MotorRegions:
     def figure(self) -> Figure:
         """The region (against the spec sheet's when measured)."""
         from hound_id.mor.plot import plot_region
+        from hound_id.mor.region import linear_region
 
-        return plot_region(self.region, self.sheet if self.measured else None)
+        curved = self.spec.current_curve.form != "linear"
+        return plot_region(
+            self.region, self.sheet if self.measured else None, linear_region(self.spec) if curved else None
+        )
 
 
 def motor_regions(path: str | Path) -> MotorRegions:

@@ -37,7 +37,7 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
-from hound_id.mor.region import SPEED_TOLERANCE, operating_region
+from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_region
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
     from hound_id.mor.robot import Robot
@@ -61,6 +61,40 @@ def _is_torch(x: Any) -> bool:
 def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
     np.maximum(x, lo, out=out)
     return np.minimum(out, hi, out=out)
+
+
+def _np_bounds(c: Any, u: Any, lo: Any, hi: Any, tmp: Any) -> None:
+    """The motors' torque intervals into ``lo`` and ``hi`` from u = back-EMF damping x motor speed
+    (:func:`hound_id.mor.region.torque_interval`): the linear-equivalent window [-S - u, S - u] cut to [-X, X] (past
+    overspeed, collapsed onto the end nearest it), then the current-torque curve. ``u`` may be ``tmp``; both are
+    overwritten."""
+    np.subtract(c.stall, u, out=hi)  # x_hi, upper voltage line
+    np.subtract(c.neg_stall, u, out=lo)  # x_lo
+    np.minimum(hi, c.limit_x, out=tmp)
+    np.maximum(tmp, lo, out=tmp)  # upper end of the window
+    np.maximum(lo, c.neg_limit_x, out=lo)
+    np.minimum(lo, hi, out=lo)  # lower end
+    np.copyto(hi, tmp)
+    if c.has_curve:
+        _np_curve(hi, c, tmp)
+        _np_curve(lo, c, tmp)
+
+
+def _np_curve(x: Any, c: Any, tmp: Any) -> None:
+    """x -> xc - q xc|xc|, xc = x held within the curve's top (in place; ``tmp`` is scratch)."""
+    _np_clip(x, -c.curve_top, c.curve_top, out=x)
+    np.absolute(x, out=tmp)
+    tmp *= x
+    tmp *= c.curve_q
+    x -= tmp
+
+
+def _torch_curve(x: Any, c: Any) -> Any:
+    """:func:`_np_curve` in torch (a new tensor)."""
+    import torch
+
+    xc = torch.minimum(torch.maximum(x, -c.curve_top), c.curve_top)
+    return xc - c.curve_q * xc * torch.abs(xc)
 
 
 def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
@@ -127,6 +161,14 @@ class _Constants(NamedTuple):
     neg_stall: Any
     torque_limit: Any
     neg_torque_limit: Any
+    limit_x: Any
+    """Per motor Kt I, the linear-equivalent torque of the current at the torque limit."""
+    neg_limit_x: Any
+    curve_q: Any
+    """Per motor q of the quadratic current-torque curve, x - q x|x| (0: linear)."""
+    curve_top: Any
+    """Per motor linear-equivalent torque at the curve's top, 1 / (2 q) (inf: linear)."""
+    has_curve: bool
     wmax: Any
     has_max_speed: bool
     tau_cap: float
@@ -156,9 +198,14 @@ class Saturation:
     back_emf_damping: NDArray[np.float64]
     """Per motor Kt / (R Kv) [N m s/rad]."""
     torque_limit: NDArray[np.float64]
-    """Per motor min(peak torque, Kt i_max) [N m]."""
+    """Per motor torque limit, min(peak torque, g(i_max)) [N m] (g the current-torque curve)."""
     max_speed: NDArray[np.float64]
     """Per motor rated maximum speed [rad/s]; inf where the spec gives none."""
+    limit_x: NDArray[np.float64] | None = None
+    """Per motor Kt I [N m], I the current the torque limit needs (None: the torque limit, a linear curve)."""
+    curve_q: NDArray[np.float64] | None = None
+    """Per motor q [1/(N m)] of the quadratic current-torque curve: torque = x - q x|x| in the linear-equivalent
+    torque x = Kt i (None or 0: linear). A table curve is carried as a polyline."""
     polylines: tuple[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None, ...] = ()
     """Per motor (speeds, lower, upper) edges of a measured envelope (``mor --compare --out``), or None.
     Where given, the motor's torque interval at speeds inside the polyline is interpolated from it."""
@@ -169,7 +216,9 @@ class Saturation:
         """Collect the robot's transmissions and motor regions into arrays."""
         regions = [operating_region(robot.motor_specs[m]) for m in robot.motors]
         A = robot.velocity_map()
-        polylines = tuple(polyline_of(robot.motor_specs[m].envelope) for m in robot.motors)
+        polylines = tuple(
+            polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r) for m, r in zip(robot.motors, regions)
+        )
         return cls(
             joints=robot.joints,
             A=frozen(A),
@@ -178,6 +227,8 @@ class Saturation:
             back_emf_damping=frozen([r.back_emf_damping for r in regions]),
             torque_limit=frozen([r.torque_limit for r in regions]),
             max_speed=frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
+            limit_x=frozen([r.limit_x for r in regions]),
+            curve_q=frozen([_quadratic_q(r) for r in regions]),
             polylines=polylines if any(p is not None for p in polylines) else (),
         )
 
@@ -220,7 +271,12 @@ class Saturation:
         speed_map = self.A_inv.T * self.back_emf_damping[None, :]
         wmax = self.max_speed * (1.0 + SPEED_TOLERANCE)
         matrices = (self.A, self.A_inv, speed_map, coupled_groups(self.A))
-        vectors = (self.stall_torque, -self.stall_torque, self.torque_limit, -self.torque_limit, wmax)
+        limit_x = self.torque_limit if self.limit_x is None else self.limit_x
+        q = np.zeros(self.n) if self.curve_q is None else self.curve_q
+        with np.errstate(divide="ignore"):
+            top = np.where(q > 0, 0.5 / np.where(q > 0, q, 1.0), np.inf)
+        vectors = (self.stall_torque, -self.stall_torque, self.torque_limit, -self.torque_limit, limit_x, -limit_x, q)
+        vectors = (*vectors, top, wmax)
         if torch_like:
             import torch
 
@@ -245,11 +301,16 @@ class Saturation:
             neg_stall=vecs[1],
             torque_limit=vecs[2],
             neg_torque_limit=vecs[3],
-            wmax=vecs[4],
+            limit_x=vecs[4],
+            neg_limit_x=vecs[5],
+            curve_q=vecs[6],
+            curve_top=vecs[7],
+            has_curve=bool(np.any(q > 0)),
+            wmax=vecs[8],
             has_max_speed=bool(np.isfinite(self.max_speed).any()),
             tau_cap=tau_cap,
             qd_cap=qd_cap,
-            ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), self.torque_limit.max())) / colsum),
+            ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), limit_x.max())) / colsum),
         )
         self._remember(key, consts)
         return consts
@@ -326,25 +387,25 @@ class Saturation:
         return hit  # type: ignore[no-any-return]
 
     def _line_bounds(self, qd: Any, consts: _Constants) -> tuple[Any, Any]:
-        """The straight-line intervals at joint velocities ``qd`` (already capped)."""
+        """The motors' intervals (:func:`hound_id.mor.region.torque_interval`) at joint velocities ``qd`` (already
+        capped), as fresh arrays."""
         c = consts
         u = qd @ c.speed_map  # back-EMF damping * motor speed
         if _is_torch(qd):
             import torch
 
-            hi = torch.clamp(c.stall - u, c.neg_torque_limit, c.torque_limit)
-            lo = torch.clamp(c.neg_stall - u, c.neg_torque_limit, c.torque_limit)
+            hi_x, lo_x = c.stall - u, c.neg_stall - u
+            hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)
+            lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
+            if c.has_curve:
+                hi, lo = _torch_curve(hi, c), _torch_curve(lo, c)
             if c.has_max_speed:
                 omega = qd @ c.A_inv.T
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        hi = np.subtract(c.stall, u)
-        np.maximum(hi, c.neg_torque_limit, out=hi)
-        np.minimum(hi, c.torque_limit, out=hi)
-        lo = np.subtract(c.neg_stall, u, out=u)
-        np.maximum(lo, c.neg_torque_limit, out=lo)
-        np.minimum(lo, c.torque_limit, out=lo)
+        lo, hi = np.empty_like(u), np.empty_like(u)
+        _np_bounds(c, u, lo, hi, np.empty_like(u))
         if c.has_max_speed:
             omega = qd @ c.A_inv.T
             hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
@@ -424,18 +485,15 @@ class Saturation:
         for bit. Its rounding is eps times the command's size, which :data:`ORDINARY` keeps within a few
         stall torques (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
 
-        Clipping to the voltage band and then to the torque box equals clipping to
-        their intersection whenever it is non-empty (interval projections compose),
-        and gives the full braking torque past overspeed, as :func:`torque_interval`.
+        The interval is :func:`hound_id.mor.region.torque_interval`'s: the current window the bus allows cut to the
+        driver's limit (past overspeed, the braking torque the back-EMF forces), through the current-torque curve.
         """
         c = consts
-        u, v, tau_m = self._workspace(tau)[:3]
+        u, v, tau_m, _, _, w = self._workspace(tau)
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
-        np.subtract(c.neg_stall, u, out=v)  # lower voltage line
-        np.subtract(c.stall, u, out=u)  # upper voltage line
-        _np_clip(tau_m, v, u, out=v)
-        _np_clip(v, c.neg_torque_limit, c.torque_limit, out=v)
+        _np_bounds(c, u, v, w, u)  # v, w = lower, upper torque
+        _np_clip(tau_m, v, w, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
             omega = qd @ c.A_inv.T
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
@@ -450,15 +508,13 @@ class Saturation:
         mapped back (tau_j = A^-T clip(tau_m)), the command kept in the joints of groups none of whose
         motors clipped. The joints are picked without branches."""
         c = consts
-        u, v, tau_m, pick, untouched = self._workspace(tau)
+        u, v, tau_m, pick, untouched, w = self._workspace(tau)
         qd, tau = _capped(qd, c.qd_cap), _capped(tau, c.tau_cap)
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
         omega = qd @ c.A_inv.T if c.has_max_speed else None
-        np.subtract(c.neg_stall, u, out=v)  # lower voltage line
-        np.subtract(c.stall, u, out=u)  # upper voltage line
-        _np_clip(tau_m, v, u, out=v)
-        _np_clip(v, c.neg_torque_limit, c.torque_limit, out=v)
+        _np_bounds(c, u, v, w, u)  # v, w = lower, upper torque
+        _np_clip(tau_m, v, w, out=v)
         if omega is not None:  # past the rated speed only braking torque passes
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
             np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
@@ -479,15 +535,20 @@ class Saturation:
         import torch
 
         c = consts
-        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
+        u, v, tau_m, tau_in, qd_in, w = self._workspace(tau)
         torch.clamp(qd, -c.qd_cap, c.qd_cap, out=qd_in)
         torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
         torch.matmul(qd_in, c.speed_map, out=u)
         torch.matmul(tau_in, c.A, out=tau_m)
-        torch.sub(c.neg_stall, u, out=v)
-        torch.sub(c.stall, u, out=u)
+        torch.sub(c.stall, u, out=w)  # upper voltage line, x_hi
+        torch.sub(c.neg_stall, u, out=v)  # lower, x_lo
+        torch.minimum(w, c.limit_x, out=u)
+        torch.maximum(u, v, out=u)  # upper end of the window (past overspeed: x_lo's side collapses onto it)
+        torch.maximum(v, c.neg_limit_x, out=v)
+        torch.minimum(v, w, out=v)  # lower end
+        if c.has_curve:
+            u, v = _torch_curve(u, c), _torch_curve(v, c)
         torch.clamp(tau_m, v, u, out=v)
-        torch.clamp(v, c.neg_torque_limit, c.torque_limit, out=v)
         if c.has_max_speed:
             omega = qd_in @ c.A_inv.T
             torch.where(omega > c.wmax, torch.clamp(v, max=0.0), v, out=v)
@@ -501,17 +562,17 @@ class Saturation:
         return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
 
     def _workspace(self, like: Any) -> tuple[Any, ...]:
-        """Scratch arrays shaped like ``like``, private to the calling thread: five in torch, four and a
-        boolean one in numpy."""
+        """Scratch arrays shaped like ``like``, private to the calling thread: six in torch; in numpy four, a boolean
+        one and a fifth float one."""
         key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
         hit = self._cache.get(key)
         if hit is None:
             if _is_torch(like):
                 import torch
 
-                hit = tuple(torch.empty_like(like) for _ in range(5))
+                hit = tuple(torch.empty_like(like) for _ in range(6))
             else:
-                hit = (*(np.empty_like(like) for _ in range(4)), np.empty(like.shape, dtype=bool))
+                hit = (*(np.empty_like(like) for _ in range(4)), np.empty(like.shape, dtype=bool), np.empty_like(like))
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 
@@ -618,6 +679,23 @@ def _polyline_bounds(lines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any
         lo[..., m] = where(inside, _interp(w, speeds, lower), lo[..., m])
         hi[..., m] = where(inside, _interp(w, speeds, upper), hi[..., m])
     return lo, hi
+
+
+def _quadratic_q(region: OperatingRegion) -> float:
+    """q of a region's quadratic current-torque curve (0 for a linear or a table one)."""
+    return 0.0 if region.curve is None else region.curve.q
+
+
+def _table_polyline(
+    region: OperatingRegion,
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
+    """A table curve's region as a polyline (the clip interpolates it; its points are within the region's
+    :data:`hound_id.mor.region.EDGE_TOLERANCE`), or None for a linear or quadratic curve."""
+    from hound_id.mor.region import curved_edges
+
+    if region.curve is None or region.curve.form != "table":
+        return None
+    return curved_edges(region)
 
 
 def saturation_for(robot: Robot) -> Saturation:

@@ -27,6 +27,7 @@ import difflib
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field, fields
+from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
 from typing import Any
@@ -36,6 +37,7 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SpecError, where
+from hound_id.mor.current_curve import CurrentCurve, quadratic_cubic_table, sheet_curve
 from hound_id.io import file_stem, read_yaml
 from hound_id.mor.envelope_effects import EFFECTS
 from hound_id.units import to_si
@@ -153,7 +155,10 @@ class FitRecord:
     peak_note: str
     """The fit's sentence on its peak torque ('' if none)."""
     compensation: FitCompensation | None
-    """The current-compensation polynomial, if the fit has one."""
+    """The odd current-compensation polynomial, if the fit has one (an approximation: :attr:`curve` is exact)."""
+    curve: CurrentCurve | None
+    """The fitted current-torque curve (``current_curve``; for a hound-id/fit/2 record rebuilt from its parameters
+    where they define it), or None."""
     written: Mapping[str, Any] = field(repr=False, compare=False)
     """The block as written (read-only), for :meth:`to_dict`."""
 
@@ -197,6 +202,7 @@ class FitRecord:
         test = rmse.get("test") if isinstance(rmse, Mapping) else None
         peak = data.get("peak_torque")
         schema = data.get("schema")
+        curve = _fitted_curve(data, params, source)
         return cls(
             schema=None if schema is None else str(schema),
             model=tuple(str(m) for m in model) if isinstance(model, list | tuple) else (),
@@ -204,8 +210,30 @@ class FitRecord:
             rmse_test=test if isinstance(test, float) else None,
             peak_note=str(peak.get("note") or "") if isinstance(peak, Mapping) else "",
             compensation=compensation,
+            curve=curve,
             written=read_only(data),
         )
+
+
+#: Effects of the fitted current-torque curve a hound-id/fit/2 record can be rebuilt from (the knee needs its knee
+#: current, which that schema did not write).
+_REBUILDABLE = {"linear", "saturation", "saturation_cubic"}
+
+
+def _fitted_curve(data: Mapping[str, Any], params: Mapping[str, FitParameter], source: str | None) -> CurrentCurve | None:
+    """The fit's current-torque curve: its ``current_curve`` block, or rebuilt from a fit/2 record's parameters."""
+    block = data.get("current_curve")
+    if isinstance(block, Mapping):
+        return CurrentCurve.from_dict(block, where(source, "fit.current_curve"))
+    model = data.get("model", [])
+    names = [str(m) for m in model] if isinstance(model, list | tuple) else []
+    shape = {m for m in names if m == "linear" or m.startswith("saturation")}
+    if "kt" not in params or not shape <= _REBUILDABLE or params["kt"].value <= 0:
+        return None
+    k2, k3 = max(params["k_sat"].value, 0.0) if "k_sat" in params else 0.0, params.get("k_sat3")
+    return quadratic_cubic_table(
+        params["kt"].value, k2, max(k3.value, 0.0) if k3 is not None else 0.0, source="fit-current (fit/2 parameters)"
+    )
 
 
 @dataclass(frozen=True)
@@ -281,12 +309,35 @@ class MotorSpec:
     envelope: MeasuredEnvelope | None = field(default=None, compare=False)
     """A measured envelope (``mor --compare --out``): effects and polyline edges over speed, or None."""
 
+    @cached_property
+    def current_curve(self) -> CurrentCurve:
+        """The current-torque curve: the fit's (``fit-current --out``) if this spec carries one that defines it,
+        else the quadratic through the spec sheet's 20 % point (:func:`hound_id.mor.current_curve.sheet_curve`)."""
+        if self.fit is not None and self.fit.curve is not None:
+            return self.fit.curve
+        return sheet_curve(self.kt, self.peak_torque)
+
     @property
     def torque_limit(self) -> float:
-        """Torque limit actually in force: min(peak torque, Kt * max current) [N m]."""
+        """Torque limit actually in force [N m]: the peak torque, or the torque the current-torque curve makes at the
+        driver's current limit if that is less (and never past the curve's top)."""
+        curve = self.current_curve
+        limit = min(self.peak_torque, curve.top_torque)
+        if self.max_current is None:
+            return limit
+        return min(limit, float(curve.torque(self.max_current)))
+
+    @property
+    def linear_torque_limit(self) -> float:
+        """What a linear-Kt model takes for the torque limit, min(peak torque, Kt * max current) [N m]."""
         if self.max_current is None:
             return self.peak_torque
         return min(self.peak_torque, self.kt * self.max_current)
+
+    @property
+    def limit_current(self) -> float:
+        """Current the curve needs for the torque limit [A] (the driver's limit when that binds)."""
+        return float(self.current_curve.current(self.torque_limit))
 
     @property
     def stall_torque(self) -> float:
@@ -472,11 +523,11 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     )
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
         edges = [abs(v) for edge in (spec.envelope.lower, spec.envelope.upper) for v in edge if v == v]
-        slack = spec.envelope.tolerance + 1e-9 * spec.torque_limit
-        if edges and max(edges) > spec.torque_limit + slack:
+        slack = spec.envelope.tolerance + 1e-9 * spec.linear_torque_limit
+        if edges and max(edges) > spec.linear_torque_limit + slack:  # the envelope model's cap (mor.envelope)
             raise SpecError(
                 f"{where(source, 'envelope')}: an edge reaches {max(edges):.4g} N m, past the torque limit "
-                f"{spec.torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
+                f"{spec.linear_torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
             )
     return spec
 

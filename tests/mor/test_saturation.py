@@ -6,6 +6,7 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hound_id.errors import SaturationError
+from hound_id.mor.current_curve import CurrentCurve
 from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot, robot_from_mapping
 from hound_id.mor.saturation import coupled_groups, dc_motor_clip, saturation_for
@@ -424,7 +425,10 @@ class SimpleRegion:
         self.back_emf_damping = float(sat.back_emf_damping[m])
         self.torque_limit = float(sat.torque_limit[m])
         self.max_speed = None if not np.isfinite(sat.max_speed[m]) else float(sat.max_speed[m])
-        self.overspeed = (self.stall_torque + self.torque_limit) / self.back_emf_damping
+        self.limit_x = float(sat.torque_limit[m] if sat.limit_x is None else sat.limit_x[m])
+        q = 0.0 if sat.curve_q is None else float(sat.curve_q[m])
+        self.curve = CurrentCurve(kt=1.0, k_sat=q) if q > 0 else None  # in x = Kt i: torque x - q x|x|
+        self.overspeed = (self.stall_torque + self.limit_x) / self.back_emf_damping
 
 
 @pytest.mark.parametrize("backend", BACKENDS)

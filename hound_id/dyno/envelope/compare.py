@@ -101,7 +101,7 @@ def _bounds(name: str, inputs: EnvelopeInputs) -> tuple[float, float]:
     """The search interval of an effect's parameter (a current limit: up to the spec's own)."""
     lo_b, hi_b = EFFECTS[name].bounds
     if not math.isfinite(hi_b):
-        top = inputs.spec.max_current or inputs.spec.torque_limit / inputs.spec.kt
+        top = inputs.spec.max_current or inputs.spec.linear_torque_limit / inputs.spec.kt
         hi_b = top * CURRENT_SEARCH[1]
         lo_b = CURRENT_SEARCH[0] * hi_b
     return lo_b, hi_b
@@ -140,7 +140,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         )
     names = [c for c in effect_names(inputs_for(log, inputs, np.arange(log.n))) if c not in model]
     excess0 = np.nan_to_num(past_edges(log, inputs, base.sample_noise, model)[0], nan=0.0)
-    spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.torque_limit))
+    spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.linear_torque_limit))
     out = []
     for name in names:
         value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
@@ -164,7 +164,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
         # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
         # compromises between two effects passes its samples by a little)
         excess = past_edges(log, inputs, base.sample_noise, {**refit, name: value})[0]
-        spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.torque_limit))
+        spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.linear_torque_limit))
         refuted = spill > max(OUTSIDE_OK, SPILL_GROWTH * spill0)
         moved = ", ".join(
             f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
@@ -356,12 +356,12 @@ def unneeded(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs:
 def _plausible(log: EnvelopeLog, inputs: EnvelopeInputs) -> None:
     """Refuse a log whose torque or speed the motor cannot have made: most samples of a log lie inside the region,
     so a 99th percentile past :data:`IMPLAUSIBLE` x the torque limit or the overspeed is a unit mistake."""
-    from hound_id.mor.region import operating_region
+    from hound_id.mor.region import linear_region
 
     spec = inputs.spec
-    overspeed = operating_region(spec).overspeed
+    overspeed = linear_region(spec).overspeed
     for name, values, limit, unit, units in (
-        ("torque", log.torque, spec.torque_limit, "N m", (("N*cm", NCM_PER_NM), ("mN*m", MNM_PER_NM))),
+        ("torque", log.torque, spec.linear_torque_limit, "N m", (("N*cm", NCM_PER_NM), ("mN*m", MNM_PER_NM))),
         ("velocity", log.velocity, overspeed, "rad/s", (("rpm", RPM_PER_RAD_S), ("deg/s", DEG_S_PER_RAD_S))),
     ):
         p99 = float(np.quantile(np.abs(values), IMPLAUSIBLE_QUANTILE))

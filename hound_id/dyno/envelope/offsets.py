@@ -98,7 +98,7 @@ def offsets(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     spread = np.sqrt(np.maximum(np.bincount(gid, weights=(m - mean[gid]) ** 2) / sizes, 0.0))
     speeds = np.bincount(gid, weights=log.velocity[np.concatenate([i for _, i in ordered])]) / sizes
     side = np.array([s for s, _ in ordered], dtype=np.int8)
-    off = np.where(bad, -inputs.spec.torque_limit, mean)
+    off = np.where(bad, -inputs.spec.linear_torque_limit, mean)
     # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
     se = spread / np.sqrt(sizes) * math.sqrt((1 + walls.rho) / (1 - walls.rho))
     return Offsets(speeds, side, off, se, spread)
@@ -110,7 +110,7 @@ def past_edges(
     """(how far each sample passes the edges of ``model`` (default the spec sheet) [N m], the threshold, the
     samples past it)."""
     lo, hi = envelope(log.velocity, dict(model or {}), inputs_for(log, inputs, np.arange(log.n)))
-    thr = max(PAST_SIGMAS * noise, PAST_FLOOR * inputs.spec.torque_limit)
+    thr = max(PAST_SIGMAS * noise, PAST_FLOOR * inputs.spec.linear_torque_limit)
     excess = np.maximum(log.torque - hi, lo - log.torque)
     return excess, thr, np.asarray(np.isfinite(excess) & (excess > thr))
 

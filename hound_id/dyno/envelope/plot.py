@@ -72,4 +72,4 @@ def plot_compare(comparison: Any) -> Figure:
 def _reference(inputs: Any) -> Any:
     from hound_id.mor.envelope import EnvelopeInputs
 
-    return EnvelopeInputs(inputs.spec, compensation=inputs.compensation)
+    return EnvelopeInputs(inputs.spec, curve=inputs.curve)

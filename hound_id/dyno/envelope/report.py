@@ -106,7 +106,7 @@ def verdict(c: Comparison) -> Verdict:
     if off.offset.size:
         # a bin's own spread is a noisy estimate of the noise (few independent samples): never below the typical one
         se = off.se * np.maximum(1.0, off.sample_noise / np.maximum(off.spread, 1e-30))
-        far = (np.abs(off.offset) > OFF_SIGMAS * se) & (np.abs(off.offset) > OFF_FLOOR * spec.torque_limit)
+        far = (np.abs(off.offset) > OFF_SIGMAS * se) & (np.abs(off.offset) > OFF_FLOOR * spec.linear_torque_limit)
         off_model = bool(far.any())
         if off_model:
             worst = int(np.argmax(np.where(far, np.abs(off.offset) / np.maximum(se, 1e-30), -1.0)))

@@ -383,7 +383,7 @@ def find_walls(
     drifting: set[tuple[int, int]] = set()  # (side, bin) of walls found with their drift taken out
     if commanded is None and log.torque_cmd is not None:
         commanded = command_limits(log, inputs)
-    width = WALL_WIDTH * inputs.spec.torque_limit
+    width = WALL_WIDTH * inputs.spec.linear_torque_limit
     for b in range(bins):
         members = np.flatnonzero(index == b)
         found = []
@@ -421,8 +421,8 @@ def find_walls(
     centres = 0.5 * (edges[:-1] + edges[1:])
     rho = _autocorrelation(log, upper + lower, pooled=log.torque_cmd is not None)
     if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls and walls off the edge are chance
-        tol = STEP * inputs.spec.torque_limit
-        floor = LEVEL_FLOOR * inputs.spec.torque_limit
+        tol = STEP * inputs.spec.linear_torque_limit
+        floor = LEVEL_FLOOR * inputs.spec.linear_torque_limit
         empty = np.array([], dtype=np.int64)
         margins = {1: log.torque - hi, -1: lo - log.torque}
         noise = _noise_scale(log, upper + lower)
@@ -559,7 +559,7 @@ def _steep(speed: float, side: float, inputs: EnvelopeInputs) -> bool:
     drift across a bin is passes of the command lining up, not a wall."""
     spec = inputs.spec
     motoring = side * speed > 0
-    corner = max(spec.kv * (spec.bus_voltage - spec.resistance * spec.torque_limit / spec.kt), 0.0)
+    corner = max(spec.kv * (spec.bus_voltage - spec.resistance * spec.linear_torque_limit / spec.kt), 0.0)
     return abs(speed) >= (STEEP_MOTORING * corner if motoring else STEEP_BRAKING * spec.no_load_speed)
 
 
@@ -645,4 +645,4 @@ def _contiguous(
 
 def inputs_for(log: EnvelopeLog, inputs: EnvelopeInputs, idx: NDArray[np.int64]) -> EnvelopeInputs:
     temperature = log.temperature[idx] if log.temperature is not None else None
-    return EnvelopeInputs(inputs.spec, temperature=temperature, compensation=inputs.compensation)
+    return EnvelopeInputs(inputs.spec, temperature=temperature, curve=inputs.curve)

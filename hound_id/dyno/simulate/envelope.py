@@ -29,7 +29,7 @@ def simulate_log(
     rng = np.random.default_rng(seed)
     spec = inputs.spec
     omega = rng.uniform(-speed_fraction, speed_fraction, n) * spec.bus_voltage * spec.kv
-    command = rng.uniform(-1.5, 1.5, n) * spec.torque_limit
+    command = rng.uniform(-1.5, 1.5, n) * spec.linear_torque_limit
     return _realise(inputs, params, omega, command, noise * rng.standard_normal(n), temperature_range)
 
 
@@ -60,7 +60,7 @@ def simulate_trajectory(
     command = np.zeros(n)
     for _ in range(40):
         command += np.sin(2 * np.pi * rng.uniform(0.05, band) * t + rng.uniform(0, 2 * np.pi))
-    command *= amplitude * spec.torque_limit / np.max(np.abs(command))
+    command *= amplitude * spec.linear_torque_limit / np.max(np.abs(command))
     from scipy.signal import lfilter
 
     white = rng.standard_normal(n) * math.sqrt(1 - correlation**2)
@@ -83,7 +83,7 @@ def _realise(
     n = omega.size
     t_lo, t_hi = temperature_range
     temperature = t_lo + (t_hi - t_lo) * 0.5 * (1 - np.cos(np.linspace(0, 2 * np.pi, n)))
-    truth = EnvelopeInputs(spec, temperature=temperature, compensation=inputs.compensation)
+    truth = EnvelopeInputs(spec, temperature=temperature, curve=inputs.curve)
     lo, hi = envelope(omega, params, truth)
     tau = np.clip(command, lo, hi)
     i = motor_current(tau, truth, params.get("kt_saturation", 0.0))
