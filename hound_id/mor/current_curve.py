@@ -141,9 +141,7 @@ class CurrentCurve:
         if self.form == "quadratic":
             out["k_sat"] = self.k_sat
         if self.currents is not None and self.torques is not None:
-            out.update(
-                currents=self.currents.tolist(), torques=self.torques.tolist(), table_error=self.table_error
-            )
+            out.update(currents=self.currents.tolist(), torques=self.torques.tolist(), table_error=self.table_error)
         out.update(
             top_current=None if math.isinf(self.top_current) else self.top_current,
             top_torque=None if math.isinf(self.top_torque) else self.top_torque,
@@ -185,9 +183,7 @@ def sheet_curve(kt: float, peak_torque: float, deviation: float = PEAK_DEVIATION
     )
 
 
-def quadratic_cubic_table(
-    kt: float, k2: float, k3: float, points: int = 257, source: str = ""
-) -> CurrentCurve:
+def quadratic_cubic_table(kt: float, k2: float, k3: float, points: int = 257, source: str = "") -> CurrentCurve:
     """The table of tau = Kt i - k2 i|i| - k3 i^3 from 0 to its top, where its slope Kt - 2 k2 i - 3 k3 i^2 reaches 0
     (a fit with the cubic saturation term); its inverse error is measured at the midpoints."""
     if k3 <= 0:
@@ -214,3 +210,26 @@ def table_of(f: Any, kt: float, top: float, points: int = 257, source: str = "")
     mid = 0.5 * (i[:-1] + i[1:])
     error = float(np.max(np.abs(np.interp(np.asarray(f(mid), dtype=float), t, i) - mid))) if mid.size else 0.0
     return CurrentCurve(kt=kt, currents=frozen(i), torques=frozen(t), table_error=error, source=source)
+
+
+def polynomial_curve(
+    kt: float, powers: tuple[int, ...], coefficients: tuple[float, ...], torque_range: float, points: int = 257
+) -> CurrentCurve:
+    """The table curve of a compensation polynomial, current [A] = sum c_k tau^k, over 0..``torque_range`` [N m] (a
+    hound-id/fit/2 record whose curve its parameters do not define; a test's hand-made curve). The polynomial must
+    rise over the range; the table ends where it stops."""
+    taus = torque_range * np.sin(np.linspace(0.0, 0.5 * np.pi, points))
+    taus[-1] = torque_range
+
+    def current(t: Array) -> Array:
+        return np.asarray(sum(c * t**p for p, c in zip(powers, coefficients, strict=True)), dtype=float)
+
+    i = current(taus)
+    falling = np.flatnonzero(np.diff(i) <= 0)
+    if falling.size:
+        i, taus = i[: falling[0] + 1], taus[: falling[0] + 1]
+    mid = 0.5 * (taus[:-1] + taus[1:])
+    error = float(np.max(np.abs(np.interp(mid, taus, i) - current(mid)))) if mid.size else 0.0
+    return CurrentCurve(
+        kt=kt, currents=frozen(i), torques=frozen(taus), table_error=error, source="compensation polynomial"
+    )

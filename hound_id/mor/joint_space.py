@@ -181,14 +181,36 @@ def _inner_boxes(tx: Transmission, regions: list[OperatingRegion]) -> list[Box]:
         return [Box(effort=float(T / P[0, 0]), velocity=float(W / Q[0, 0]))]
     rows, rhs = [], []
     for m, r in enumerate(regions):
-        for (a_tau, a_omega), b in zip(np.abs(r.A), r.b, strict=True):
+        for a_tau, a_omega in _box_rows(r):
             rows.append(np.concatenate([a_tau * P[m], a_omega * Q[m]]))
-            rhs.append(b)
+            rhs.append(1.0)
     try:
         x = largest_box(np.array(rows), np.array(rhs))
     except RobotError as err:
         raise RobotError(f"inner box of {', '.join(tx.joints)}: {err}") from err
     return [Box(effort=float(x[i]), velocity=float(x[k + i])) for i in range(k)]
+
+
+def _box_rows(region: OperatingRegion) -> np.ndarray:
+    """The rows (|a_tau| / b, |a_omega| / b) of a region that can bound a symmetric box, T |a_tau| / b + W |a_omega| / b
+    <= 1: a row is implied by the others when its point lies inside the hull of theirs and of the axes' feet (a
+    curved edge gives hundreds of rows of which a few bind; the box optimiser works on those)."""
+    from scipy.spatial import ConvexHull, QhullError
+
+    points = np.abs(region.A) / region.b[:, None]
+    points = points[np.any(points > 0, axis=1)]
+    if len(points) <= 3:
+        return points
+    feet = np.array([[0.0, 0.0], [points[:, 0].max(), 0.0], [0.0, points[:, 1].max()]])
+    allp = np.vstack([points, feet])
+    scale = allp.max(axis=0)
+    scale[scale == 0] = 1.0
+    try:
+        hull = ConvexHull(allp / scale)
+    except QhullError:  # degenerate (all rows on one line): every row
+        return points
+    keep = [k for k in hull.vertices if k < len(points)]
+    return points[np.array(sorted(keep))]
 
 
 def motor_region(spec: MotorSpec) -> OperatingRegion:

@@ -48,6 +48,9 @@ SPEED_TOLERANCE = 1e-9
 #: Accuracy of a curved region's polyline edges, as a share of the torque limit: linear interpolation between its
 #: points misses the exact edge by at most this (1e-4: 0.8 mN m for the sample motor, far below any torque sensor).
 EDGE_TOLERANCE = 1e-4
+#: A polyline segment shorter than this share of the speed range is a step in the edge (the braking-only cut at the
+#: rated speed), not a slope: it gives no half-space (the speed rows bound it).
+STEP_SPAN = 1e-7
 #: The curved edges are refined by halving any segment that misses at its midpoint, at most so many times.
 EDGE_REFINEMENTS = 20
 
@@ -301,8 +304,8 @@ def _cut(
     for side, edge in ((1, upper), (-1, lower)):
         for k in range(speeds.size - 1):
             w0, w1, t0, t1 = speeds[k], speeds[k + 1], edge[k], edge[k + 1]
-            if not (np.isfinite(t0) and np.isfinite(t1)):
-                continue
+            if not (np.isfinite(t0) and np.isfinite(t1)) or w1 - w0 <= STEP_SPAN * (speeds[-1] - speeds[0]):
+                continue  # no edge there, or a step (the rated speed's braking-only cut): the other rows bound it
             slope = (t1 - t0) / (w1 - w0)
             offset = side * (t0 - slope * w0)  # side * tau - side * slope * omega <= offset
             if offset <= 1e-9 * base.torque_limit:  # a segment through the origin: the other rows bound it
@@ -357,7 +360,10 @@ def measured_region(spec: MotorSpec) -> OperatingRegion:
     if spec.envelope is None:
         raise ValueError(f"{spec.name}: the spec carries no measured envelope")
     speeds, lower, upper = spec.envelope.polyline
-    rows = [(label, (float(a[0]), float(a[1])), float(b)) for label, a, b in zip(sheet.labels, sheet.A, sheet.b, strict=True)]
+    rows = [
+        (label, (float(a[0]), float(a[1])), float(b))
+        for label, a, b in zip(sheet.labels, sheet.A, sheet.b, strict=True)
+    ]
     region = _cut(sheet, rows, speeds, lower, upper, "envelope")
     region = replace(
         region,

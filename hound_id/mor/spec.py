@@ -37,12 +37,15 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SpecError, where
-from hound_id.mor.current_curve import CurrentCurve, quadratic_cubic_table, sheet_curve
 from hound_id.io import file_stem, read_yaml
+from hound_id.mor.current_curve import CurrentCurve, quadratic_cubic_table, sheet_curve
 from hound_id.mor.envelope_effects import EFFECTS
 from hound_id.units import to_si
 
 SCHEMA = "hound-id/motor/1"
+
+#: The spec sheet's current-torque curves (``kt_curve``).
+KT_CURVES = ("quadratic", "linear")
 
 #: Relative disagreement between Kt and 1/Kv above which a spec is flagged.
 KT_KV_TOLERANCE = 0.15
@@ -75,6 +78,7 @@ _OTHER_KEYS = (
     "base",
     "fit",
     "envelope",
+    "kt_curve",
 )
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
@@ -220,7 +224,9 @@ class FitRecord:
 _REBUILDABLE = {"linear", "saturation", "saturation_cubic"}
 
 
-def _fitted_curve(data: Mapping[str, Any], params: Mapping[str, FitParameter], source: str | None) -> CurrentCurve | None:
+def _fitted_curve(
+    data: Mapping[str, Any], params: Mapping[str, FitParameter], source: str | None
+) -> CurrentCurve | None:
     """The fit's current-torque curve: its ``current_curve`` block, or rebuilt from a fit/2 record's parameters."""
     block = data.get("current_curve")
     if isinstance(block, Mapping):
@@ -308,6 +314,10 @@ class MotorSpec:
     """The dynamometer fit (schema hound-id/fit/2) whose Kt and peak torque this spec carries, if any."""
     envelope: MeasuredEnvelope | None = field(default=None, compare=False)
     """A measured envelope (``mor --compare --out``): effects and polyline edges over speed, or None."""
+    kt_curve: str = "quadratic"
+    """The spec sheet's current-torque curve when no fit gives one: ``quadratic`` (through the 20 % point at the
+    peak torque) or ``linear`` (tau = Kt i up to the peak torque, for a sheet whose peak torque is a thermal or
+    demagnetisation limit rather than a 20 % point)."""
 
     @cached_property
     def current_curve(self) -> CurrentCurve:
@@ -315,6 +325,8 @@ class MotorSpec:
         else the quadratic through the spec sheet's 20 % point (:func:`hound_id.mor.current_curve.sheet_curve`)."""
         if self.fit is not None and self.fit.curve is not None:
             return self.fit.curve
+        if self.kt_curve == "linear":
+            return CurrentCurve(kt=self.kt, source="spec sheet: linear (kt_curve: linear)")
         return sheet_curve(self.kt, self.peak_torque)
 
     @property
@@ -508,6 +520,13 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             "(e.g. [peak_torque])",
             field="extrapolated",
         )
+    kt_curve = data.get("kt_curve", "quadratic")
+    if kt_curve not in KT_CURVES:
+        raise SpecError(
+            f"{where(source, 'kt_curve')}: found {kt_curve!r}, expected one of {', '.join(KT_CURVES)} (quadratic: "
+            "through the 20 % point at peak_torque; linear: tau = Kt i up to peak_torque)",
+            field="kt_curve",
+        )
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
         raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
@@ -519,6 +538,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         extrapolated=tuple(extrapolated),
         fit=None if fit is None else FitRecord.from_mapping(fit, source),
         envelope=_envelope(data.get("envelope"), source),
+        kt_curve=kt_curve,
         **values,
     )
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from

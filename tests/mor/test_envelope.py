@@ -5,8 +5,9 @@ import pytest
 
 from hound_id.dyno.simulate.envelope import simulate_log
 from hound_id.errors import SpecError
+from hound_id.mor.current_curve import polynomial_curve
 from hound_id.mor.envelope import COPPER_ALPHA, EFFECTS, EnvelopeInputs, effect_names, envelope, feasible
-from hound_id.mor.region import operating_region, torque_interval
+from hound_id.mor.region import linear_region, torque_interval
 from hound_id.mor.spec import load_motor_spec
 from tests.conftest import MOTOR, SMALL_MOTOR
 
@@ -21,7 +22,7 @@ def test_no_effect_is_the_spec_sheet_region(motor):
     spec = load_motor_spec(motor)
     w = np.linspace(-0.99, 0.99, 101) * spec.bus_voltage * spec.kv
     lo, hi = envelope(w, {}, EnvelopeInputs(spec))
-    ref_lo, ref_hi = torque_interval(w, operating_region(spec))
+    ref_lo, ref_hi = torque_interval(w, linear_region(spec))  # the envelope model starts from linear Kt
     assert np.max(np.abs(lo - ref_lo)) < 1e-9 and np.max(np.abs(hi - ref_hi)) < 1e-9
 
 
@@ -69,8 +70,8 @@ def test_current_limit_and_kt_saturation():
     lo, hi = envelope(W, {"current_limit": 40.0}, INPUTS)
     assert np.max(hi) == pytest.approx(SPEC.kt * 40.0) and np.min(lo) == pytest.approx(-SPEC.kt * 40.0)
     # a curve that needs 10 % more current at 9 N m than Kt says: the voltage line bends inwards
-    comp = ((1, 3), (1 / SPEC.kt, 0.1 / (SPEC.kt * 81.0)))
-    bent = EnvelopeInputs(SPEC, compensation=comp)
+    comp = polynomial_curve(SPEC.kt, (1, 3), (1 / SPEC.kt, 0.1 / (SPEC.kt * 81.0)), torque_range=25.0)
+    bent = EnvelopeInputs(SPEC, curve=comp)
     _, hi_s = envelope(W, {"kt_saturation": 1.0}, bent)
     _, hi0 = envelope(W, {}, INPUTS)
     assert np.all(hi_s <= hi0 + 1e-12) and hi_s[-1] < hi0[-1]

@@ -12,10 +12,20 @@ from hound_id.mor.robot import load_robot, robot_from_mapping
 from hound_id.mor.saturation import coupled_groups, dc_motor_clip, saturation_for
 from hound_id.mor.spec import MotorSpec
 from tests.conftest import ROBOT, SMALL_MOTOR
+from tests.mor.curve_truth import brute_interval
 
 ROBOT_SAT = saturation_for(load_robot(ROBOT))
 N = ROBOT_SAT.n
-MOTOR_OVERSPEED = float(np.min(ROBOT_SAT.stall_torque + ROBOT_SAT.torque_limit) / np.max(ROBOT_SAT.back_emf_damping))
+MOTOR_OVERSPEED = float(np.min(ROBOT_SAT.stall_torque + ROBOT_SAT.limit_x) / np.max(ROBOT_SAT.back_emf_damping))
+SPECS = [load_robot(ROBOT).motor_specs[m] for m in load_robot(ROBOT).motors]
+
+
+def quadratic_current(spec, tau):
+    """Current [A] for a torque on the quadratic through the spec's 20 % point, written out (not hound_id's)."""
+    k = 0.16 * spec.kt**2 / spec.peak_torque
+    return np.sign(tau) * 2 * np.abs(tau) / (spec.kt + np.sqrt(spec.kt**2 - 4 * k * np.abs(tau)))
+
+
 DEVICES = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
 
 unit = st.floats(-1.0, 1.0, allow_nan=False)
@@ -43,10 +53,15 @@ def test_output_is_feasible(cmd):
     tau_m, omega = ROBOT_SAT.motor_state(out, qd)
     # feasibility against the region itself, motor by motor, inside overspeed
     mask = within_overspeed(qd)
-    assert np.all(np.abs(tau_m) <= ROBOT_SAT.torque_limit * (1 + 1e-12))
-    # the voltage band (R/Kt) tau + omega/Kv in [-V, V], divided by V/stall-torque units
-    line = (tau_m + omega * ROBOT_SAT.back_emf_damping) / ROBOT_SAT.stall_torque
-    assert np.all(np.abs(line[mask]) <= 1 + 1e-9)
+    assert np.all(np.abs(tau_m[mask]) <= np.broadcast_to(ROBOT_SAT.torque_limit, tau_m.shape)[mask] * (1 + 1e-12))
+    # the voltage band R i(tau) + omega/Kv in [-V, V], i the current the 20 % point's quadratic needs, and the
+    # driver's current limit
+    for m, spec in enumerate(SPECS):
+        i = quadratic_current(spec, tau_m[:, m])
+        volts = spec.resistance * i + omega[:, m] / spec.kv
+        inside = mask[:, m]
+        assert np.all(np.abs(volts[inside]) <= spec.bus_voltage * (1 + 1e-9))
+        assert np.all(np.abs(i[inside]) <= spec.max_current * (1 + 1e-9))
 
 
 @settings(max_examples=150, deadline=None)
@@ -82,7 +97,7 @@ def _regions():
 
 
 @st.composite
-def uncoupled_robot(draw):
+def uncoupled_robot(draw, curve="linear"):
     k = draw(st.integers(1, 4))
     specs, transmissions, ratios = {}, [], []
     for i in range(k):
@@ -95,6 +110,7 @@ def uncoupled_robot(draw):
             bus_voltage=draw(st.floats(12.0, 100.0)),
             peak_torque=draw(st.floats(0.2, 20.0)),
             max_current=draw(st.one_of(st.none(), st.floats(2.0, 100.0))),
+            kt_curve=curve,
         )
         g = draw(st.floats(1.0, 30.0)) * draw(st.sampled_from([1.0, -1.0]))
         ratios.append(g)
@@ -134,7 +150,43 @@ def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
         -dc_motor_clip(-tau, -qd, saturation_effort, velocity_limit, effort_limit),
         dc_motor_clip(tau, qd, saturation_effort, velocity_limit, effort_limit),
     )
+    # past overspeed the DC clip gives the torque limit; the back-EMF forces Kt (|omega|/Kv - V)/R of braking
+    omega = qd * ratios
+    over = np.abs(omega) > np.array([r.overspeed for r in regions])
+    kt, kv, res, volts = (
+        np.array([getattr(specs[f"m{i}"], a) for i in range(k)]) for a in ("kt", "kv", "resistance", "bus_voltage")
+    )
+    forced = -np.sign(omega) * kt * (np.abs(omega) / kv - volts) / res * ratios
+    theirs = np.where(over, forced, theirs)
     assert np.allclose(ours, theirs, rtol=1e-9, atol=1e-9 * effort_limit.max())
+
+
+@settings(max_examples=60, deadline=None)
+@given(uncoupled_robot(curve="quadratic"), st.data())
+def test_uncoupled_curved_joints_clip_to_the_brute_force_interval(robot_def, data):
+    """The clip's fused numpy arithmetic against the brute-force current scan of tests/mor/test_region.py."""
+    specs, transmissions, ratios = robot_def
+    import hound_id.mor.robot as robot_mod
+
+    k = len(ratios)
+    robot = robot_mod.Robot(
+        name="u",
+        joints=tuple(f"j{i}" for i in range(k)),
+        transmissions=tuple(robot_mod.from_ratios(t["joints"], t["motors"], t["ratios"]) for t in transmissions),
+        motor_specs={f"m{i}": specs[f"m{i}"] for i in range(k)},
+    )
+    sat = saturation_for(robot)
+    regions = [operating_region(specs[f"m{i}"]) for i in range(k)]
+    u = data.draw(arrays(float, (2, 4, k), elements=unit))
+    tau_m = u[0] * np.array([r.torque_limit for r in regions]) * 1.5
+    omega = u[1] * np.array([r.overspeed for r in regions]) * 0.999
+    out_m = sat(tau_m * ratios, omega / ratios) / ratios  # joint torque g tau_m, joint speed omega / g
+    for m in range(k):
+        scale = 2e-4 * regions[m].torque_limit + 2 * specs[f"m{m}"].kt * 2 * 1000 / 200000
+        for row in range(4):
+            lo, hi = brute_interval(specs[f"m{m}"], omega[row, m])
+            want = min(max(tau_m[row, m], lo), hi)
+            assert out_m[row, m] == pytest.approx(want, abs=scale)
 
 
 def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml):
@@ -149,10 +201,18 @@ def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml)
         base=SMALL_MOTOR.parent,
     )
     sat = saturation_for(robot)
-    region = operating_region(robot.motor_specs["m"])
+    spec = robot.motor_specs["m"]
+    region = operating_region(spec)
     far = np.array([[region.overspeed * 1.5]])
-    assert sat(np.array([[5.0]]), far)[0, 0] == pytest.approx(-region.torque_limit)
-    assert sat(np.array([[-5.0]]), -far)[0, 0] == pytest.approx(region.torque_limit)
+    # past overspeed, whatever is commanded: the braking torque of the current the back-EMF forces
+    i = (spec.bus_voltage - far[0, 0] / spec.kv) / spec.resistance
+    k = 0.16 * spec.kt**2 / spec.peak_torque
+    i = max(i, -spec.kt / (2 * k))  # the curve is held at its top beyond its top current
+    forced = spec.kt * i + k * i * i  # i < 0: Kt i - k i|i|
+    assert forced < -region.torque_limit and forced == pytest.approx(-spec.peak_torque / 0.64)
+    for command in (5.0, 0.0, -5.0, -100.0):
+        assert sat(np.array([[command]]), far)[0, 0] == pytest.approx(forced)
+        assert sat(np.array([[-command]]), -far)[0, 0] == pytest.approx(-forced)
     # between max_speed and no-load speed the voltage line would allow motoring; the speed limit does not
     w = np.array([[region.max_speed * 1.05]])
     assert region.max_speed * 1.05 < region.no_load_speed
@@ -327,7 +387,8 @@ def test_largest_finite_commands_and_speeds(dtype, backend):
     assert np.all(np.isfinite(out64))
     _, omega = ROBOT_SAT.motor_state(np.zeros((2, N)), fast.astype(np.float64))
     tau_m = out64 @ ROBOT_SAT.A
-    braking = -np.sign(omega) * ROBOT_SAT.torque_limit
+    top = np.array([operating_region(spec).curve.top_torque for spec in SPECS])  # the curve is held at its top
+    braking = -np.sign(omega) * top
     assert np.allclose(tau_m, braking, rtol=64 * np.finfo(dtype).eps * GAIN)
 
 

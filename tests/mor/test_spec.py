@@ -16,7 +16,10 @@ def test_samples_load_with_units_converted():
     assert small.max_speed == pytest.approx(2000 * 2 * math.pi / 60)
     assert small.rotor_inertia == pytest.approx(0.6e-4)
     hound = load_motor_spec(MOTOR)
-    assert hound.torque_limit == pytest.approx(0.138 * 70)  # driver-limited below the 12 N m peak
+    # driver-limited below the 12 N m peak: the 20 % point's quadratic at 70 A, Kt i - 0.16 Kt^2 / P i^2
+    assert hound.linear_torque_limit == pytest.approx(0.138 * 70)
+    assert hound.torque_limit == pytest.approx(0.138 * 70 - 0.16 * 0.138**2 / 12 * 70**2)
+    assert hound.limit_current == pytest.approx(70.0)
     assert spec_warnings(hound) == () and spec_warnings(small) == ()
 
 
@@ -149,7 +152,7 @@ def test_fitted_spec_on_a_base_sheet(write_yaml, tmp_path):
         ({"effects": {"warp_drive": 1}}, "unknown effect 'warp_drive'"),
         ({"effects": {"bus_sag": -3}}, r"envelope.effects.bus_sag': found -3, expected r_pack in \[0, 5\] ohm"),
         ({"tolerance": "x"}, "envelope.tolerance': found 'x', expected a number"),
-        ({"upper": [50.0, 50.0]}, "an edge reaches 50 N m, past the torque limit 9.66 N m"),
+        ({"upper": [50.0, 50.0]}, "an edge reaches 50 N m, past the torque limit 9.66 N m"),  # the envelope's (linear)
         ({"speeds": [1.0, 0.0]}, "needs at least two increasing speeds"),
     ],
 )
@@ -175,7 +178,7 @@ def test_fit_and_envelope_are_frozen_typed_records(tmp_path):
     import numpy as np
     import yaml
 
-    from hound_id.mor.envelope import compensation_of
+    from hound_id.mor.envelope import fitted_curve
     from hound_id.mor.spec import FitCompensation, FitRecord, MeasuredEnvelope
     from tests.export.conftest import fitted_motor
     from tests.mor.test_region import write_envelope_spec
@@ -186,7 +189,9 @@ def test_fit_and_envelope_are_frozen_typed_records(tmp_path):
     assert spec.fit.parameters["coulomb"].value == 0.08 and spec.fit.parameters["coulomb"].unit == "N m"
     assert spec.fit.value("viscous") == 2e-4 and spec.fit.value("stribeck") == 0.0
     assert spec.fit.compensation == FitCompensation((1, 3), (7.2727, 0.001))
-    assert compensation_of(spec) == ((1, 3), (7.2727, 0.001))
+    # a fit/2 record of a model without saturation: its curve is linear with the fitted Kt (the polynomial is kept)
+    assert fitted_curve(spec) is spec.fit.curve and spec.fit.curve.form == "linear"
+    assert spec.fit.curve.kt == spec.fit.value("kt") and spec.current_curve is spec.fit.curve
     assert spec.fit.to_dict() == yaml.safe_load(path.read_text())["fit"]
     with pytest.raises(dataclasses.FrozenInstanceError):
         spec.fit.model = ()  # type: ignore[misc]

@@ -64,7 +64,7 @@ class Dyno:
 def _protocol(spec, dyno: Dyno, rng: np.random.Generator) -> tuple[np.ndarray, np.ndarray]:
     """(speed set-point [rad/s], torque command [N m]) on the fine grid."""
     w_nl = spec.bus_voltage * spec.kv
-    tau_lim = spec.torque_limit
+    tau_lim = spec.linear_torque_limit
     speeds = np.linspace(-dyno.speed_fraction, dyno.speed_fraction, dyno.holds) * w_nl
     speeds = rng.permutation(speeds + rng.uniform(-0.3, 0.3, dyno.holds) * (speeds[1] - speeds[0]))
     dt = 1.0 / FINE_HZ
@@ -193,7 +193,7 @@ def run(spec, dyno: Dyno = Dyno()) -> dict[str, np.ndarray]:
     # J s w = tau + (kp + ki/s)(w_set - w), discretised by the bilinear transform)
     j_total, bw = 0.02, 2 * math.pi * 15.0
     kp, ki = j_total * 2 * bw, j_total * bw * bw
-    tau_guess = np.clip(command, -spec.torque_limit, spec.torque_limit)
+    tau_guess = np.clip(command, -spec.linear_torque_limit, spec.linear_torque_limit)
     den = [j_total, kp, ki]
     w = _lti([kp, ki], den, set_w) + _lti([1.0, 0.0], den, tau_guess)
     # the winding heats with the current: I^2 heat (of the clamped command), scaled to the test's rise
@@ -209,7 +209,7 @@ def run(spec, dyno: Dyno = Dyno()) -> dict[str, np.ndarray]:
     rows = np.arange(0, n, step)
     m = rows.size
     t = rows * dt
-    sigma = dyno.noise * spec.torque_limit
+    sigma = dyno.noise * spec.linear_torque_limit
     noise = sigma * (_ar1(rng, m, dyno.noise_rho) + dyno.hum * math.sqrt(2) * np.sin(2 * math.pi * 50.0 * t))
     torque = np.round((measured[rows] + noise) / 1e-3) * 1e-3  # a 1 mN m ADC step
     velocity = _first_order(w, 0.5e-3, FINE_HZ)[rows] + 0.3 * rng.standard_normal(m)

@@ -11,6 +11,7 @@ from hound_id.dyno.envelope.report import comparison_json
 from hound_id.dyno.logs import EnvelopeLog, load_envelope_log
 from hound_id.dyno.simulate.envelope import simulate_log, simulate_trajectory
 from hound_id.errors import DynoDataError, SpecError
+from hound_id.mor.current_curve import polynomial_curve
 from hound_id.mor.envelope import EnvelopeInputs, envelope, polyline
 from hound_id.mor.robot import load_robot
 from hound_id.mor.spec import load_motor_spec
@@ -18,11 +19,11 @@ from tests.conftest import MOTOR, ROBOT
 
 SPEC = load_motor_spec(MOTOR)
 #: A curve that needs 30 % more current at 9 N m than Kt says (as fit-current's compensation would give).
-CURVE = ((1, 3), (1 / SPEC.kt, 0.3 / (SPEC.kt * 81.0)))
+CURVE = polynomial_curve(SPEC.kt, (1, 3), (1 / SPEC.kt, 0.3 / (SPEC.kt * 81.0)), torque_range=25.0)
 
 
 def log_of(spec, truth, *, curve=None, n=8000, seed=3, cmd=False, bus=True, speed=0.9):
-    inputs = EnvelopeInputs(spec, compensation=curve)
+    inputs = EnvelopeInputs(spec, curve=curve)
     d = simulate_log(inputs, truth, n=n, noise=0.02, seed=seed, speed_fraction=speed)
     cmd_col = None
     if cmd:  # the command that produced each sample: past the edge where the sample sits on it
@@ -161,7 +162,9 @@ def test_a_log_that_never_reaches_its_limits_is_refused(seed):
 def test_polyline_is_within_its_stated_accuracy():
     inputs = EnvelopeInputs(SPEC)
     line = polyline({"bus_sag": 0.15, "inductance": 1e-4}, inputs)
-    assert line.max_error <= line.tolerance == pytest.approx(0.002 * SPEC.torque_limit)
+    assert (
+        line.max_error <= line.tolerance == pytest.approx(0.002 * SPEC.linear_torque_limit)
+    )  # the envelope model caps at linear Kt
     w = np.linspace(min(line.speeds), max(line.speeds), 2001)
     lo, hi = envelope(w, {"bus_sag": 0.15, "inductance": 1e-4}, inputs)
     ok = np.isfinite(hi)
@@ -246,7 +249,7 @@ def test_measured_envelope_reaches_the_saturation_the_bundle_and_the_runtime(tmp
     assert inside.mean() > 0.5
     t = tau_m.ravel()[inside]
     assert np.all(t <= hi[inside] + tol) and np.all(t >= lo[inside] - tol)
-    assert np.any(tau_m.ravel() < SPEC.torque_limit - 0.5)  # the sag bites at speed
+    assert np.any(tau_m.ravel() < SPEC.linear_torque_limit - 0.5)  # the sag bites at speed
     t = torch.tensor(tau, requires_grad=True)
     out_t = sat(t, torch.tensor(qd))
     out_t.sum().backward()
@@ -313,8 +316,8 @@ def test_a_measured_envelope_sends_isaac_lab_joints_to_the_runtime(tmp_path):
     haa = fields["joints"]["FL_HAA"]
     assert haa["use"] == "hound_id.runtime" and "measured envelope" in haa["reason"]
     # the largest gap is at the straight line's corner, where it leaves the torque limit (not a polyline point)
-    corner = (SPEC.stall_torque - SPEC.torque_limit) / SPEC.back_emf_damping
-    gap = 9.0 * (SPEC.torque_limit - np.interp(corner, spec.envelope.speeds, spec.envelope.upper))
+    corner = (SPEC.stall_torque - SPEC.linear_torque_limit) / SPEC.back_emf_damping
+    gap = 9.0 * (SPEC.linear_torque_limit - np.interp(corner, spec.envelope.speeds, spec.envelope.upper))
     assert float(haa["reason"].split("allow up to ")[1].split(" N m")[0]) == pytest.approx(gap, rel=0.01)
 
 

@@ -77,7 +77,7 @@ def test_a_sample_far_inside_the_region_is_never_at_the_limit():
     second of ramp both put the measured torque off the command; neither is a limit."""
     d = simulated(Hidden(r_pack=0.15), 1, 1000.0)
     found = command_limits(log_of(d, True), INPUTS)
-    tau_lim = SPEC.torque_limit
+    tau_lim = SPEC.linear_torque_limit
     for mask, edge in ((found.upper, d["true_upper"]), (found.lower, d["true_lower"])):
         assert mask.sum() > 1000
         # the transducer's torque against the motor's edge at that row: within 5 % of the limit (noise, filter)
