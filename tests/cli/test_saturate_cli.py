@@ -17,7 +17,7 @@ def test_saturate_sample_log(tmp_path):
     proc = run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(out), "--plot", str(plot), "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/saturate/1" and data["rows"] == 250
+    assert data["schema"] == "hound-id/saturate/2" and data["rows"] == 250
     assert 0.0 < data["violating_fraction"] < 1.0
     knee = next(m for m in data["motors"] if m["motor"] == "FL_KFE_motor")
     assert knee["clipped_fraction"] > 0.3
