@@ -289,6 +289,9 @@ def _row_measures(
     """
     joints, motors = group
     torch_like = _is_torch(tau_cmd)
+    A_m: Any
+    J: Any
+    M: Any
     if torch_like:
         import torch
 
@@ -550,9 +553,7 @@ class TurnTally:
 
             raise SaturationError("clip turn: ref_violation needs tau_ref (the per-joint clip's torques)")
         for group, tally in zip(self.index, self.tallies, strict=True):
-            m = _row_measures(
-                tau_cmd, tau_sat, self.A, group, self.floor, motor_cmd, motor_sat, tau_ref, ref_violation
-            )
+            m = _row_measures(tau_cmd, tau_sat, self.A, group, self.floor, motor_cmd, motor_sat, tau_ref, ref_violation)
             tally.add(m, tau_ref is not None, ref_violation is not None)
 
     def result(self) -> ClipTurn:

@@ -1094,7 +1094,11 @@ def turn_tally(sat: Saturation, motors: tuple[str, ...]) -> TurnTally:
 
 
 def add_turn(
-    tally: TurnTally, sat: Saturation, tau: NDArray[np.float64], qd: NDArray[np.float64], *saturated: NDArray[np.float64]
+    tally: TurnTally,
+    sat: Saturation,
+    tau: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    *saturated: NDArray[np.float64],
 ) -> None:
     """Add rows to a :func:`turn_tally`: commands, speeds, and (tau_sat, motor torque cmd, motor torque sat)."""
     tau_sat, tau_m, tau_m_sat = saturated[:3]
