@@ -11,7 +11,8 @@ Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order o
 ``joint_names``; torch stays torch (same dtype and device, autograd intact). Only numpy (and
 torch, when given tensors) are imported, besides the standard library: of hound-id, only
 :mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation`
-(with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs.
+(with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs, and
+:mod:`hound_id.mor.clip_turn`, the statistics of how far it turns coupled joint torques (:meth:`Runtime.clip_turn`).
 A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
 imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
 """
@@ -29,7 +30,8 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError, SpecError
-from hound_id.mor.saturation import Saturation, polyline_of
+from hound_id.mor.clip_turn import ANGLE_FLOOR, ClipTurn, clip_turn
+from hound_id.mor.saturation import PER_JOINT_REFERENCE, Saturation, coupled_groups, per_joint_clip, polyline_of
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.
@@ -65,6 +67,9 @@ class Runtime:
     """Per motor torque constant [N m/A] (the fitted one where a fit was given)."""
     compensation: tuple[tuple[tuple[int, ...], tuple[float, ...]] | None, ...]
     """Per motor (powers, coefficients) of current [A] = sum c_k tau^k, or None (then tau / Kt)."""
+    own_motor: tuple[int, ...] = ()
+    """Per joint, the index of the motor listed with it in the bundle (empty: motor i with joint i); differs when
+    ``joint_names`` reorders the joints. Used by :meth:`clip_turn`'s per-joint comparison."""
     _consts: dict[Any, tuple[Any, ...]] = field(default_factory=dict, compare=False, repr=False)
 
     @property
@@ -116,6 +121,53 @@ class Runtime:
         return self.clip(tau_cmd, qd)
 
     __call__ = saturate
+
+    def clip_turn(
+        self, tau_cmd: Any, tau_sat: Any, qd: Any = None, tau_ref: Any = None, floor: float = ANGLE_FLOOR
+    ) -> ClipTurn:
+        """How far the coupled clip turned each coupled group's joint-torque vector in a batch, for logging.
+
+        The statistics of ``hound-id saturate`` (:mod:`hound_id.mor.clip_turn`): per coupled group (e.g.
+        FL_HFE+FL_KFE) the rows in which a motor of the group clipped, the angle between the commanded and the
+        saturated joint-torque vector of the group (median, 95th percentile, max [deg]; vectors shorter than
+        ``floor`` [N m] get no angle), the clips in which a joint's |tau| grew and by how much [N m], the same by
+        which motors clipped and, given ``qd``, against the per-joint DC-motor clip of the same commands
+        (:func:`hound_id.mor.saturation.per_joint_clip`, or your own ``tau_ref``) and how often the motors cannot
+        make its torques. ``.scalars()`` gives flat floats for a logger::
+
+            tau = sat.saturate(tau_cmd, qd)
+            writer.add_scalars("clip_turn", sat.clip_turn(tau_cmd, tau, qd).scalars())
+
+        Args:
+            tau_cmd: Commanded joint torques [N m], (..., n_joints), numpy or torch.
+            tau_sat: :meth:`saturate` of them, same shape and type.
+            qd: Joint velocities [rad/s]; with it the per-joint comparison is made.
+            tau_ref: Your per-joint clip of the same commands [N m] (default with ``qd``: the DC-motor one).
+            floor: Shortest vector given an angle, smallest growth counted [N m] (:data:`ANGLE_FLOOR`).
+
+        Torch tensors are worked on their device; per coupled group one (rows x few) float64 array comes back
+        to the CPU (a device sync), where the quantiles are taken. Not differentiable (no gradients flow).
+        """
+        tau_cmd, tau_sat = self._array(tau_cmd, "tau_cmd"), self._array(tau_sat, "tau_sat")
+        if _is_torch(tau_cmd) != _is_torch(tau_sat):
+            raise SaturationError("runtime: tau_cmd and tau_sat must both be numpy arrays or both torch tensors")
+        violation, reference = None, None
+        if tau_ref is not None:
+            tau_ref, reference = self._array(tau_ref, "tau_ref"), "given (tau_ref)"
+        if qd is not None:
+            qd = self._array(qd, "qd")
+            if tau_ref is None:
+                tau_ref = per_joint_clip(self.clip, tau_cmd, qd, self.own_motor or None)
+                reference = PER_JOINT_REFERENCE if tau_ref is not None else None
+            if tau_ref is not None:
+                violation = self.clip.violation(tau_ref, qd)
+        key: Any = "groups"
+        if key not in self._consts:
+            self._consts[key] = (coupled_groups(self.clip.A),)
+        return clip_turn(
+            tau_cmd, tau_sat, self.clip.A, self._consts[key][0], self.joints, self.motors, floor, tau_ref, violation,
+            reference,
+        )  # fmt: skip
 
     def motor_velocity(self, qd: Any) -> Any:
         """Motor speeds A^-1 qd [rad/s], (..., n_motors)."""
@@ -205,6 +257,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         bundle = bundle.to_dict()
     A, arrays, motors = _validated(bundle, source)
     joints = list(bundle["joints"])
+    own: tuple[int, ...] = ()
     if joint_names is not None:
         names = list(joint_names)
         if sorted(names) != sorted(joints):
@@ -213,7 +266,8 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
                 f"{source}: joint_names must be the bundle's joints in your order; missing {missing or 'none'}, "
                 f"not in the bundle {extra or 'none'}"
             )
-        A = A[[joints.index(j) for j in names], :]  # rows follow your joints; motors keep their order
+        own = tuple(joints.index(j) for j in names)  # motor k is the one listed with the bundle's joint k
+        A = A[list(own), :]  # rows follow your joints; motors keep their order
         joints = names
     lines = tuple(polyline_of(p) for p in bundle["saturation"].get("polylines") or [])
     clip = Saturation(
@@ -244,6 +298,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         stribeck_speed=per_motor("stribeck_speed", 1.0),
         kt=frozen(np.array([float(m["kt"]) for m in motors])),
         compensation=tuple(comps),
+        own_motor=own,
     )
 
 

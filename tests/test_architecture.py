@@ -18,13 +18,20 @@ from tests.conftest import ROOT
 PACKAGE = ROOT / "hound_id"
 #: hound_id modules runtime.py may import (directly, at any level): the clip and what it stands on, and io
 #: (PyYAML) inside the function that reads a YAML bundle.
-RUNTIME_IMPORTS = {"hound_id.arrays", "hound_id.errors", "hound_id.io", "hound_id.mor.saturation"}
+RUNTIME_IMPORTS = {
+    "hound_id.arrays",
+    "hound_id.errors",
+    "hound_id.io",
+    "hound_id.mor.clip_turn",
+    "hound_id.mor.saturation",
+}
 #: hound_id modules ``import hound_id.runtime`` loads (its module-level imports, followed through every module).
 RUNTIME_LOADS = {
     "hound_id",
     "hound_id.arrays",
     "hound_id.errors",
     "hound_id.mor",
+    "hound_id.mor.clip_turn",
     "hound_id.mor.region",
     "hound_id.mor.saturation",
     "hound_id.runtime",

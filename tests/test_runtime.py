@@ -228,3 +228,40 @@ def test_runtime_clip_is_feasible_for_any_finite_command(fitted, dtype, backend)
     tol = 1e3 * np.finfo(dtype).eps * sat.clip.torque_limit
     assert np.all(tau_m <= hi + tol) and np.all(tau_m >= lo - tol)
     assert np.array_equal(inside, small)
+
+
+def test_clip_turn_of_a_batch_is_what_saturate_reports(fitted):
+    """Runtime.clip_turn gives the statistics of `hound-id saturate` (same robot, same rows), in numpy and torch,
+    in any joint order."""
+    import pandas as pd
+
+    from hound_id.errors import SaturationError
+    from hound_id.mor.saturation import saturate_log
+    from tests.conftest import SAMPLES
+
+    robot, sat = fitted
+    frame = pd.read_csv(SAMPLES / "commands" / "hound_like_running.csv", comment="#")
+    expected = saturate_log(robot, frame).turn
+    tau = frame[[f"tau_{j}" for j in robot.joints]].to_numpy()
+    qd = frame[[f"qd_{j}" for j in robot.joints]].to_numpy()
+    got = sat.clip_turn(tau, sat.saturate(tau, qd), qd)
+    assert got == expected and len(got.groups) == 4 and got.groups[0].angle.max > 1.0
+    assert got.groups[0].reference is not None and got.groups[0].reference.outside > 0
+    scalars = got.scalars()
+    assert scalars["clip_turn/FL_HFE+FL_KFE/angle_p95_deg"] == got.groups[0].angle.p95
+    # torch, 3-D batch (envs x steps x joints): the same statistics
+    t_tau, t_qd = torch.tensor(tau).reshape(5, 50, 12), torch.tensor(qd).reshape(5, 50, 12)
+    t_got = sat.clip_turn(t_tau, sat.saturate(t_tau, t_qd), t_qd)
+    assert t_got.groups[0].clipped == expected.groups[0].clipped
+    assert t_got.groups[0].angle.median == pytest.approx(expected.groups[0].angle.median, abs=1e-9)
+    assert t_got.groups[0].reference.outside == expected.groups[0].reference.outside
+    # in the simulator's (breadth-first) order: the same groups, the per-joint clip pairs each joint with its motor
+    order = [f"{leg}_{j}" for j in ("HAA", "HFE", "KFE") for leg in ("FL", "FR", "RL", "RR")]
+    mine = hound_id.runtime.from_bundle(build_bundle(robot), joint_names=order)
+    perm = [list(robot.joints).index(j) for j in order]
+    reordered = mine.clip_turn(tau[:, perm], mine.saturate(tau[:, perm], qd[:, perm]), qd[:, perm])
+    assert reordered.to_dict() == expected.to_dict()
+    without = sat.clip_turn(tau, sat.saturate(tau, qd))
+    assert without.groups[0].reference is None and without.groups[0].angle == expected.groups[0].angle
+    with pytest.raises(SaturationError, match="tau_sat has shape"):
+        sat.clip_turn(tau, tau[:, :11])

@@ -5,7 +5,7 @@ from __future__ import annotations
 import json
 import sys
 from pathlib import Path
-from typing import TYPE_CHECKING, Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import typer
 from rich.table import Table
@@ -250,7 +250,8 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     if lk.largest > 0:
         console.print(
             f"a linear-Kt region (tau = Kt i) would promise up to {lk.largest:.3g} N m ({lk.share:.1%}) more (largest "
-            f"at {lk.at_speed:.4g} rad/s): torque limit {lk.torque_limit[0]:.4g} instead of {lk.torque_limit[1]:.4g} N m, "
+            f"at {lk.at_speed:.4g} rad/s): torque limit {lk.torque_limit[0]:.4g} instead of "
+            f"{lk.torque_limit[1]:.4g} N m, "
             f"corner speed {lk.corner_speed[0]:.4g} instead of {lk.corner_speed[1]:.4g} rad/s",
             highlight=False,
         )
@@ -334,7 +335,7 @@ def saturate(
     robot: Path = typer.Option(..., "--robot", help="Robot YAML whose motors and transmissions apply."),
     out: Optional[Path] = typer.Option(None, "--out", help="Write the table with tau_sat_<joint> columns added."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: each motor's commands against its region."),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/saturate/1)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/saturate/2)."),
 ) -> None:
     """Saturate a log of joint torque commands exactly as the method does in training. The log is
     streamed: memory stays bounded whatever its length."""
@@ -365,6 +366,8 @@ def saturate(
             j["joint"], f"{j['max_clip']:.3g}", f"{j['mean_clip']:.3g}", m["motor"], f"{m['clipped_fraction']:.1%}"
         )
     console.print(table)
+    if summary["clip_turn"] is not None:
+        _print_turn(summary["clip_turn"])
     if log.sample is not None and log.sample_step > 1:
         console.print(
             f"the plot draws one row in {log.sample_step} ({len(log.sample.tau_cmd)} of {summary['rows']}); "
@@ -374,6 +377,72 @@ def saturate(
     for path, what in ((out, "table"), (plot, "plot")):
         if path is not None:
             console.print(f"{what} written to {path}", highlight=False)
+
+
+def _angles(a: dict[str, float]) -> str:
+    return f"{a['median']:.3g}/{a['p95']:.3g}/{a['max']:.3g}" if a["count"] else "-"
+
+
+def _grew(g: dict[str, Any], joints: list[str]) -> tuple[str, str]:
+    """(joints that grew and the share of the clips, the largest growth [N m])."""
+    if not g["rows"]:
+        return "none", "-"
+    return f"{'+'.join(j for j in joints if g['by_joint'][j])} {g['fraction']:.0%}", f"{g['max']:.3g}"
+
+
+def _print_turn(turn: dict[str, Any]) -> None:
+    """The direction change of the coupled clip, per coupled group (``clip_turn`` of the JSON)."""
+    groups = turn["groups"]
+    if not groups:
+        console.print("no coupled joints: the clip only shortens each joint torque, as a per-joint clip does")
+        return
+    floor = turn["floor"]
+    table = Table(title="direction change of the coupled clip (joint side)", title_justify="left")
+    for col in ("coupled group", "clipped", "turn \\[deg] med/p95/max", "|tau| grew in", "by [N m]"):
+        table.add_column(col, justify="left" if col in ("coupled group", "|tau| grew in") else "right")
+    for g in groups:
+        table.add_row(g["group"], f"{g['clipped_fraction']:.1%}", _angles(g["angle"]), *_grew(g["grew"], g["joints"]))
+    console.print(table)
+    patterns = Table(title="the same by which motors clipped", title_justify="left")
+    for col in ("group: motors clipped", "rows", "turn \\[deg]", "|tau| grew in", "by [N m]"):
+        patterns.add_column(col, justify="left" if col in ("group: motors clipped", "|tau| grew in") else "right")
+    for g in groups:
+        patterns.add_row(f"{g['group']}:", "", "", "", "")
+        for p in g["by_motors"]:
+            which = "all" if len(p["motors"]) == len(g["motors"]) else "+".join(p["motors"]) + " alone"
+            patterns.add_row(f"  {which}", str(p["rows"]), _angles(p["angle"]), *_grew(p["grew"], g["joints"]))
+    console.print(patterns)
+    if turn["reference"] is not None:
+        ref_table = Table(title="against a per-joint clip of the same commands", title_justify="left")
+        for col in ("coupled group", "per-joint turn \\[deg]", "differs mean/max [N m]", "per-joint infeasible"):
+            ref_table.add_column(col, justify="left" if col == "coupled group" else "right")
+        for g in groups:
+            ref = g["per_joint"]
+            outside = f"{ref['outside_rows'] / max(ref['rows'], 1):.0%}"
+            if ref["outside_rows"]:
+                outside += f" (<= {ref['outside_max']:.3g} N m)"
+            ref_table.add_row(
+                g["group"],
+                _angles(ref["angle"]),
+                f"{ref['difference_mean']:.3g}/{ref['difference_max']:.3g}",
+                outside,
+            )
+        console.print(ref_table)
+    console.print(
+        "turn: angle between the commanded and the saturated joint-torque vector of the group, over the rows in "
+        f"which a motor of the group clipped (no angle for vectors under {floor:.3g} N m: "
+        f"{sum(g['below_floor'] for g in groups)} clips). Each motor is clipped to its own interval and mapped back "
+        "(the paper's method), so one motor's clip moves every joint it drives: a joint can grow (counted above "
+        f"{floor:.3g} N m), which a per-joint clip never does."
+        + (
+            " Per-joint clip: each joint alone through its own gear ratio, as Isaac Lab's DCMotor (reference in the "
+            "JSON); differs: |coupled - per-joint| over the group, where either clipped; infeasible: of those rows, "
+            "where the per-joint torques are outside some motor's region (up to N m, motor side)."
+            if turn["reference"] is not None
+            else ""
+        ),
+        highlight=False,
+    )
 
 
 __all__ = ["mor", "saturate"]

@@ -37,6 +37,7 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
+from hound_id.mor.clip_turn import CLIP_TOLERANCE, ClipTurn, TurnTally
 from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_region
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
@@ -217,7 +218,8 @@ class Saturation:
         regions = [operating_region(robot.motor_specs[m]) for m in robot.motors]
         A = robot.velocity_map()
         polylines = tuple(
-            polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r) for m, r in zip(robot.motors, regions)
+            polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r)
+            for m, r in zip(robot.motors, regions, strict=True)
         )
         return cls(
             joints=robot.joints,
@@ -779,10 +781,41 @@ def box_study(
     )
 
 
+#: Schema of the ``hound-id saturate --json`` summary (2: ``clip_turn`` added).
+SATURATE_SCHEMA = "hound-id/saturate/2"
 #: Rows a log's plot draws at most: longer logs are thinned to every k-th row (k a power of two).
 PLOT_ROWS = 20_000
-#: A motor torque counts as clipped when it moved by more than this times max(1 N m, |command|).
-CLIP_TOLERANCE = 1e-9
+#: What :func:`per_joint_clip` is, for the reports.
+PER_JOINT_REFERENCE = (
+    "per-joint DC-motor clip (Isaac Lab DCMotor, mjlab DcMotorActuator) of each joint alone, with its own motor "
+    "through the gear ratio 1/|A[j, j]| at the joint speed: stall torque x G, no-load speed / G, torque limit x G"
+)
+
+
+def per_joint_clip(sat: Saturation, tau: Any, qd: Any, own_motor: Any = None) -> Any:
+    """The same commands clipped joint by joint, as a per-joint simulator model would (the reference the
+    coupled clip is compared with): :func:`dc_motor_clip` of each joint j with its own motor m (the one listed
+    with it: ``own_motor[j]``, by default m = j), through the gear ratio G = 1/|A[j, m]| (motor turns per joint
+    turn with the group's other motors held), at the joint's own speed. For an uncoupled joint this is the
+    coupled clip itself (below a rated ``max_speed``); for the hollow-shaft hip/knee it ignores that the knee
+    motor also turns with the hip and carries part of the hip torque. Measured-envelope polylines and
+    ``max_speed`` are not applied (a DC-motor clip has neither). numpy arrays or torch tensors (..., n).
+
+    Returns None when a joint has no motor of its own (A[j, m] = 0), so no per-joint model exists.
+    """
+    own = np.arange(sat.n) if own_motor is None else np.asarray(own_motor, dtype=int)
+    diagonal = np.abs(sat.A[np.arange(sat.n), own])
+    if not np.all(diagonal > 0):
+        return None
+    gear = 1.0 / diagonal
+    stall, limit = sat.stall_torque[own], sat.torque_limit[own]
+    no_load = stall / sat.back_emf_damping[own]
+    params: tuple[Any, ...] = (stall * gear, no_load / gear, limit * gear)
+    if _is_torch(tau):
+        import torch
+
+        params = tuple(torch.tensor(p, dtype=tau.dtype, device=tau.device) for p in params)
+    return dc_motor_clip(tau, qd, *params)
 
 
 def motor_clipped(motor_torque_cmd: NDArray[np.float64], motor_torque_sat: NDArray[np.float64]) -> NDArray[np.bool_]:
@@ -813,6 +846,8 @@ class LogSaturation:
     """Saturated motor torques [N m], shape (rows, n)."""
     motor_speed: NDArray[np.float64]
     """Motor speeds [rad/s], shape (rows, n)."""
+    turn: ClipTurn | None = None
+    """How far the clip turned each coupled group's joint-torque vector over these rows (None: not measured)."""
 
     @property
     def motor_clipped(self) -> NDArray[np.bool_]:
@@ -820,10 +855,10 @@ class LogSaturation:
         return motor_clipped(self.motor_torque_cmd, self.motor_torque_sat)
 
     def to_dict(self) -> dict[str, Any]:
-        """Summary, schema ``hound-id/saturate/1``."""
+        """Summary, schema ``hound-id/saturate/2``."""
         tally = _Tally(self.joints, self.motors)
         tally.add(self.tau_cmd, self.tau_sat, self.motor_clipped)
-        return tally.summary().to_dict()
+        return tally.summary(turn=self.turn).to_dict()
 
 
 @dataclass(frozen=True)
@@ -850,11 +885,14 @@ class LogSummary:
     """The k of :attr:`sample`: it holds rows 0, k, 2k, ..."""
     notes: tuple[str, ...] = ()
     """What the reader found in the file's layout (units row, title lines, separator)."""
+    turn: ClipTurn | None = None
+    """How far the coupled clip turned each coupled group's joint-torque vector, against the per-joint clip
+    (:mod:`hound_id.mor.clip_turn`); None: not measured."""
 
     def to_dict(self) -> dict[str, Any]:
-        """Summary, schema ``hound-id/saturate/1``: finite numbers only (valid JSON)."""
+        """Summary, schema ``hound-id/saturate/2`` (``/1`` plus ``clip_turn``): finite numbers only (valid JSON)."""
         return {
-            "schema": "hound-id/saturate/1",
+            "schema": SATURATE_SCHEMA,
             "rows": self.rows,
             "violating_fraction": self.violating_rows / self.rows,
             "joints": [
@@ -865,6 +903,7 @@ class LogSummary:
                 {"motor": m, "clipped_fraction": self.clipped_rows[i] / self.rows} for i, m in enumerate(self.motors)
             ],
             "units": {"clip": "N m (joint side)"},
+            "clip_turn": self.turn.to_dict() if self.turn is not None else None,
         }
 
 
@@ -916,7 +955,13 @@ class _Tally:
         scaled = math.fsum([s * _SUM_SCALE for s in self.sums[i]] + self.scaled[i])
         return min((scaled / self.rows) / _SUM_SCALE, self.max_clip[i])
 
-    def summary(self, sample: LogSaturation | None = None, notes: tuple[str, ...] = (), step: int = 1) -> LogSummary:
+    def summary(
+        self,
+        sample: LogSaturation | None = None,
+        notes: tuple[str, ...] = (),
+        step: int = 1,
+        turn: ClipTurn | None = None,
+    ) -> LogSummary:
         return LogSummary(
             joints=self.joints,
             motors=self.motors,
@@ -928,6 +973,7 @@ class _Tally:
             sample=sample,
             sample_step=step,
             notes=notes,
+            turn=turn,
         )
 
 
@@ -1115,12 +1161,36 @@ def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSat
         TableError: A column is missing or holds a non-finite value.
     """
     tau, qd = _joint_arrays(columns, robot.joints, source)
-    return _log_saturation(robot, tau, qd, *_saturate_rows(saturation_for(robot), tau, qd))
+    sat = saturation_for(robot)
+    return _log_saturation(robot, sat, tau, qd, *_saturate_rows(sat, tau, qd))
 
 
-def _log_saturation(robot: Robot, *arrays: NDArray[np.float64]) -> LogSaturation:
-    """A :class:`LogSaturation` of read-only copies: tau, qd, tau_sat, tau_m, tau_m_sat, omega."""
+def turn_tally(sat: Saturation, motors: tuple[str, ...]) -> TurnTally:
+    """A :class:`hound_id.mor.clip_turn.TurnTally` for the robot of ``sat``, against :func:`per_joint_clip`
+    (when every joint has a motor of its own); feed it with :func:`add_turn`."""
+    reference = PER_JOINT_REFERENCE if np.all(np.diag(sat.A) != 0) else None  # each joint has a motor of its own
+    return TurnTally(sat.A, coupled_groups(sat.A), sat.joints, motors, reference=reference)
+
+
+def add_turn(
+    tally: TurnTally,
+    sat: Saturation,
+    tau: NDArray[np.float64],
+    qd: NDArray[np.float64],
+    *saturated: NDArray[np.float64],
+) -> None:
+    """Add rows to a :func:`turn_tally`: commands, speeds, and (tau_sat, motor torque cmd, motor torque sat)."""
+    tau_sat, tau_m, tau_m_sat = saturated[:3]
+    ref = per_joint_clip(sat, tau, qd) if tally.reference is not None else None
+    violation = sat.violation(ref, qd) if ref is not None else None
+    tally.add(tau, tau_sat, tau_m, tau_m_sat, ref, violation)
+
+
+def _log_saturation(robot: Robot, sat: Saturation, *arrays: NDArray[np.float64]) -> LogSaturation:
+    """A :class:`LogSaturation` of read-only copies: tau, qd, tau_sat, tau_m, tau_m_sat, omega; with the turn."""
     tau, qd, tau_sat, tau_m, tau_m_sat, omega = (frozen(a) for a in arrays)
+    turn = turn_tally(sat, robot.motors)
+    add_turn(turn, sat, tau, qd, tau_sat, tau_m, tau_m_sat)
     return LogSaturation(
         joints=robot.joints,
         motors=robot.motors,
@@ -1130,6 +1200,7 @@ def _log_saturation(robot: Robot, *arrays: NDArray[np.float64]) -> LogSaturation
         motor_torque_cmd=tau_m,
         motor_torque_sat=tau_m_sat,
         motor_speed=omega,
+        turn=turn.result(),
     )
 
 
@@ -1182,6 +1253,7 @@ def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_
     source = str(table.path)
     _joint_arrays({name: [] for name in table.names}, robot.joints, source)  # missing columns, before any work
     tally = _Tally(robot.joints, robot.motors)
+    turn = turn_tally(sat, robot.motors)
     sample = _Sample(plot_rows) if plot_rows > 0 else None
     sat_names = [f"tau_sat_{j}" for j in robot.joints]
     with TableSink(out) if out is not None else nullcontext() as sink:
@@ -1198,9 +1270,10 @@ def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_
                     batch = batch.set_column(k, name, column) if k >= 0 else batch.append_column(name, column)
                 sink.write(batch)
             tally.add(tau, tau_sat, clipped)
+            add_turn(turn, sat, tau, qd, tau_sat, tau_m, tau_m_sat)
         if tally.rows == 0:
             raise TableError(f"{source}: the table has no rows", path=source)
     log = None
     if sample is not None:
-        log = _log_saturation(robot, *sample.arrays())
-    return tally.summary(log, table.notes, sample.step if sample is not None else 1)
+        log = _log_saturation(robot, sat, *sample.arrays())
+    return tally.summary(log, table.notes, sample.step if sample is not None else 1, turn.result())

@@ -17,7 +17,7 @@ def test_saturate_sample_log(tmp_path):
     proc = run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(out), "--plot", str(plot), "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/saturate/1" and data["rows"] == 250
+    assert data["schema"] == "hound-id/saturate/2" and data["rows"] == 250
     assert 0.0 < data["violating_fraction"] < 1.0
     knee = next(m for m in data["motors"] if m["motor"] == "FL_KFE_motor")
     assert knee["clipped_fraction"] > 0.3
@@ -305,3 +305,66 @@ def test_a_passed_through_column_that_changes_type_late_is_read_again_wider(tmp_
     assert written["step"].dtype == float and written.loc[25_000, "step"] == 0.5 and written["step"][29_999] == 29_999
     assert written.loc[26_000, "note"] == "fell"
     assert strict_json(proc.stdout)["rows"] == 30_000
+
+
+# --- issue 16, item 4: the direction change of the coupled clip ------------------------------------------------------
+
+
+def polar_turn(a, b):
+    """Angle between 2-vectors [deg] from their polar angles (not the formula hound_id.mor.clip_turn uses)."""
+    d = np.arctan2(b[:, 1], b[:, 0]) - np.arctan2(a[:, 1], a[:, 0])
+    return np.degrees(np.abs((d + np.pi) % (2 * np.pi) - np.pi))
+
+
+def test_json_carries_the_turn_of_each_hip_knee_group_as_an_independent_computation_gives(tmp_path):
+    from hound_id.mor.region import operating_region
+
+    out = tmp_path / "sat.csv"
+    proc = run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(out), "--json")
+    assert proc.returncode == 0, proc.stderr
+    turn = json.loads(proc.stdout)["clip_turn"]
+    assert turn["floor"] == 0.01 and "DC-motor" in turn["reference"]
+    assert [g["group"] for g in turn["groups"]] == [f"{leg}_HFE+{leg}_KFE" for leg in ("FL", "FR", "RL", "RR")]
+    frame = pd.read_csv(out)
+    region = operating_region(load_robot(ROBOT).motor_specs["FL_KFE_motor"])
+    G = 7.5  # the sample's hip and knee ratios
+    for g in turn["groups"]:
+        hip, knee = g["joints"]
+        tau = frame[[f"tau_{hip}", f"tau_{knee}"]].to_numpy()
+        sat = frame[[f"tau_sat_{hip}", f"tau_sat_{knee}"]].to_numpy()
+        qd = frame[[f"qd_{hip}", f"qd_{knee}"]].to_numpy()
+        # motor torques by hand: tau_m = A^T tau, tau_m,h = tau_h / G - tau_k / G^2, tau_m,k = tau_k / G
+        motor = np.column_stack([tau[:, 0] / G - tau[:, 1] / G**2, tau[:, 1] / G])
+        motor_sat = np.column_stack([sat[:, 0] / G - sat[:, 1] / G**2, sat[:, 1] / G])
+        moved = np.abs(motor_sat - motor) > 1e-6
+        clipped = moved.any(axis=1)
+        angles = polar_turn(tau, sat)[clipped]
+        assert g["clipped_rows"] == int(clipped.sum()) > 100
+        assert g["angle"]["median"] == pytest.approx(np.median(angles), abs=1e-6)
+        assert g["angle"]["p95"] == pytest.approx(np.quantile(angles, 0.95), abs=1e-6)
+        assert g["angle"]["max"] == pytest.approx(angles.max(), abs=1e-6)
+        growth = (np.abs(sat) - np.abs(tau))[clipped]
+        assert g["grew"]["rows"] == int((growth > 0.01).any(axis=1).sum()) > 0
+        assert g["grew"]["max"] == pytest.approx(growth.max(), abs=1e-6)
+        knee_only = moved[:, 1] & ~moved[:, 0]
+        (pattern,) = [p for p in g["by_motors"] if p["motors"] == [f"{knee}_motor"]]
+        assert pattern["rows"] == int(knee_only.sum())
+        assert pattern["grew"]["by_joint"][hip] == int((growth[knee_only[clipped], 0] > 0.01).sum())
+        # the per-joint DC clip by hand, each joint through its own 7.5 gear at its own speed
+        stall, no_load, limit = region.stall_torque * G, region.no_load_speed / G, region.torque_limit * G
+        v = np.clip(qd, -no_load * (1 + limit / stall), no_load * (1 + limit / stall))
+        ref = np.clip(tau, np.maximum(stall * (-1 - v / no_load), -limit), np.minimum(stall * (1 - v / no_load), limit))
+        changed = np.any(ref != tau, axis=1)
+        acted = changed | clipped
+        per_joint = g["per_joint"]
+        assert per_joint["clipped_rows"] == int(changed.sum())
+        assert per_joint["angle"]["median"] == pytest.approx(np.median(polar_turn(tau, ref)[changed]), abs=1e-6)
+        assert per_joint["difference_max"] == pytest.approx(np.hypot(*(sat - ref).T)[acted].max(), abs=1e-6)
+        assert 0 < per_joint["outside_rows"] <= per_joint["rows"] == int(acted.sum())
+
+
+def test_table_shows_the_turn_and_the_per_joint_comparison():
+    proc = run_cli("saturate", str(LOG), "--robot", str(ROBOT))
+    assert proc.returncode == 0, proc.stderr
+    for text in ("direction change of the coupled clip", "FL_HFE+FL_KFE", "FL_KFE_motor alone", "per-joint clip"):
+        assert text in proc.stdout
