@@ -196,7 +196,7 @@ def _render_design(d: dict[str, Any]) -> None:
     console.print(stable)
     v = st["checks"]["shell_bending"]["validity"]
     console.print(
-        f"shell_bending validity: t/R = {v['t_over_R']:.3f} ({'thin' if v['thin_shell'] else 'NOT thin: > 0.1'}), "
+        f"shell_bending validity: t/R = {v['t_over_R']:.3f} ({'thin' if v['thin_shell'] else 'not thin, over 0.1: outside the formula'}), "
         f"stance contacts {v['stance_edge_distance_over_l']:.2f} l from the cap's edges (l = "
         f"{v['characteristic_length'] * 1e3:.2f} mm; under 1 l the edge case gives up to ~2x)",
         highlight=False,

@@ -34,6 +34,7 @@ Constraints (each reported with its value, limit and margin):
 
 from __future__ import annotations
 
+import itertools
 import math
 from dataclasses import dataclass, field
 from types import SimpleNamespace
@@ -369,8 +370,10 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     return tuple(out)
 
 
-def _guess(R0: float, mount: FootMount, req: FootRequirements) -> list[float]:
-    """A starting point in IPOPT's variables (see :func:`optimise_foot`) for a radius R0 [m]."""
+def _guess(R0: float, mount: FootMount, req: FootRequirements, wide: bool = False) -> list[float]:
+    """A starting point in IPOPT's variables (see :func:`optimise_foot`) for a radius R0 [m]; ``wide``
+    starts from a cap 1.5 x as wide as the radius (the stress constraints make the problem multimodal:
+    a thick narrow band and a thin wide one both carry the load)."""
     if req.radius is not None:
         R0 = req.radius
     if req.max_radius is not None:
@@ -379,6 +382,8 @@ def _guess(R0: float, mount: FootMount, req: FootRequirements) -> list[float]:
     rb0 = req.boss_radius if req.boss_radius is not None else max(_min_boss(req) * 1.5, 0.25 * R0)
     seat = math.asin(min(1.0, (rb0 + t0) / (R0 - t0)))
     W0 = min(2 * R0 * 0.95, max(2 * (rb0 + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    if wide:
+        W0 = max(W0, min(1.5 * R0, 2 * (R0 - t0) * 0.95))
     lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
     zc0 = (R0 - mount.contact_radius) / math.cos(req.nominal_angle)
     return [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3, rb0 * 1e3]
@@ -429,8 +434,8 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         lbx[6] = ubx[6] = req.boss_radius * 1e3
     best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
     last: tuple[list[float], dict[str, Any]] | None = None
-    for start in (1.3, 2.0, 1.02, 4.0):  # a few starts: the first that converges usually is the optimum
-        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req)
+    for start, wide in itertools.product((1.3, 2.0, 1.02, 4.0), (False, True)):  # the best of a few starts
+        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req, wide)
         sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         y_opt = [float(v) for v in sol["x"].full().ravel()]
@@ -440,8 +445,6 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             f = float(sol["f"])
             if best is None or f < best[0] - 1e-9:
                 best = (f, x_try, stats, y_opt)
-            if start == 1.3:
-                break
     if best is None:
         assert last is not None
         x_bad, stats = last

