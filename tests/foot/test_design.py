@@ -68,7 +68,7 @@ def test_outputs_load_in_their_consumers(report, tmp_path):
         assert np.linalg.norm(centre) == pytest.approx(g.radius - r, abs=1e-8)
     # straight below, the spheres keep the knee-to-ground length of the original foot, short by at most the
     # rise of the nearest sphere half a spacing away
-    lowest = min(-o.placement.translation[2] + o.geometry.radius for o in collision.geometryObjects)
+    lowest = max(-o.placement.translation[2] + o.geometry.radius for o in collision.geometryObjects)
     half = (g.high - g.low) / (len(spheres) - 1) / 2
     assert 0.31 - (g.radius - spheres[0][3]) * (1 - math.cos(half)) - 1e-9 <= lowest <= 0.31 + 1e-8
     data = json.loads((tmp_path / "new" / "foot.json").read_text())
