@@ -9,10 +9,12 @@ the cap's outer sphere at its own angle, and the end spheres touch it at the cap
 
 How closely it follows the cap (all reported):
 
-* in the sagittal plane, between two neighbours (angular spacing delta) the union dips below
-  the cap's sphere by at most R - (R - r_s) cos(delta/2) - sqrt(r_s^2 - (R - r_s)^2 sin^2(delta/2));
-  N is the smallest count that keeps this within the tolerance;
-* sideways (roll angle psi) the row falls short of the cap's sphere by (R - r_s)(1 - cos psi);
+* in the sagittal plane, between two neighbours (angular spacing delta) the union's surface dips
+  radially below the cap's sphere by at most R - (R - r_s) cos(delta/2) - sqrt(r_s^2 - (R - r_s)^2
+  sin^2(delta/2)); N is the smallest count that keeps this within the tolerance. What a flat
+  ground meets is the union's support distance, which falls short by less, (R - r_s)(1 - cos(delta/2));
+* sideways (roll angle psi) the row's support falls short of the cap's sphere by up to
+  (R - r_s)(1 - cos(delta/2) cos psi) (the worst is between two spheres);
 * beyond the cap's angles (by Delta) the ground can only meet the end spheres, whose reach
   exceeds the cap's rim by r_s (1 - cos Delta) (a full sphere: R (1 - cos Delta)); there is no
   collision surface past the end spheres.
@@ -45,7 +47,9 @@ class CollisionSpheres:
     tolerance: float
     """Largest sagittal dip asked for [m]."""
     sagittal_deviation: float
-    """Largest radial dip below the cap's sphere over its angles, in the sagittal plane [m]."""
+    """Largest radial dip of the union's surface below the cap's sphere over its angles, sagittal plane [m]."""
+    ground_deviation: float
+    """Largest shortfall of the support distance (where a flat ground touches) over the cap's angles [m]."""
     roll_deviation: float
     """Radial shortfall at the required roll angle [m]."""
     edge_deviation: float
@@ -63,13 +67,15 @@ class CollisionSpheres:
             "sphere_radius": self.spheres[0][3],
             "tolerance": self.tolerance,
             "sagittal_deviation": self.sagittal_deviation,
+            "ground_deviation": self.ground_deviation,
             "roll_deviation": self.roll_deviation,
             "edge_deviation": self.edge_deviation,
             "overreach_angle": OVERREACH_ANGLE,
             "overreach": self.overreach,
             "full_sphere_overreach": self.full_sphere_overreach,
             "meaning": "spheres (x, y, z, r) in the foot frame along the cap's sagittal arc; deviations are radial "
-            "distances below the cap's outer sphere (sagittal: over the cap's angles; roll: at the required roll; "
+            "distances below the cap's outer sphere (sagittal: of the surface over the cap's angles; ground: of the "
+            "support distance a flat ground meets; roll: at the required roll; "
             "edge: at the cap's lateral edge); outside the cap's angles only the end spheres can touch, reaching "
             "'overreach' past the rim at 'overreach_angle' beyond the end (a full sphere: 'full_sphere_overreach')",
         }
@@ -111,12 +117,14 @@ def collision_spheres(geometry: FootGeometry, tolerance: float, roll: float) -> 
         for phi in (lo + (hi - lo) * k / (n - 1) for k in range(n))
     )
     edge = math.asin(min(1.0, geometry.width / (2 * R)))
+    half = (hi - lo) / (n - 1) / 2  # half the spacing: the farthest any direction is from a sphere
     return CollisionSpheres(
         spheres=spheres,
         tolerance=tolerance,
         sagittal_deviation=sagittal_dip(R, rs, (hi - lo) / (n - 1)),
-        roll_deviation=c * (1 - math.cos(roll)),
-        edge_deviation=c * (1 - math.cos(edge)),
+        ground_deviation=c * (1 - math.cos(half)),
+        roll_deviation=c * (1 - math.cos(half) * math.cos(roll)),
+        edge_deviation=c * (1 - math.cos(half) * math.cos(edge)),
         overreach=rs * (1 - math.cos(OVERREACH_ANGLE)),
         full_sphere_overreach=R * (1 - math.cos(OVERREACH_ANGLE)),
     )
