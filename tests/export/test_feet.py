@@ -43,7 +43,7 @@ def test_v2_feet_get_the_spheres_in_both_simulators(foot_json):
     on_feet = [g for g in geom.geometryObjects if g.name.startswith("FL_foot_")]
     assert len(on_feet) == len(spheres)
     mj = mujoco.MjModel.from_xml_string(text)
-    foot_body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, "FL_calf")  # MuJoCo fuses the fixed foot
+    foot_body = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, "FL_foot")  # the URDF importer keeps it a body
     radii = sorted(mj.geom_size[g, 0] for g in range(mj.ngeom)
                    if mj.geom_bodyid[g] == foot_body and mj.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE)  # fmt: skip
     assert radii == pytest.approx([s[3] for s in spheres])
