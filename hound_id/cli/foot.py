@@ -186,8 +186,9 @@ def _render_design(d: dict[str, Any]) -> None:
                    "yes" if c["satisfied"] else "[red]NO[/red]")  # fmt: skip
     console.print(ct)
     st = d["strength"]
-    stable = Table(title=f"Stress at the peak ground force {st['peak_force']:g} N, friction {st['friction']:g} "
-                   f"(allowed {st['allowed_stress'] / 1e6:.0f} MPa = {st['allowed_meaning']})", title_justify="left")  # fmt: skip
+    title = (f"Stress at the peak ground force {st['peak_force']:g} N, friction {st['friction']:g} "
+             f"(allowed {st['allowed_stress'] / 1e6:.0f} MPa = {st['allowed_meaning']})")  # fmt: skip
+    stable = Table(title=title, title_justify="left")
     for col in ("check", "stress", "margin", "allowed / stress", "model (formula in the JSON)"):
         stable.add_column(col, justify="left" if col == "check" or col.startswith("model") else "right")
     for name, c in st["checks"].items():
@@ -196,9 +197,10 @@ def _render_design(d: dict[str, Any]) -> None:
     console.print(stable)
     v = st["checks"]["shell_bending"]["validity"]
     console.print(
-        f"shell_bending validity: t/R = {v['t_over_R']:.3f} ({'thin' if v['thin_shell'] else 'not thin, over 0.1: outside the formula'}), "
+        f"shell_bending validity: t/R = {v['t_over_R']:.3f} "
+        f"({'thin' if v['thin_shell'] else 'not thin, over 0.1: outside the formula'}), "
         f"stance contacts {v['stance_edge_distance_over_l']:.2f} l from the cap's edges (l = "
-        f"{v['characteristic_length'] * 1e3:.2f} mm; under 1 l the edge case gives up to ~2x)",
+        f"{v['characteristic_length'] * 1e3:.2f} mm; the interior formula needs >= 1 l)",
         highlight=False,
     )
     console.print("binding: " + "; ".join(f"{k} ({why})" for k, why in d["binding"].items()), highlight=False)

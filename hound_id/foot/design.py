@@ -29,7 +29,7 @@ from hound_id.foot.urdf import FootMount, patched_urdf, read_foot
 
 SCHEMA = "hound-id/foot/2"
 #: The paper's redesign (KAIST Hound, "Lightweight foot design"): calf mass and pitch inertia, new / original.
-PAPER = {
+PAPER: dict[str, Any] = {
     "mass_ratio": 0.380,
     "inertia_ratio": 0.374,
     "axis": "not stated in the paper (the calf's pitch inertia; knee axis or the calf's own centre of mass)",
@@ -256,6 +256,8 @@ WHY_BINDING = {
     "shell_bending": "the thinnest wall that carries the load locally without yield",
     "shell_root_touchdown": "the lightest cap section that carries a touchdown-end contact to the boss without yield",
     "shell_root_liftoff": "the lightest cap section that carries a liftoff-end contact to the boss without yield",
+    "shell_edge_touchdown": "the cap ends one characteristic length past the stance's touchdown contacts",
+    "shell_edge_liftoff": "the cap ends one characteristic length past the stance's liftoff contacts",
     "max_radius": "the sphere is as large as the packaging allows",
 }
 
@@ -329,8 +331,8 @@ def strength_summary(report: FootReport) -> dict[str, Any]:
         "characteristic_length": l_char,
         "load_radius": contact_radius(req.peak_force, g.radius, effective_modulus(req.material, req.ground)),
         "stance_edge_distance_over_l": to_edge / l_char,
-        "note": "valid for t/R <= 0.1 and a load about l or more from the free edges and the boss; nearer an edge "
-        "Westergaard's edge case gives up to about twice the stress; with a thicker wall the Hertz checks govern",
+        "note": "valid for t/R <= 0.1 and a load about l or more from the free edges (the shell_edge constraints "
+        "keep the stance's contacts there) and from the boss; with a thicker wall the Hertz checks govern",
     }
     return {
         "peak_force": req.peak_force,

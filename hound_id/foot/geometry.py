@@ -127,7 +127,14 @@ def _if_else(condition: Any, then: Any, otherwise: Any) -> Any:
 #: The few functions :func:`volume_moments` and the foot constraints need, for floats
 #: (:func:`hound_id.foot.optimise.casadi_ops` gives casadi's).
 FLOAT_OPS = SimpleNamespace(
-    sqrt=math.sqrt, asin=math.asin, sin=math.sin, cos=math.cos, fmin=min, fmax=max, if_else=_if_else, log=math.log,
+    sqrt=math.sqrt,
+    asin=math.asin,
+    sin=math.sin,
+    cos=math.cos,
+    fmin=min,
+    fmax=max,
+    if_else=_if_else,
+    log=math.log,
     fabs=abs,
 )
 
@@ -245,7 +252,8 @@ def foot_mesh(geometry: FootGeometry, resolution_deg: float = 1.0) -> Any:
 
     The cap is the shell's (s, y) section revolved about the lateral axis over [low, high];
     the boss is its (r, z) section revolved about the calf axis, reaching half-way into the
-    shell so that the union is one solid (the bore, if any, stops at the cap's inner sphere). ``resolution_deg`` is the angular step of arcs and
+    shell so that the union is one solid (the bore, if any, stops at the cap's inner sphere).
+    ``resolution_deg`` is the angular step of arcs and
     revolutions.
     """
     import manifold3d

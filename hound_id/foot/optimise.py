@@ -29,6 +29,9 @@ Constraints (each reported with its value, limit and margin):
 * ``boss_stress``, ``shell_bending``, ``shell_root_touchdown``, ``shell_root_liftoff``: the boss at
   the mount plane, the cap under the load and the cap at the boss seat stay below yield / safety
   at the peak ground force (:mod:`hound_id.foot.strength` states the formulas and their validity);
+  ``shell_edge_touchdown`` / ``_liftoff``: the stance's own farthest contacts (the arc without its
+  margin) lie at least the shell's characteristic length l from the cap's free edges, where the
+  interior bending formula holds;
 * ``max_radius`` (when given): R <= the packaging limit.
 """
 
@@ -59,6 +62,7 @@ from hound_id.foot.strength import (
     band_section,
     boss_moment,
     boss_stress,
+    characteristic_length,
     fastener,
     local_bending_stress,
     root_bending_stress,
@@ -104,7 +108,9 @@ class FootRequirements:
     """Weight of the mass term in the objective (module docstring) [-]."""
     length_tolerance: float = 0.005
     """Largest change of the knee-to-ground height over the contact arc [m]."""
-
+    margin: float = 0.0
+    """Margin included at each end of [low, high] [rad]: the stance's own contacts reach low + margin and
+    high - margin (where the free-edge distance of the shell check is measured)."""
 
     @property
     def bore_radius(self) -> float:
@@ -267,7 +273,8 @@ def _constraints(
         *seats,
         ("boss_width", W, 2 * (rb + t), ">=", "m", "cap as wide as the boss and a rim"),
         # the floor under the square root keeps its derivative finite while IPOPT searches
-        ("boss_length", boss_len, req.min_boss_length, ">=", "m", "room for the fastening between the mount and the cap"),
+        ("boss_length", boss_len, req.min_boss_length, ">=", "m",
+         "room for the fastening between the mount and the cap"),
     ]  # fmt: skip
     if req.fastener is not None:
         f = req.fastener
@@ -278,6 +285,7 @@ def _constraints(
              f"boss (at its rim) at least the {f.name} thread engagement long"),
         ]  # fmt: skip
     section = band_section(R, t, W, ops)
+    l_char = characteristic_length(R, t, nu)
     seat = seat_angle(rb, R, t, ops)
     moment = boss_moment(F, mu, R, zc, req.low, req.high, ops)
     out += [
@@ -289,6 +297,10 @@ def _constraints(
          "cap at the boss seat, contact at the touchdown end: N/A + M c/I <= yield / safety"),
         ("shell_root_liftoff", root_bending_stress(F, mu, R, section, req.high - seat, ops), allowed, "<=", "Pa",
          "cap at the boss seat, contact at the liftoff end: N/A + M c/I <= yield / safety"),
+        ("shell_edge_touchdown", R * (req.low + req.margin - lo), l_char, ">=", "m",
+         "the stance's farthest touchdown contact lies >= l from the cap's edge (the interior bending formula holds)"),
+        ("shell_edge_liftoff", R * (hi - req.high + req.margin), l_char, ">=", "m",
+         "the stance's farthest liftoff contact lies >= l from the cap's edge (the interior bending formula holds)"),
     ]  # fmt: skip
     if req.max_radius is not None:
         out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
@@ -464,7 +476,8 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated) or "none"
         raise SpecError(
             f"foot: no design meets every constraint (IPOPT: {stats.get('return_status')}; violated: {detail}); "
-            "relax the request (smaller margin or roll, larger --max-radius, lower --grf or --friction, another --boss-radius)"
+            "relax the request (smaller margin or roll, larger --max-radius, lower --grf or --friction, "
+            "another --boss-radius)"
         )
     props = mass_properties(geometry, req.material.density)
     knee = props.about_axis_y((0.0, 0.0, mount.mount_length))
@@ -489,6 +502,13 @@ def casadi_ops() -> Any:
     import casadi as ca
 
     return SimpleNamespace(
-        sqrt=ca.sqrt, asin=ca.asin, sin=ca.sin, cos=ca.cos, fmin=ca.fmin, fmax=ca.fmax, if_else=ca.if_else,
-        log=ca.log, fabs=ca.fabs,
+        sqrt=ca.sqrt,
+        asin=ca.asin,
+        sin=ca.sin,
+        cos=ca.cos,
+        fmin=ca.fmin,
+        fmax=ca.fmax,
+        if_else=ca.if_else,
+        log=ca.log,
+        fabs=ca.fabs,
     )

@@ -56,7 +56,8 @@ def plot_foot(report: FootReport) -> Any:
         phi_k = math.atan2(sx, zc - sz)
         ox_s, oz_s = _arc(sx, sz, sr, phi_k - math.pi / 2, phi_k + math.pi / 2, 60)
         ax.plot(ox_s * mm, oz_s * mm, color="tab:purple", lw=0.7, alpha=0.7, zorder=3,
-                label=f"collision: {len(report.collision.spheres)} spheres r = {sr * mm:.1f} mm" if k == 0 else None)  # fmt: skip
+                label=f"collision: {len(report.collision.spheres)} spheres r = {sr * mm:.1f} mm" if k == 0
+                else None)  # fmt: skip
     # the contact angles the stance needs, drawn just outside the outer surface
     cx, cz = _arc(0.0, zc, g.radius + 0.08 * mount.contact_radius, angles.low, angles.high)
     ax.plot(cx * mm, cz * mm, color="tab:orange", lw=4, zorder=3,
@@ -87,7 +88,8 @@ def plot_foot(report: FootReport) -> Any:
              "hip pitch\ninertia"]  # fmt: skip
     ours = [report.mass_ratio, report.inertia_ratio, report.com_inertia_ratio,
             report.new.hip_pitch_inertia / report.original.hip_pitch_inertia]  # fmt: skip
-    paper = [PAPER["mass_ratio"], PAPER["inertia_ratio"], PAPER["inertia_ratio"], math.nan]
+    paper: list[float] = [float(PAPER["mass_ratio"]), float(PAPER["inertia_ratio"]), float(PAPER["inertia_ratio"]),
+                          math.nan]  # fmt: skip
     pos = np.arange(len(names))
     b1 = bars.bar(pos - 0.2, ours, 0.4, color="tab:blue", label="this design / this leg's original foot")
     b2 = bars.bar(pos + 0.2, paper, 0.4, color="0.6", hatch=["", "//", "//", ""],

@@ -207,8 +207,9 @@ def requirements_of(contact: ContactAngles, r: RequirementOptions) -> FootRequir
         safety=safety,
         roll=math.radians(roll),
         boss_radius=_length(r.boss_radius, "--boss-radius"),
-        fastener=fastener(r.bolt, _length(r.boss_wall, "--boss-wall"), _length(r.thread_engagement,
-                                                                             "--thread-engagement")),
+        fastener=fastener(
+            r.bolt, _length(r.boss_wall, "--boss-wall"), _length(r.thread_engagement, "--thread-engagement")
+        ),
         friction=r.friction,
         min_boss_length=_length(r.min_boss_length, "--min-boss-length") or 0.0,
         nominal_angle=math.radians(nominal_angle),
@@ -216,6 +217,7 @@ def requirements_of(contact: ContactAngles, r: RequirementOptions) -> FootRequir
         radius=_length(r.radius, "--radius"),
         mass_weight=mass_weight,
         length_tolerance=_length(r.length_tolerance, "--length-tolerance") or 0.0,
+        margin=contact.margin,
     )
 
 

@@ -213,9 +213,7 @@ def boss_moment(force: float, friction: float, radius: Any, centre_z: Any, low: 
     return force * ops.fabs(centre_z) * sin_max + friction * force * (radius + ops.fabs(centre_z))
 
 
-def boss_stress(
-    force: float, friction: float, boss_radius: Any, bore_radius: float, moment: Any
-) -> Any:
+def boss_stress(force: float, friction: float, boss_radius: Any, bore_radius: float, moment: Any) -> Any:
     """N / A + M r_b / I of the hollow boss section at the mount plane [Pa] (N = F sqrt(1 + mu^2))."""
     area = math.pi * (boss_radius**2 - bore_radius**2)
     inertia = math.pi * (boss_radius**4 - bore_radius**4) / 4

@@ -39,7 +39,9 @@ def test_sagittal_dip_roll_and_ends_are_what_the_report_says():
     dips = [G.radius - reach(s, G.centre_z, phi) for phi in phis]
     assert max(dips) == pytest.approx(col.ground_deviation, rel=1e-4)
     assert min(dips) == pytest.approx(0.0, abs=1e-12)  # each sphere touches the cap's sphere
-    assert max(G.radius - surface(s, G.centre_z, phi) for phi in phis) == pytest.approx(col.sagittal_deviation, rel=1e-4)
+    assert max(G.radius - surface(s, G.centre_z, phi) for phi in phis) == pytest.approx(
+        col.sagittal_deviation, rel=1e-4
+    )
     assert col.ground_deviation < col.sagittal_deviation <= 1e-4
     rolled = max(G.radius - reach(s, G.centre_z, phi, math.radians(10)) for phi in phis)
     assert rolled == pytest.approx(col.roll_deviation, rel=1e-4)
@@ -70,6 +72,8 @@ def test_both_simulators_load_the_spheres(tmp_path):
     assert geom.ngeoms == len(col.spheres)
     no_visual = text.replace('<mesh filename="foot.stl" />', '<sphere radius="0.001" />')
     mj = mujoco.MjModel.from_xml_string(no_visual)
-    spheres = [g for g in range(mj.ngeom) if mj.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE and mj.geom_size[g, 0] > 0.002]
+    spheres = [
+        g for g in range(mj.ngeom) if mj.geom_type[g] == mujoco.mjtGeom.mjGEOM_SPHERE and mj.geom_size[g, 0] > 0.002
+    ]
     assert len(spheres) == len(col.spheres)
     assert sorted(mj.geom_size[spheres, 0]) == pytest.approx([s[3] for s in col.spheres])

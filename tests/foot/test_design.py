@@ -61,7 +61,7 @@ def test_outputs_load_in_their_consumers(report, tmp_path):
     spheres = report.collision.spheres
     assert collision.ngeoms == len(spheres) >= 3
     g = report.design.geometry
-    for obj, (x, _, z, r) in zip(collision.geometryObjects, spheres, strict=True):
+    for obj, (_, _, _, r) in zip(collision.geometryObjects, spheres, strict=True):
         assert obj.geometry.radius == pytest.approx(r, rel=1e-8)
         # each sphere touches the cap's outer sphere from inside: centre at R - r from the cap's centre
         centre = obj.placement.translation - np.array([0.0, 0.0, -0.28 + g.centre_z])
@@ -110,6 +110,7 @@ def test_com_inertia_ratio_by_hand(report):
     """The calf + foot about its own centre of mass, by the parallel-axis theorem from the URDF's numbers."""
     calf_m, calf_z, calf_i = 0.25, 0.14, 0.00163  # the sample URDF's calf
     foot = report.mount.foot
+
     def about_com(m_f, com_f_z, com_f_x, i_f):
         m = calf_m + m_f
         cx, cz = m_f * com_f_x / m, (calf_m * calf_z + m_f * com_f_z) / m
