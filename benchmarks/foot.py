@@ -45,7 +45,7 @@ def main() -> None:
     samples = ROOT / "data" / "samples"
     angles = gait_angles(samples / "gait" / "hound_running.csv")
     req = FootRequirements(low=angles.low, high=angles.high, material=MATERIALS["aluminium_7075_t6"],
-                           ground=GROUNDS["concrete"], peak_force=1500.0)  # fmt: skip
+                           ground=GROUNDS["concrete"], peak_force=1500.0, margin=angles.margin)  # fmt: skip
     mount = read_foot(samples / "legs" / "hound_leg.urdf")
     design = optimise_foot(mount, req)  # warm-up: imports, casadi code generation
     g, rho = design.geometry, req.material.density

@@ -28,7 +28,21 @@ def foot(
     grf: str = typer.Option(_R.grf, "--grf", help="Peak ground reaction force on one foot, e.g. '1.5 kN'."),
     safety: float = typer.Option(_R.safety, "--safety", help="Safety factor on the Hertz yield pressure."),
     roll: float = typer.Option(_R.roll, "--roll", help="Roll angle the cap must also cover [deg]."),
-    boss_radius: str = typer.Option(_R.boss_radius, "--boss-radius", help=f"Mounting boss radius, {_LENGTH_HELP}."),
+    boss_radius: Optional[str] = typer.Option(
+        None, "--boss-radius", help=f"Fix the mounting boss radius (default: optimised), {_LENGTH_HELP}."
+    ),
+    bolt: str = typer.Option(
+        _R.bolt, "--bolt", help="Bolt tapped into the boss, M2 to M12 (ISO coarse), or none for a solid boss."
+    ),
+    boss_wall: Optional[str] = typer.Option(
+        None, "--boss-wall", help=f"Wall around the bolt's major diameter (default 0.5 d), {_LENGTH_HELP}."
+    ),
+    thread_engagement: Optional[str] = typer.Option(
+        None, "--thread-engagement", help=f"Thread engagement the boss must give (default 2 d), {_LENGTH_HELP}."
+    ),
+    friction: float = typer.Option(
+        _R.friction, "--friction", help="Tangential / normal ground force at the peak, for the stress checks."
+    ),
     min_boss_length: str = typer.Option(
         _R.min_boss_length, "--min-boss-length", help=f"Shortest boss, {_LENGTH_HELP}."
     ),
@@ -52,9 +66,14 @@ def foot(
     mesh_resolution: float = typer.Option(
         _F.mesh_resolution, "--mesh-resolution", help="Angular step of the STL mesh, 0.5 to 10 [deg]."
     ),
+    collision_tolerance: str = typer.Option(
+        _F.collision_tolerance,
+        "--collision-tolerance",
+        help=f"Largest dip of the collision spheres below the cap, {_LENGTH_HELP}.",
+    ),
     out: Optional[Path] = typer.Option(None, "--out", help="Folder for foot.stl, the patched URDF and foot.json."),
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: sagittal section, contact arc, ratios."),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/foot/1 or foot-leg/1)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/foot/2 or foot-leg/1)."),
 ) -> None:
     """The leg's mass properties and contact angles; with --optimise, the lightest spherical-cap foot."""
     from hound_id.foot.run import foot_data, run_foot, write_outputs
@@ -70,6 +89,10 @@ def foot(
             safety=safety,
             roll=roll,
             boss_radius=boss_radius,
+            bolt=bolt,
+            boss_wall=boss_wall,
+            thread_engagement=thread_engagement,
+            friction=friction,
             min_boss_length=min_boss_length,
             max_radius=max_radius,
             radius=radius,
@@ -82,6 +105,7 @@ def foot(
         robot=robot,
         robot_knee=robot_knee,
         mesh_resolution=mesh_resolution,
+        collision_tolerance=collision_tolerance,
         out=out,
         plot=plot,
     )
@@ -128,23 +152,30 @@ def _render_summary(s: dict[str, Any]) -> None:
 
 def _render_design(d: dict[str, Any]) -> None:
     g = d["geometry"]
-    table = Table(title="Optimised foot: new / original, calf + foot (Pinocchio)", title_justify="left")
+    table = Table(title="Optimised foot: new / original, calf + foot of this leg (Pinocchio)", title_justify="left")
     table.add_column("")
     table.add_column("this design", justify="right")
-    table.add_column("paper (KAIST Hound)", justify="right")
+    table.add_column("paper (KAIST Hound, its own leg; axis not stated)", justify="right")
     table.add_row("mass ratio", f"{d['mass_ratio']:.3f}", f"{d['paper']['mass_ratio']:.3f}")
-    table.add_row("pitch inertia ratio (knee)", f"{d['inertia_ratio']:.3f}", f"{d['paper']['inertia_ratio']:.3f}")
+    table.add_row("pitch inertia ratio, about the knee axis", f"{d['inertia_ratio']:.3f}",
+                  f"{d['paper']['inertia_ratio']:.3f}")  # fmt: skip
+    table.add_row("pitch inertia ratio, about its own centre of mass", f"{d['com_inertia_ratio']:.3f}",
+                  f"{d['paper']['inertia_ratio']:.3f}")  # fmt: skip
     table.add_row("hip inertia ratio", f"{d['hip_inertia_ratio']:.3f}", "")
     if d["inertia_ratio_with_rotor"] is not None:
         table.add_row("knee inertia ratio with the rotor", f"{d['inertia_ratio_with_rotor']:.3f}", "")
     console.print(table)
+    fastener = d["requirements"]["fastener"]
     console.print(
         f"cap: R = {g['radius'] * 1e3:.2f} mm, wall {g['thickness'] * 1e3:.2f} mm, width {g['width'] * 1e3:.2f} mm, "
         f"{d['coverage_deg'][0]:.1f} to {d['coverage_deg'][1]:.1f} deg, centre {g['centre_z'] * 1e3:+.2f} mm above "
-        f"the mount; foot {d['foot']['closed_form']['mass'] * 1e3:.1f} g of "
+        f"the mount; boss r = {g['boss_radius'] * 1e3:.2f} mm"
+        + (f", bored {2 * g['bore_radius'] * 1e3:.2f} mm for {fastener['name']}" if fastener else " (solid)")
+        + f"; foot {d['foot']['closed_form']['mass'] * 1e3:.1f} g of "
         f"{d['requirements']['material']['name']} (was {d['original_foot']['mass'] * 1e3:.0f} g)",
         highlight=False,
     )
+    console.print(f"paper: {d['ratios']['paper_note']}", highlight=False)
     ct = Table(title="Constraints", title_justify="left")
     for col in ("constraint", "value", "limit", "margin", "ok"):
         ct.add_column(col, justify="left" if col == "constraint" else "right")
@@ -154,6 +185,34 @@ def _render_design(d: dict[str, Any]) -> None:
         ct.add_row(name, fmt(c["value"]), f"{c['kind']} {fmt(c['limit'])}", margin,
                    "yes" if c["satisfied"] else "[red]NO[/red]")  # fmt: skip
     console.print(ct)
+    st = d["strength"]
+    title = (f"Stress at the peak ground force {st['peak_force']:g} N, friction {st['friction']:g} "
+             f"(allowed {st['allowed_stress'] / 1e6:.0f} MPa = {st['allowed_meaning']})")  # fmt: skip
+    stable = Table(title=title, title_justify="left")
+    for col in ("check", "stress", "margin", "allowed / stress", "model (formula in the JSON)"):
+        stable.add_column(col, justify="left" if col == "check" or col.startswith("model") else "right")
+    for name, c in st["checks"].items():
+        stable.add_row(name, f"{c['stress'] / 1e6:.1f} MPa", f"{c['margin'] / 1e6:.1f} MPa", f"{c['margin_ratio']:.2f}",
+                       c["model"])  # fmt: skip
+    console.print(stable)
+    v = st["checks"]["shell_bending"]["validity"]
+    console.print(
+        f"shell_bending validity: t/R = {v['t_over_R']:.3f} "
+        f"({'thin' if v['thin_shell'] else 'not thin, over 0.1: outside the formula'}), "
+        f"stance contacts {v['stance_edge_distance_over_l']:.2f} l from the cap's edges (l = "
+        f"{v['characteristic_length'] * 1e3:.2f} mm; the interior formula needs >= 1 l)",
+        highlight=False,
+    )
+    console.print("binding: " + "; ".join(f"{k} ({why})" for k, why in d["binding"].items()), highlight=False)
+    col = d["collision"]
+    console.print(
+        f"collision: {col['count']} spheres r = {col['sphere_radius'] * 1e3:.2f} mm on the cap's arc; dip below the "
+        f"cap <= {col['sagittal_deviation'] * 1e3:.3f} mm over its angles, {col['roll_deviation'] * 1e3:.2f} mm at the "
+        f"roll angle, {col['edge_deviation'] * 1e3:.2f} mm at its lateral edge; "
+        f"{math.degrees(col['overreach_angle']):.0f} deg past its ends the spheres reach "
+        f"{col['overreach'] * 1e3:.2f} mm beyond the rim (a full sphere {col['full_sphere_overreach'] * 1e3:.2f} mm)",
+        highlight=False,
+    )
     mc, pc = d["mesh_check"], d["pinocchio_check"]
     console.print(
         f"mesh: watertight {mc['watertight']}, {mc['faces']} faces, mass {mc['mass_error'] * 100:+.3f} %, "

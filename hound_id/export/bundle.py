@@ -280,9 +280,13 @@ def foot_from_json(path: Path) -> dict[str, Any]:
         ) from err
     except json.JSONDecodeError as err:
         raise SpecError(f"--foot {path}: not JSON ({err.msg}, line {err.lineno})") from err
-    if not isinstance(data, dict) or data.get("schema") != "hound-id/foot/1":
-        raise SpecError(f"--foot {path}: expected the hound-id/foot/1 JSON that hound-id foot --optimise writes")
+    if not isinstance(data, dict) or data.get("schema") not in ("hound-id/foot/1", "hound-id/foot/2"):
+        raise SpecError(
+            f"--foot {path}: expected the hound-id/foot/2 (or /1) JSON that hound-id foot --optimise writes"
+        )
     g, props = data["geometry"], data["foot"]["closed_form"]
+    # /2 adds the spheres along the cap's arc; a /1 foot keeps its one contact sphere
+    spheres = data["collision"]["spheres"] if data["schema"] == "hound-id/foot/2" else None
     return {
         "link": "foot",
         "mass": props["mass"],
@@ -290,6 +294,7 @@ def foot_from_json(path: Path) -> dict[str, Any]:
         "inertia": props["inertia"],
         "sphere_radius": g["radius"],
         "sphere_centre_z": g["centre_z"],
+        **({"collision_spheres": spheres} if spheres is not None else {}),
         "mass_ratio": data["mass_ratio"],
         "inertia_ratio": data["inertia_ratio"],
         "source": str(path.resolve()),

@@ -76,12 +76,15 @@ def put_feet(root: ET.Element, foot: Mapping[str, Any], path: Path) -> None:
     feet = [link for link in root.iter("link") if str(link.get("name", "")).endswith("foot")]
     if not feet:
         raise SpecError(f"{path}: no link whose name ends in 'foot' to put the optimised foot on")
+    # hound-id/foot/2 gives spheres along the cap's arc; a bundle made from a /1 foot has the one contact sphere
+    spheres = foot.get("collision_spheres") or [
+        (0.0, 0.0, float(foot["sphere_centre_z"]), float(foot["sphere_radius"]))
+    ]
     for link in feet:
         replace_foot(
             link,
             props,
             None,
-            float(foot["sphere_radius"]),
-            float(foot["sphere_centre_z"]),
+            [tuple(float(v) for v in s) for s in spheres],
             f"optimised foot from {foot.get('source', 'hound-id foot')}",
         )

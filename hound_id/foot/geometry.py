@@ -8,8 +8,9 @@ foot is the union of
   to the sagittal angles phi in [low, high] (phi measured at O from the calf's -z axis
   towards +x, the contact-angle convention of :mod:`hound_id.foot.angles`) and to the
   lateral band |y| <= W/2;
-* a **boss**: the solid column r <= r_b about the calf axis, from the mount plane z = 0 down
-  to the cap's inner sphere, which carries the cap on the calf.
+* a **boss**: the column r_i <= r <= r_b about the calf axis, from the mount plane z = 0 down
+  to the cap's inner sphere, which carries the cap on the calf; r_i is the bore of the fastener
+  (0 for a solid boss, see :mod:`hound_id.foot.strength`).
 
 Both are described in cylindrical coordinates (the cap about the lateral axis through O, the
 boss about the calf axis), where every mass integral has a closed form (polynomials, square
@@ -51,6 +52,8 @@ class FootGeometry:
     """Radius r_b of the mounting boss [m]."""
     centre_z: float
     """Height z_c of the sphere centre above the foot mount, along the calf [m] (negative: below)."""
+    bore_radius: float = 0.0
+    """Radius r_i of the bore through the boss for the fastener [m] (0: a solid boss)."""
 
     def check(self) -> None:
         """Raise SpecError if the numbers do not describe a solid this module can build."""
@@ -67,6 +70,11 @@ class FootGeometry:
             raise SpecError(
                 f"foot geometry: the cap's sagittal coverage must be between 0 and 180 deg, found "
                 f"{math.degrees(self.low):.1f} to {math.degrees(self.high):.1f} deg"
+            )
+        if not (math.isfinite(self.bore_radius) and 0 <= self.bore_radius < rb):
+            raise SpecError(
+                f"foot geometry: the bore (r_i = {self.bore_radius * 1e3:.2f} mm) must be smaller than the boss "
+                f"(r_b = {rb * 1e3:.2f} mm)"
             )
         if boss_seat_angle(self) > min(-self.low, self.high) + 1e-9 or rb > W / 2 * (1 + 1e-9):
             raise SpecError(
@@ -119,7 +127,15 @@ def _if_else(condition: Any, then: Any, otherwise: Any) -> Any:
 #: The few functions :func:`volume_moments` and the foot constraints need, for floats
 #: (:func:`hound_id.foot.optimise.casadi_ops` gives casadi's).
 FLOAT_OPS = SimpleNamespace(
-    sqrt=math.sqrt, asin=math.asin, sin=math.sin, cos=math.cos, fmin=min, fmax=max, if_else=_if_else
+    sqrt=math.sqrt,
+    asin=math.asin,
+    sin=math.sin,
+    cos=math.cos,
+    fmin=min,
+    fmax=max,
+    if_else=_if_else,
+    log=math.log,
+    fabs=abs,
 )
 
 
@@ -136,6 +152,21 @@ def _g3(a: Any, r: Any, ops: Any) -> Any:
 def _g4(a: Any, r: Any) -> Any:
     """int_0^a (r^2 - y^2)^2 dy."""
     return r**4 * a - 2 * r**2 * a**3 / 3 + a**5 / 5
+
+
+def _column(rb: Any, rho: Any, h: Any, ops: Any) -> dict[str, Any]:
+    """Volume moments about O of the solid column r <= rb, from the sphere of radius rho up to zeta = h."""
+    q = ops.sqrt(ops.fmax(rho**2 - rb**2, 1e-12))  # real while an optimiser searches; check() refuses rb >= rho
+    out = {
+        "V": 2 * math.pi * (h * rb**2 / 2 + (rho**3 - q**3) / 3),
+        "z": math.pi * (h**2 * rb**2 / 2 - (rho**2 * rb**2 / 2 - rb**4 / 4)),
+        "zz": 2 * math.pi / 3 * (h**3 * rb**2 / 2 + (rho**5 - q**5) / 5),
+        # int r^3 l(r) dr with l = h + sqrt(rho^2 - r^2); x^2 and y^2 share it
+        "xx": math.pi * (h * rb**4 / 4 + (2 / 3 * rho**2 * (rho**3 - q**3) - 2 / 5 * (rho**5 - q**5)) / 2),
+        "xz": 0.0,
+        "x": 0.0,
+    }
+    return out
 
 
 def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
@@ -172,18 +203,10 @@ def volume_moments(geometry: FootGeometry, ops: Any = None) -> dict[str, Any]:
         "xz": -(sin_hi**2 - sin_lo**2) / 2 * m4,
         "yy": dphi * n2,
     }
-    # Boss, about the calf axis: column r <= r_b from zeta = -sqrt(rho^2 - r^2) up to zeta = h.
-    h = -zc
-    q = ops.sqrt(ops.fmax(rho**2 - rb**2, 1e-12))  # real while an optimiser searches; check() refuses rb >= rho
-    boss = {
-        "V": 2 * math.pi * (h * rb**2 / 2 + (rho**3 - q**3) / 3),
-        "z": math.pi * (h**2 * rb**2 / 2 - (rho**2 * rb**2 / 2 - rb**4 / 4)),
-        "zz": 2 * math.pi / 3 * (h**3 * rb**2 / 2 + (rho**5 - q**5) / 5),
-        # int r^3 l(r) dr with l = h + sqrt(rho^2 - r^2); x^2 and y^2 share it
-        "xx": math.pi * (h * rb**4 / 4 + (2 / 3 * rho**2 * (rho**3 - q**3) - 2 / 5 * (rho**5 - q**5)) / 2),
-        "xz": 0.0,
-        "x": 0.0,
-    }
+    # Boss, about the calf axis: the column r_i <= r <= r_b from zeta = -sqrt(rho^2 - r^2) up to zeta = h,
+    # the solid column of r_b minus that of the bore r_i.
+    outer, bore = _column(rb, rho, -zc, ops), _column(geometry.bore_radius, rho, -zc, ops)
+    boss = {k: outer[k] - bore[k] for k in outer}
     boss["yy"] = boss["xx"]
     # Shift both from O to the foot frame (z = zc + zeta).
     out = {"V": cap["V"] + boss["V"], "x": cap["x"] + boss["x"]}
@@ -229,7 +252,8 @@ def foot_mesh(geometry: FootGeometry, resolution_deg: float = 1.0) -> Any:
 
     The cap is the shell's (s, y) section revolved about the lateral axis over [low, high];
     the boss is its (r, z) section revolved about the calf axis, reaching half-way into the
-    shell so that the union is one solid. ``resolution_deg`` is the angular step of arcs and
+    shell so that the union is one solid (the bore, if any, stops at the cap's inner sphere).
+    ``resolution_deg`` is the angular step of arcs and
     revolutions.
     """
     import manifold3d
@@ -255,10 +279,12 @@ def foot_mesh(geometry: FootGeometry, resolution_deg: float = 1.0) -> Any:
     sh, ch = math.sin(geometry.high), math.cos(geometry.high)
     cap = cap.transform(np.array([[sh, -ch, 0.0, 0.0], [0.0, 0.0, 1.0, 0.0], [-ch, -sh, 0.0, zc]]))
     # boss section in (r, z): down from the mount to the sphere of radius R - t/2 (inside the shell)
-    rm = R - t / 2
-    boss_section = [(0.0, 0.0), (rb, 0.0)] + [
-        (r, zc - math.sqrt(rm**2 - r**2)) for r in np.linspace(rb, 0.0, max(2, math.ceil(rb / (rm * step)) + 1))
+    rm, ri = R - t / 2, geometry.bore_radius
+    boss_section = [(ri, 0.0), (rb, 0.0)] + [
+        (r, zc - math.sqrt(rm**2 - r**2)) for r in np.linspace(rb, ri, max(2, math.ceil((rb - ri) / (rm * step)) + 1))
     ]
+    if ri > 0:  # the bore ends at the cap's inner sphere: the shell closes it
+        boss_section[-1] = (ri, zc - math.sqrt((R - t) ** 2 - ri**2))
     boss = manifold3d.Manifold.revolve(manifold3d.CrossSection([_ccw(boss_section)]), segments)
     solid = cap + boss
     mesh = solid.to_mesh()

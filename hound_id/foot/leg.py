@@ -7,7 +7,9 @@ below that joint about its axis, at configuration q. So:
 * knee pitch inertia = M[KFE, KFE]: calf + foot about the knee axis (independent of q for a
   planar leg);
 * hip inertia = M[HFE, HFE] at the nominal pose: thigh + calf + foot about the hip axis;
-* calf + foot mass = the subtree mass below the knee (``computeSubtreeMasses``).
+* calf + foot mass = the subtree mass below the knee (``computeSubtreeMasses``);
+* calf + foot pitch inertia about its own centre of mass = the knee pitch inertia minus
+  m d^2, d the distance of the subtree's centre of mass from the knee axis (parallel axes).
 
 The reflected inertia of the knee motor's rotor is J_rotor G^2 for a single-stage knee
 (physics notes); with a coupled transmission see
@@ -16,6 +18,7 @@ The reflected inertia of the knee motor's rotor is J_rotor G^2 for a single-stag
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -33,6 +36,10 @@ class LegProperties:
     """Inertia of everything below the knee about the knee axis [kg m^2]."""
     hip_pitch_inertia: float
     """Inertia of everything below the hip about the hip axis, at the configuration [kg m^2]."""
+    com_pitch_inertia: float
+    """Inertia of everything below the knee about the pitch axis through its own centre of mass [kg m^2]."""
+    com_distance: float
+    """Distance of the centre of mass of everything below the knee from the knee axis [m]."""
     reflected_knee_inertia: float | None
     """Knee rotor inertia seen at the knee, J_rotor G^2 [kg m^2], if rotor inertia and ratio are given."""
     knee_angle: float
@@ -91,6 +98,13 @@ def leg_properties(
     M = pin.crba(model, data, q)
     M = np.triu(M) + np.triu(M, 1).T  # crba fills the upper triangle
     pin.computeSubtreeMasses(model, data)
+    pin.forwardKinematics(model, data, q)
+    kid = ids[knee_joint]
+    # the subtree's centre of mass, world frame, from each body's (fixed links are merged into their joint's)
+    below = list(model.subtrees[kid])
+    com = sum(model.inertias[j].mass * data.oMi[j].act(model.inertias[j].lever) for j in below) / data.mass[kid]
+    offset = np.asarray(com) - np.asarray(data.oMi[kid].translation)
+    d2 = float(offset[0] ** 2 + offset[2] ** 2)  # pitch axis y: the distance in the x-z plane
     reflected = None
     if rotor_inertia is not None and knee_ratio is not None:
         reflected = float(rotor_inertia * knee_ratio**2)
@@ -98,6 +112,8 @@ def leg_properties(
         calf_foot_mass=float(data.mass[ids[knee_joint]]),
         knee_pitch_inertia=float(M[knee.idx_v, knee.idx_v]),
         hip_pitch_inertia=float(M[model.joints[ids[hip_joint]].idx_v, model.joints[ids[hip_joint]].idx_v]),
+        com_pitch_inertia=float(M[knee.idx_v, knee.idx_v]) - float(data.mass[kid]) * d2,
+        com_distance=math.sqrt(d2),
         reflected_knee_inertia=reflected,
         knee_angle=float(knee_angle),
     )

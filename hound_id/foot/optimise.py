@@ -1,8 +1,9 @@
 """The lightest spherical-cap foot for a leg, by nonlinear programming with casadi (IPOPT).
 
 Design variables (SI): sphere radius R, wall thickness t, lateral width W, cap angles
-[low, high] and the height z_c of the sphere centre above the mount (see
-:mod:`hound_id.foot.geometry`). The boss radius is given (it fits the calf).
+[low, high], the height z_c of the sphere centre above the mount and the boss radius r_b
+(see :mod:`hound_id.foot.geometry`; ``--boss-radius`` fixes it). The boss is bored for the
+fastener (``--bolt``, M4 by default; :mod:`hound_id.foot.strength`); z_c sets its length.
 
 Objective: the knee pitch inertia of the foot, I_foot = rho int ((x^2 + (z - L)^2) dV), plus
 ``mass_weight`` m l^2 with l the knee-to-ground length, so ``mass_weight = 1`` counts the
@@ -23,13 +24,22 @@ Constraints (each reported with its value, limit and margin):
 * ``boss_seat_front`` / ``boss_seat_back``: the boss, with a rim of one wall thickness, lands
   inside the cap's angles; ``boss_width``: W >= 2 (r_b + t); ``boss_length``: the boss is at
   least ``min_boss_length`` long;
+* with a fastener: ``boss_wall``: r_b >= d/2 + wall, ``thread_engagement``: the boss is at least
+  the engagement long;
+* ``boss_stress``, ``shell_bending``, ``shell_root_touchdown``, ``shell_root_liftoff``: the boss at
+  the mount plane, the cap under the load and the cap at the boss seat stay below yield / safety
+  at the peak ground force (:mod:`hound_id.foot.strength` states the formulas and their validity);
+  ``shell_edge_touchdown`` / ``_liftoff``: the stance's own farthest contacts (the arc without its
+  margin) lie at least the shell's characteristic length l from the cap's free edges, where the
+  interior bending formula holds;
 * ``max_radius`` (when given): R <= the packaging limit.
 """
 
 from __future__ import annotations
 
+import itertools
 import math
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from types import SimpleNamespace
 from typing import Any
 
@@ -46,6 +56,17 @@ from hound_id.foot.material import (
     effective_modulus,
     min_radius,
     peak_pressure,
+)
+from hound_id.foot.strength import (
+    Fastener,
+    band_section,
+    boss_moment,
+    boss_stress,
+    characteristic_length,
+    fastener,
+    local_bending_stress,
+    root_bending_stress,
+    seat_angle,
 )
 from hound_id.foot.urdf import FootMount
 
@@ -69,8 +90,12 @@ class FootRequirements:
     """Safety factor on the Hertz yield pressure [-]."""
     roll: float = math.radians(10.0)
     """Lateral (roll) angle the cap must also cover [rad]."""
-    boss_radius: float = 0.010
-    """Radius of the mounting boss [m] (fits the calf tube)."""
+    boss_radius: float | None = None
+    """Fix the radius of the mounting boss [m]; None: a design variable."""
+    fastener: Fastener | None = field(default_factory=lambda: fastener("M4"))
+    """The bolt tapped into the boss (None: a solid boss, no bore)."""
+    friction: float = 0.6
+    """Tangential over normal ground force at the peak, for the strength checks [-] (assumed)."""
     min_boss_length: float = 0.010
     """Shortest boss, mount to the cap's inner surface [m] (room for the fastening)."""
     nominal_angle: float = 0.0
@@ -83,6 +108,19 @@ class FootRequirements:
     """Weight of the mass term in the objective (module docstring) [-]."""
     length_tolerance: float = 0.005
     """Largest change of the knee-to-ground height over the contact arc [m]."""
+    margin: float = 0.0
+    """Margin included at each end of [low, high] [rad]: the stance's own contacts reach low + margin and
+    high - margin (where the free-edge distance of the shell check is measured)."""
+
+    @property
+    def bore_radius(self) -> float:
+        """Radius of the fastener's bore [m] (0 without one)."""
+        return self.fastener.bore_radius if self.fastener is not None else 0.0
+
+    @property
+    def allowed_stress(self) -> float:
+        """Yield strength over the safety factor [Pa]."""
+        return self.material.yield_strength / self.safety
 
 
 @dataclass(frozen=True)
@@ -139,13 +177,14 @@ class FootDesign:
         return all(c.satisfied for c in self.constraints)
 
 
-_X = ("radius", "thickness", "width", "low", "high", "centre_z")
+_X = ("radius", "thickness", "width", "low", "high", "centre_z", "boss_radius")
 
 
 def _geometry(x: Any, req: FootRequirements) -> FootGeometry:
     return FootGeometry(
-        radius=x[0], thickness=x[1], width=x[2], low=x[3], high=x[4], boss_radius=req.boss_radius, centre_z=x[5]
-    )
+        radius=x[0], thickness=x[1], width=x[2], low=x[3], high=x[4], boss_radius=x[6], centre_z=x[5],
+        bore_radius=req.bore_radius,
+    )  # fmt: skip
 
 
 def _knee_ground(mount: FootMount, req: FootRequirements) -> float:
@@ -173,14 +212,15 @@ def _constraints(
     arcsines (whose derivative is infinite at 1) and the stance leg length as one two-sided
     (``within``) row per angle instead of a maximum; the numeric rows are what the report shows.
     """
-    R, t, W, lo, hi, zc = (x[i] for i in range(6))
+    R, t, W, lo, hi, zc, rb = (x[i] for i in range(7))
     e_star = effective_modulus(req.material, req.ground)
-    F = req.peak_force
+    F, mu, nu, allowed = req.peak_force, req.friction, req.material.poisson, req.allowed_stress
     a = contact_radius(F, R, e_star)
-    rim = (req.boss_radius + t) / (R - t)  # sine of the half-angle of the boss plus a rim of one wall
+    rim = (rb + t) / (R - t)  # sine of the half-angle of the boss plus a rim of one wall
     cos_n, L = math.cos(req.nominal_angle), mount.mount_length
     # knee-to-ground height, new minus original, with the calf at contact angle theta
     dh = [R - mount.contact_radius - zc * math.cos(theta) for theta in _stance_angles(req)]
+    boss_len = ops.sqrt(ops.fmax((R - t) ** 2 - rb**2, 1e-12)) - zc
     if symbolic:
         seats = [
             ("boss_seat_front", ops.sin(-lo), rim, ">=", "-", ""),
@@ -231,10 +271,36 @@ def _constraints(
         *stance,
         ("lateral_coverage", ops.asin(W / (2 * R)), req.roll, ">=", "rad", "the cap covers the roll angle"),
         *seats,
-        ("boss_width", W, 2 * (req.boss_radius + t), ">=", "m", "cap as wide as the boss and a rim"),
+        ("boss_width", W, 2 * (rb + t), ">=", "m", "cap as wide as the boss and a rim"),
         # the floor under the square root keeps its derivative finite while IPOPT searches
-        ("boss_length", ops.sqrt(ops.fmax((R - t) ** 2 - req.boss_radius**2, 1e-12)) - zc, req.min_boss_length, ">=",
-         "m", "room for the fastening between the mount and the cap"),
+        ("boss_length", boss_len, req.min_boss_length, ">=", "m",
+         "room for the fastening between the mount and the cap"),
+    ]  # fmt: skip
+    if req.fastener is not None:
+        f = req.fastener
+        out += [
+            ("boss_wall", rb, f.min_boss_radius, ">=", "m",
+             f"boss radius >= {f.name} major radius + {f.wall * 1e3:.2f} mm wall"),
+            ("thread_engagement", boss_len, f.engagement, ">=", "m",
+             f"boss (at its rim) at least the {f.name} thread engagement long"),
+        ]  # fmt: skip
+    section = band_section(R, t, W, ops)
+    l_char = characteristic_length(R, t, nu)
+    seat = seat_angle(rb, R, t, ops)
+    moment = boss_moment(F, mu, R, zc, req.low, req.high, ops)
+    out += [
+        ("boss_stress", boss_stress(F, mu, rb, req.bore_radius, moment), allowed, "<=", "Pa",
+         "boss section at the mount plane: N/A + M r_b/I <= yield / safety"),
+        ("shell_bending", local_bending_stress(F, R, t, a, nu, ops), allowed, "<=", "Pa",
+         "cap bending under the load (Reissner shallow shell = Westergaard interior formula) <= yield / safety"),
+        ("shell_root_touchdown", root_bending_stress(F, mu, R, section, -req.low - seat, ops), allowed, "<=", "Pa",
+         "cap at the boss seat, contact at the touchdown end: N/A + M c/I <= yield / safety"),
+        ("shell_root_liftoff", root_bending_stress(F, mu, R, section, req.high - seat, ops), allowed, "<=", "Pa",
+         "cap at the boss seat, contact at the liftoff end: N/A + M c/I <= yield / safety"),
+        ("shell_edge_touchdown", R * (req.low + req.margin - lo), l_char, ">=", "m",
+         "the stance's farthest touchdown contact lies >= l from the cap's edge (the interior bending formula holds)"),
+        ("shell_edge_liftoff", R * (hi - req.high + req.margin), l_char, ">=", "m",
+         "the stance's farthest liftoff contact lies >= l from the cap's edge (the interior bending formula holds)"),
     ]  # fmt: skip
     if req.max_radius is not None:
         out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
@@ -255,10 +321,23 @@ def _precheck(mount: FootMount, req: FootRequirements) -> float:
             f"foot: the coverage {math.degrees(req.low):.1f} to {math.degrees(req.high):.1f} deg must span "
             "between 0 and 180 deg"
         )
-    if not (req.peak_force > 0 and req.safety > 0 and 0 <= req.roll < math.pi / 2 and req.boss_radius > 0):
+    rb = req.boss_radius
+    if not (req.peak_force > 0 and req.safety > 0 and 0 <= req.roll < math.pi / 2 and (rb is None or rb > 0)):
         raise SpecError(
             f"foot: need --grf > 0, --safety > 0, 0 <= --roll < 90 deg and --boss-radius > 0; found "
-            f"{req.peak_force:g} N, {req.safety:g}, {math.degrees(req.roll):g} deg, {req.boss_radius * 1e3:g} mm"
+            f"{req.peak_force:g} N, {req.safety:g}, {math.degrees(req.roll):g} deg, "
+            + (f"{rb * 1e3:g} mm" if rb is not None else "boss radius optimised")
+        )
+    if not (math.isfinite(req.friction) and 0 <= req.friction <= 2):
+        raise SpecError(f"--friction: found {req.friction:g}, expected a friction coefficient from 0 to 2")
+    if rb is not None and req.fastener is not None and rb < req.fastener.min_boss_radius * (1 - TOLERANCE):
+        f = req.fastener
+        raise SpecError(
+            f"--boss-radius: {rb * 1e3:.2f} mm is too thin for the {f.name} bolt: it needs at least "
+            f"{f.min_boss_radius * 1e3:.2f} mm (major radius {f.diameter / 2 * 1e3:.2f} mm + {f.wall * 1e3:.2f} mm "
+            "wall); give a larger --boss-radius, a smaller --bolt or --boss-wall, or --bolt none",
+            found=rb,
+            expected=f.min_boss_radius,
         )
     e_star = effective_modulus(req.material, req.ground)
     p_allow = allowed_pressure(req.material, req.safety)
@@ -303,18 +382,28 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     return tuple(out)
 
 
-def _guess(R0: float, mount: FootMount, req: FootRequirements) -> list[float]:
-    """A starting point in IPOPT's variables (see :func:`optimise_foot`) for a radius R0 [m]."""
+def _guess(R0: float, mount: FootMount, req: FootRequirements, wide: bool = False) -> list[float]:
+    """A starting point in IPOPT's variables (see :func:`optimise_foot`) for a radius R0 [m]; ``wide``
+    starts from a cap 1.5 x as wide as the radius (the stress constraints make the problem multimodal:
+    a thick narrow band and a thin wide one both carry the load)."""
     if req.radius is not None:
         R0 = req.radius
     if req.max_radius is not None:
         R0 = min(R0, req.max_radius)
     t0 = min(max(req.material.min_wall, 1e-3) * 2, 0.3 * R0)
-    seat = math.asin(min(1.0, (req.boss_radius + t0) / (R0 - t0)))
-    W0 = min(2 * R0 * 0.95, max(2 * (req.boss_radius + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    rb0 = req.boss_radius if req.boss_radius is not None else max(_min_boss(req) * 1.5, 0.25 * R0)
+    seat = math.asin(min(1.0, (rb0 + t0) / (R0 - t0)))
+    W0 = min(2 * R0 * 0.95, max(2 * (rb0 + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    if wide:
+        W0 = max(W0, min(1.5 * R0, 2 * (R0 - t0) * 0.95))
     lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
     zc0 = (R0 - mount.contact_radius) / math.cos(req.nominal_angle)
-    return [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3]
+    return [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3, rb0 * 1e3]
+
+
+def _min_boss(req: FootRequirements) -> float:
+    """Smallest boss radius the bounds allow [m]: the fastener's, or a bore-free 1 mm."""
+    return req.fastener.min_boss_radius if req.fastener is not None else 1e-3
 
 
 def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
@@ -323,11 +412,11 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
 
     r_min = _precheck(mount, req)
     # IPOPT's variables y: R [mm], t / R, the lateral half-angle beta (W = 2 R sin beta), low, high
-    # [rad], z_c [mm]. Their bounds keep every square root and arcsine of the formulas real, since
+    # [rad], z_c [mm], r_b [mm]. Their bounds keep every square root and arcsine of the formulas real, since
     # IPOPT may step outside the constraints (never outside the bounds) while it searches.
-    y = ca.SX.sym("y", 6)
+    y = ca.SX.sym("y", 7)
     R = y[0] * 1e-3
-    x = ca.vertcat(R, y[1] * R, 2 * R * ca.sin(y[2]), y[3], y[4], y[5] * 1e-3)
+    x = ca.vertcat(R, y[1] * R, 2 * R * ca.sin(y[2]), y[3], y[4], y[5] * 1e-3, y[6] * 1e-3)
     ops = casadi_ops()
     m = volume_moments(_geometry(x, req), ops=ops)
     inertia, objective = _objective(m, mount, req)
@@ -349,14 +438,16 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0, "show_eval_warnings": False}  # fmt: skip
     solver = ca.nlpsol("foot", "ipopt", nlp, opts)
     to_x = ca.Function("x", [y], [x])
-    lbx = [1.0, 1e-3, 1e-3, -math.pi / 2, 0.0, -1e3]
-    ubx = [1e3, 0.5, math.pi / 2 - 1e-3, 0.0, math.pi / 2, 1e3]
+    lbx = [1.0, 1e-3, 1e-3, -math.pi / 2, 0.0, -1e3, _min_boss(req) * 1e3]
+    ubx = [1e3, 0.5, math.pi / 2 - 1e-3, 0.0, math.pi / 2, 1e3, 1e3]
     if req.radius is not None:
         lbx[0] = ubx[0] = req.radius * 1e3
+    if req.boss_radius is not None:
+        lbx[6] = ubx[6] = req.boss_radius * 1e3
     best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
     last: tuple[list[float], dict[str, Any]] | None = None
-    for start in (1.3, 2.0, 1.02, 4.0):  # a few starts: the first that converges usually is the optimum
-        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req)
+    for start, wide in itertools.product((1.3, 2.0, 1.02, 4.0), (False, True)):  # the best of a few starts
+        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req, wide)
         sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         y_opt = [float(v) for v in sol["x"].full().ravel()]
@@ -366,8 +457,6 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             f = float(sol["f"])
             if best is None or f < best[0] - 1e-9:
                 best = (f, x_try, stats, y_opt)
-            if start == 1.3:
-                break
     if best is None:
         assert last is not None
         x_bad, stats = last
@@ -377,7 +466,7 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             f"foot: no design found that meets every constraint (IPOPT: {stats.get('return_status')}"
             + (f"; violated at its last point: {detail}" if detail else "")
             + "); relax the request: a smaller --margin or --roll, a larger --max-radius or --length-tolerance, "
-            "a thinner --boss-radius or a shorter --min-boss-length"
+            "a shorter --min-boss-length, a smaller --bolt, a lower --grf or --friction, or a stronger --material"
         )
     f_best, x_opt, stats, y_best = best
     geometry = _geometry(x_opt, req)
@@ -387,7 +476,8 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated) or "none"
         raise SpecError(
             f"foot: no design meets every constraint (IPOPT: {stats.get('return_status')}; violated: {detail}); "
-            "relax the request (smaller margin or roll, larger --max-radius, lower --grf, thinner --boss-radius)"
+            "relax the request (smaller margin or roll, larger --max-radius, lower --grf or --friction, "
+            "another --boss-radius)"
         )
     props = mass_properties(geometry, req.material.density)
     knee = props.about_axis_y((0.0, 0.0, mount.mount_length))
@@ -412,5 +502,13 @@ def casadi_ops() -> Any:
     import casadi as ca
 
     return SimpleNamespace(
-        sqrt=ca.sqrt, asin=ca.asin, sin=ca.sin, cos=ca.cos, fmin=ca.fmin, fmax=ca.fmax, if_else=ca.if_else
+        sqrt=ca.sqrt,
+        asin=ca.asin,
+        sin=ca.sin,
+        cos=ca.cos,
+        fmin=ca.fmin,
+        fmax=ca.fmax,
+        if_else=ca.if_else,
+        log=ca.log,
+        fabs=ca.fabs,
     )

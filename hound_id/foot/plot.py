@@ -42,12 +42,22 @@ def plot_foot(report: FootReport) -> Any:
     ax.fill(np.r_[x_out, x_in] * mm, np.r_[z_out, z_in] * mm, color="tab:blue", alpha=0.85, zorder=2,
             label=f"new cap R = {g.radius * mm:.1f} mm, t = {g.thickness * mm:.2f} mm, "
             f"{report.design.properties.mass * 1e3:.1f} g")  # fmt: skip
-    # boss: column |x| <= r_b from the mount down to the inner sphere
-    rb, rho = g.boss_radius, g.radius - g.thickness
-    xb = np.linspace(-rb, rb, 50)
-    zb = zc - np.sqrt(rho**2 - xb**2)
-    ax.fill(np.r_[xb, rb, -rb] * mm, np.r_[zb, 0.0, 0.0] * mm, color="tab:blue", alpha=0.55, zorder=2,
-            label=f"boss r = {rb * mm:.1f} mm")  # fmt: skip
+    # boss: the wall r_i <= |x| <= r_b from the mount down to the inner sphere (the bore left white)
+    rb, ri, rho = g.boss_radius, g.bore_radius, g.radius - g.thickness
+    bolt = report.requirements.fastener
+    for sign in (-1.0, 1.0):
+        xb = sign * np.linspace(ri, rb, 30)
+        zb = zc - np.sqrt(rho**2 - xb**2)
+        ax.fill(np.r_[xb, sign * rb, sign * ri] * mm, np.r_[zb, 0.0, 0.0] * mm, color="tab:blue", alpha=0.55,
+                zorder=2, label=(f"boss r = {rb * mm:.2f} mm" + (f", {bolt.name} bore" if bolt else ", solid"))
+                if sign > 0 else None)  # fmt: skip
+    # collision spheres: the outward half of each outline (the side the ground can meet)
+    for k, (sx, _, sz, sr) in enumerate(report.collision.spheres):
+        phi_k = math.atan2(sx, zc - sz)
+        ox_s, oz_s = _arc(sx, sz, sr, phi_k - math.pi / 2, phi_k + math.pi / 2, 60)
+        ax.plot(ox_s * mm, oz_s * mm, color="tab:purple", lw=0.7, alpha=0.7, zorder=3,
+                label=f"collision: {len(report.collision.spheres)} spheres r = {sr * mm:.1f} mm" if k == 0
+                else None)  # fmt: skip
     # the contact angles the stance needs, drawn just outside the outer surface
     cx, cz = _arc(0.0, zc, g.radius + 0.08 * mount.contact_radius, angles.low, angles.high)
     ax.plot(cx * mm, cz * mm, color="tab:orange", lw=4, zorder=3,
@@ -74,18 +84,22 @@ def plot_foot(report: FootReport) -> Any:
     ax.set_xlim(-lim, lim)
     ax.set_ylim(min(-1.35 * mount.contact_radius, zc - 1.35 * g.radius) * mm, 0.9 * lim)
     # ratios
-    names = ["calf + foot\nmass", "knee pitch\ninertia", "hip pitch\ninertia"]
-    ours = [report.mass_ratio, report.inertia_ratio, report.new.hip_pitch_inertia / report.original.hip_pitch_inertia]
-    paper = [PAPER["mass_ratio"], PAPER["inertia_ratio"], math.nan]
+    names = ["calf + foot\nmass", "pitch inertia\nabout the knee", "pitch inertia\nabout own COM",
+             "hip pitch\ninertia"]  # fmt: skip
+    ours = [report.mass_ratio, report.inertia_ratio, report.com_inertia_ratio,
+            report.new.hip_pitch_inertia / report.original.hip_pitch_inertia]  # fmt: skip
+    paper: list[float] = [float(PAPER["mass_ratio"]), float(PAPER["inertia_ratio"]), float(PAPER["inertia_ratio"]),
+                          math.nan]  # fmt: skip
     pos = np.arange(len(names))
-    b1 = bars.bar(pos - 0.2, ours, 0.4, color="tab:blue", label="this design")
-    b2 = bars.bar(pos + 0.2, paper, 0.4, color="0.6", label="paper (KAIST Hound)")
+    b1 = bars.bar(pos - 0.2, ours, 0.4, color="tab:blue", label="this design / this leg's original foot")
+    b2 = bars.bar(pos + 0.2, paper, 0.4, color="0.6", hatch=["", "//", "//", ""],
+                  label="paper: its own leg; inertia axis not stated (hatched)")  # fmt: skip
     bars.bar_label(b1, fmt="%.3f", fontsize=8)
     bars.bar_label(b2, labels=[f"{v:.3f}" if math.isfinite(v) else "n/a" for v in paper], fontsize=8)
     bars.axhline(1.0, color="k", lw=0.8)
-    bars.set_xticks(pos, names, fontsize=8)
+    bars.set_xticks(pos, names, fontsize=7.5)
     bars.set_ylabel("new / original")
     bars.set_ylim(0, 1.15)
     bars.set_title("Ratios, new / original (Pinocchio)")
-    bars.legend(fontsize=8, loc="upper right")
+    bars.legend(fontsize=7, loc="upper right")
     return fig

@@ -52,8 +52,16 @@ class RequirementOptions:
     """Safety factor on the Hertz yield pressure [-]."""
     roll: float = 10.0
     """Roll angle the cap must also cover [deg]."""
-    boss_radius: str = "10 mm"
-    """Mounting boss radius, with a unit (a plain number is metres)."""
+    boss_radius: str | None = None
+    """Fix the mounting boss radius, with a unit (None: optimised)."""
+    bolt: str = "M4"
+    """Bolt tapped into the boss: ``M2`` to ``M12`` (ISO coarse) or ``none`` for a solid boss."""
+    boss_wall: str | None = None
+    """Wall around the bolt's major diameter, with a unit (None: 0.5 d)."""
+    thread_engagement: str | None = None
+    """Thread engagement the boss must give, with a unit (None: 2 d)."""
+    friction: float = 0.6
+    """Tangential over normal ground force at the peak, for the strength checks [-]."""
     min_boss_length: str = "10 mm"
     """Shortest boss, with a unit."""
     max_radius: str | None = None
@@ -90,6 +98,8 @@ class FootOptions:
     """The knee joint's name in ``robot``."""
     mesh_resolution: float = 2.0
     """Angular step of the STL mesh [deg], 0.5 to 10."""
+    collision_tolerance: str = "0.1 mm"
+    """Largest dip of the collision spheres below the cap between neighbours, with a unit."""
     out: Path | None = None
     """Folder for foot.stl, the patched URDF and foot.json (needs ``optimise``)."""
     plot: Path | None = None
@@ -171,9 +181,12 @@ def requirements_of(contact: ContactAngles, r: RequirementOptions) -> FootRequir
     """The requirements, SI, checked: each option out of its range is named in one line."""
     from hound_id.foot.material import GROUNDS, load_material
     from hound_id.foot.optimise import FootRequirements
+    from hound_id.foot.strength import fastener
     from hound_id.units import to_si
 
     safety, roll, mass_weight, nominal_angle = r.safety, r.roll, r.mass_weight, r.nominal_angle
+    if not (math.isfinite(r.friction) and 0.0 <= r.friction <= 2.0):
+        raise SpecError(f"--friction: found {r.friction:g}, expected a friction coefficient from 0 to 2 (0.6 default)")
     if not all(math.isfinite(v) for v in (safety, roll, mass_weight, nominal_angle)) or mass_weight < 0:
         raise SpecError("foot: --safety, --roll, --mass-weight (>= 0) and --nominal-angle must be finite numbers")
     if not 1.0 <= safety <= 10.0:
@@ -193,13 +206,18 @@ def requirements_of(contact: ContactAngles, r: RequirementOptions) -> FootRequir
         peak_force=peak_force,
         safety=safety,
         roll=math.radians(roll),
-        boss_radius=_length(r.boss_radius, "--boss-radius") or 0.0,
+        boss_radius=_length(r.boss_radius, "--boss-radius"),
+        fastener=fastener(
+            r.bolt, _length(r.boss_wall, "--boss-wall"), _length(r.thread_engagement, "--thread-engagement")
+        ),
+        friction=r.friction,
         min_boss_length=_length(r.min_boss_length, "--min-boss-length") or 0.0,
         nominal_angle=math.radians(nominal_angle),
         max_radius=_length(r.max_radius, "--max-radius"),
         radius=_length(r.radius, "--radius"),
         mass_weight=mass_weight,
         length_tolerance=_length(r.length_tolerance, "--length-tolerance") or 0.0,
+        margin=contact.margin,
     )
 
 
@@ -242,8 +260,10 @@ def run_foot(options: FootOptions = FootOptions()) -> FootRun:
         return FootRun(options, leg_path, contact, req, reflected, summary=summary)
     from hound_id.foot.design import design_foot
 
+    tolerance = _length(options.collision_tolerance, "--collision-tolerance") or 0.0
     report = design_foot(leg_path, contact, req, foot_link=options.foot_link, knee_angle=math.radians(knee_angle),
-                         reflected_knee_inertia=reflected, mesh_resolution_deg=options.mesh_resolution)  # fmt: skip
+                         reflected_knee_inertia=reflected, mesh_resolution_deg=options.mesh_resolution,
+                         collision_tolerance=tolerance)  # fmt: skip
     return FootRun(options, leg_path, contact, req, reflected, report=report)
 
 
@@ -271,7 +291,7 @@ def write_outputs(run: FootRun, dpi: int = 120) -> dict[str, str]:
 
 
 def foot_data(run: FootRun, files: dict[str, str] | None = None) -> dict[str, Any]:
-    """The JSON of a run: ``hound-id/foot-leg/1`` for the leg, ``hound-id/foot/1`` with the written ``files``."""
+    """The JSON of a run: ``hound-id/foot-leg/1`` for the leg, ``hound-id/foot/2`` with the written ``files``."""
     if run.report is None:
         assert run.summary is not None
         return run.summary

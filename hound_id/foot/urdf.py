@@ -12,6 +12,7 @@ from __future__ import annotations
 import math
 import os
 import xml.etree.ElementTree as ET
+from collections.abc import Sequence
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -210,22 +211,21 @@ def patched_urdf(
     props: MassProperties,
     *,
     mesh_filename: str,
-    sphere_radius: float,
-    sphere_centre_z: float,
+    spheres: Sequence[Sequence[float]],
     comment: str,
     out_dir: Path | None = None,
 ) -> str:
     """The leg URDF with the foot link's inertial, visual and collision replaced (XML text).
 
-    The collision becomes the sphere of the contact surface (what a simulator needs for
-    rolling contact over the cap's coverage); the visual is the foot's mesh. Relative mesh
+    The collision becomes the spheres (x, y, z, r) along the cap's arc
+    (:mod:`hound_id.foot.collision`); the visual is the foot's mesh. Relative mesh
     paths of the other links are rewritten relative to ``out_dir``, where the new URDF will be
     written (absolute when None); ``package://`` and absolute paths are kept.
     """
     root = parse_urdf(Path(mount.path))
     rebase_meshes(root, Path(mount.path), out_dir)
     link = next(link for link in root.iter("link") if link.get("name") == mount.foot_link)
-    replace_foot(link, props, mesh_filename, sphere_radius, sphere_centre_z, comment)
+    replace_foot(link, props, mesh_filename, spheres, comment)
     ET.indent(root, space="  ")
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
@@ -234,12 +234,11 @@ def replace_foot(
     link: ET.Element,
     props: MassProperties,
     mesh_filename: str | None,
-    sphere_radius: float,
-    sphere_centre_z: float,
+    spheres: Sequence[Sequence[float]],
     comment: str,
 ) -> None:
-    """Give a foot link (in place) the new inertial, a mesh visual (if a file is named) and the
-    contact sphere as its collision."""
+    """Give a foot link (in place) the new inertial, a mesh visual (if a file is named) and one
+    collision sphere per (x, y, z, r) of ``spheres`` (foot frame, metres)."""
     for child in list(link):
         if child.tag in ("inertial", "visual", "collision"):
             link.remove(child)
@@ -262,6 +261,7 @@ def replace_foot(
         visual = ET.SubElement(link, "visual")
         ET.SubElement(visual, "origin", xyz="0 0 0", rpy="0 0 0")
         ET.SubElement(ET.SubElement(visual, "geometry"), "mesh", filename=mesh_filename)
-    collision = ET.SubElement(link, "collision")
-    ET.SubElement(collision, "origin", xyz=f"0 0 {_fmt(sphere_centre_z)}", rpy="0 0 0")
-    ET.SubElement(ET.SubElement(collision, "geometry"), "sphere", radius=_fmt(sphere_radius))
+    for k, (x, y, z, r) in enumerate(spheres):
+        collision = ET.SubElement(link, "collision", name=f"{link.get('name')}_cap_{k}")
+        ET.SubElement(collision, "origin", xyz=f"{_fmt(x)} {_fmt(y)} {_fmt(z)}", rpy="0 0 0")
+        ET.SubElement(ET.SubElement(collision, "geometry"), "sphere", radius=_fmt(r))

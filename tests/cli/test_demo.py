@@ -38,7 +38,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert len(fit["ladder"]) == 6 and fit["at_noise_floor"]
     assert run_cli("mor", "--spec", str(tmp_path / "out" / "hound_ilm85_fitted.yaml")).returncode == 0
     foot = json.loads((tmp_path / "out" / "foot" / "foot.json").read_text())
-    assert foot["schema"] == "hound-id/foot/1" and all(c["satisfied"] for c in foot["constraints"].values())
+    assert foot["schema"] == "hound-id/foot/2" and all(c["satisfied"] for c in foot["constraints"].values())
     assert data["steps"][5]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
     compare = json.loads((tmp_path / "out" / "compare_ilm85_sag.json").read_text())
     assert compare["schema"] == "hound-id/mor-compare/2" and compare["added"] == ["bus_sag"]

@@ -15,7 +15,7 @@ def test_foot_optimise_end_to_end(tmp_path):
                    "--out", str(out), "--plot", str(plot), "--json")  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/foot/1"
+    assert data["schema"] == "hound-id/foot/2"
     assert all(c["satisfied"] for c in data["constraints"].values())
     assert data["reflected_knee_inertia"] == pytest.approx(1.7e-4 * 7.5**2)
     assert plot.read_bytes().startswith(PNG_MAGIC)
@@ -26,8 +26,12 @@ def test_foot_optimise_end_to_end(tmp_path):
 def test_foot_table_prints_the_paper_next_to_ours():
     proc = run_cli("foot", "--optimise", "--angles", "-45,15", "--material", "titanium_ti6al4v")
     assert proc.returncode == 0, proc.stderr
-    assert "paper (KAIST Hound)" in proc.stdout and "0.380" in proc.stdout and "0.374" in proc.stdout
+    assert "paper (KAIST Hound, its own leg; axis not stated)" in proc.stdout
+    assert "0.380" in proc.stdout and "0.374" in proc.stdout
+    assert "about the knee axis" in proc.stdout and "about its own centre of mass" in proc.stdout
     assert "hertz_pressure" in proc.stdout and "NO" not in proc.stdout
+    assert "Stress at the peak ground force 1500 N" in proc.stdout and "binding:" in proc.stdout
+    assert "collision:" in proc.stdout and "spheres" in proc.stdout
     assert "titanium_ti6al4v" in proc.stdout
 
 
@@ -61,6 +65,10 @@ def test_foot_without_optimise_describes_the_leg():
         (["--margin", "-5"], ["--margin: found -5"]),
         (["--mesh-resolution", "0.1"], ["expected 0.5 to 10 deg"]),
         (["--grf", "3 kN"], ["change by 6.1 mm, more than --length-tolerance 5.0 mm"]),
+        (["--bolt", "M7"], ["--bolt: found 'M7'", "M4"]),
+        (["--boss-radius", "3 mm"], ["--boss-radius: 3.00 mm is too thin for the M4 bolt", "4.00 mm"]),
+        (["--friction", "-1"], ["--friction: found -1"]),
+        (["--collision-tolerance", "0 mm"], ["--collision-tolerance"]),
     ],
 )
 def test_foot_bad_input_is_one_line(tmp_path, args, fragments):
@@ -82,3 +90,14 @@ def test_foot_out_must_be_a_folder(tmp_path):
     target.write_text("x")
     assert_one_line_error(run_cli("foot", "--optimise", "--out", str(target)), "is a file")
     assert_one_line_error(run_cli("foot", "--out", str(tmp_path)), "need --optimise")
+
+
+def test_old_boss_option_still_fixes_the_boss(tmp_path):
+    """--boss-radius 10 mm --bolt none is the 0.x foot's solid boss; the boss is then given, not optimised."""
+    proc = run_cli("foot", "--optimise", "--boss-radius", "10 mm", "--bolt", "none", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["geometry"]["boss_radius"] == pytest.approx(0.010) and data["geometry"]["bore_radius"] == 0.0
+    assert data["requirements"]["fastener"] is None and "boss_wall" not in data["constraints"]
+    free = json.loads(run_cli("foot", "--optimise", "--json").stdout)
+    assert free["foot"]["closed_form"]["mass"] < data["foot"]["closed_form"]["mass"]

@@ -58,10 +58,19 @@ def test_outputs_load_in_their_consumers(report, tmp_path):
     visual = pin.buildGeomFromUrdf(model, files["urdf"], pin.GeometryType.VISUAL, package_dirs=[str(tmp_path / "new")])
     assert visual.ngeoms == 1 and visual.geometryObjects[0].meshPath.endswith("foot.stl")
     collision = pin.buildGeomFromUrdf(model, files["urdf"], pin.GeometryType.COLLISION)
-    sphere = collision.geometryObjects[0]
-    assert sphere.geometry.radius == pytest.approx(report.design.geometry.radius, rel=1e-8)
-    # the contact sphere's lowest point keeps the knee-to-ground length of the original foot
-    assert -sphere.placement.translation[2] + sphere.geometry.radius == pytest.approx(0.28 + 0.03, abs=1e-8)
+    spheres = report.collision.spheres
+    assert collision.ngeoms == len(spheres) >= 3
+    g = report.design.geometry
+    for obj, (_, _, _, r) in zip(collision.geometryObjects, spheres, strict=True):
+        assert obj.geometry.radius == pytest.approx(r, rel=1e-8)
+        # each sphere touches the cap's outer sphere from inside: centre at R - r from the cap's centre
+        centre = obj.placement.translation - np.array([0.0, 0.0, -0.28 + g.centre_z])
+        assert np.linalg.norm(centre) == pytest.approx(g.radius - r, abs=1e-8)
+    # straight below, the spheres keep the knee-to-ground length of the original foot, short by at most the
+    # rise of the nearest sphere half a spacing away
+    lowest = max(-o.placement.translation[2] + o.geometry.radius for o in collision.geometryObjects)
+    half = (g.high - g.low) / (len(spheres) - 1) / 2
+    assert 0.31 - (g.radius - spheres[0][3]) * (1 - math.cos(half)) - 1e-9 <= lowest <= 0.31 + 1e-8
     data = json.loads((tmp_path / "new" / "foot.json").read_text())
     assert data["schema"] == SCHEMA and data["files"]["stl"] == files["stl"]
     assert sorted(p.name for p in (tmp_path / "new").iterdir()) == [
@@ -73,7 +82,7 @@ def test_outputs_load_in_their_consumers(report, tmp_path):
 
 def test_json_has_the_issue_fields(report):
     data = foot_json(report)
-    assert data["schema"] == "hound-id/foot/1"
+    assert data["schema"] == "hound-id/foot/2"
     assert data["mass_ratio"] == pytest.approx(report.mass_ratio)
     assert data["inertia_ratio"] == pytest.approx(report.inertia_ratio)
     assert data["radius"] == report.design.geometry.radius
@@ -81,10 +90,39 @@ def test_json_has_the_issue_fields(report):
     assert lo <= math.degrees(report.angles.low) + 1e-6 and hi >= math.degrees(report.angles.high) - 1e-6
     assert all(set(c) >= {"value", "limit", "satisfied"} for c in data["constraints"].values())
     assert all(c["satisfied"] for c in data["constraints"].values())
-    assert data["paper"] == PAPER
+    assert data["paper"] == PAPER and "not stated" in data["paper"]["axis"]
+    r = data["ratios"]
+    assert r["knee_axis_inertia"]["value"] == pytest.approx(report.inertia_ratio)
+    assert r["com_pitch_inertia"]["value"] == pytest.approx(data["com_inertia_ratio"])
+    assert "knee axis" in r["knee_axis_inertia"]["axis"] and "own centre of mass" in r["com_pitch_inertia"]["axis"]
+    # every binding constraint is at its limit, and the stress checks carry their formula and margin
+    assert data["binding"] and all(abs(data["constraints"][k]["margin"]) < 1e-5 * max(1.0, abs(
+        data["constraints"][k]["limit"])) for k in data["binding"])  # fmt: skip
+    for check in data["strength"]["checks"].values():
+        assert check["stress"] <= check["allowed"] * (1 + 1e-7) and check["formula"]
+    assert data["collision"]["count"] == len(report.collision.spheres)
     # the rotor adds the same inertia before and after, so the ratio with it is closer to 1
     assert report.inertia_ratio < data["inertia_ratio_with_rotor"] < 1
     json.dumps(data)  # plain JSON all the way down
+
+
+def test_com_inertia_ratio_by_hand(report):
+    """The calf + foot about its own centre of mass, by the parallel-axis theorem from the URDF's numbers."""
+    calf_m, calf_z, calf_i = 0.25, 0.14, 0.00163  # the sample URDF's calf
+    foot = report.mount.foot
+
+    def about_com(m_f, com_f_z, com_f_x, i_f):
+        m = calf_m + m_f
+        cx, cz = m_f * com_f_x / m, (calf_m * calf_z + m_f * com_f_z) / m
+        return calf_i + calf_m * (cx**2 + (calf_z - cz) ** 2) + i_f + m_f * ((com_f_x - cx) ** 2 + (com_f_z - cz) ** 2)
+
+    old = about_com(foot.mass, 0.28, 0.0, foot.inertia[1, 1])
+    p = report.design.properties
+    new = about_com(p.mass, 0.28 - p.com[2], p.com[0], p.inertia[1, 1])
+    assert report.original.com_pitch_inertia == pytest.approx(old, rel=1e-9)
+    assert report.com_inertia_ratio == pytest.approx(new / old, rel=1e-7)
+    # about its own centre of mass the light foot saves less than about the knee: the axis matters
+    assert report.com_inertia_ratio > report.inertia_ratio + 0.1
 
 
 def test_leg_summary(report):

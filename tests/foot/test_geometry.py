@@ -143,6 +143,23 @@ def test_shapes_that_cannot_be_built_are_refused(change, message):
         mass_properties(g, DENSITY)
 
 
+def test_a_bored_boss_is_the_solid_one_less_the_bore():
+    """The bore removes the column r <= r_i from the mount to the inner sphere: closed form, mesh and hand agree."""
+    from dataclasses import replace
+
+    bored = replace(SAMPLE, bore_radius=0.002)
+    solid, hollow = volume_moments(SAMPLE), volume_moments(bored)
+    rho, ri, zc = SAMPLE.radius - SAMPLE.thickness, 0.002, SAMPLE.centre_z
+    q = math.sqrt(rho**2 - ri**2)
+    column = math.pi * ri**2 * (-zc) + 2 * math.pi * (rho**3 - q**3) / 3  # int 2 pi r (h + sqrt(rho^2 - r^2)) dr
+    assert solid["V"] - hollow["V"] == pytest.approx(column, rel=1e-9)
+    mesh = foot_mesh(bored, 1.0)
+    assert mesh.is_watertight
+    assert_close(mass_properties(bored, DENSITY), mesh_properties(mesh, DENSITY), 2e-3)
+    with pytest.raises(SpecError, match="the bore"):
+        replace(SAMPLE, bore_radius=SAMPLE.boss_radius).check()
+
+
 def test_boss_length_is_measured_at_the_rim():
     rho = SAMPLE.radius - SAMPLE.thickness
     assert boss_length(SAMPLE) == pytest.approx(math.sqrt(rho**2 - SAMPLE.boss_radius**2) - SAMPLE.centre_z)

@@ -37,7 +37,12 @@ def test_every_constraint_holds_at_the_optimum(mount):
     assert all(k.margin >= -1e-7 * max(1.0, abs(k.limit)) for k in design.constraints)
     # the physics that binds: the smallest radius the contact stress allows, the leg length kept
     assert design.geometry.radius == pytest.approx(hertz_min_radius(req), rel=1e-6)
-    assert c["coverage_touchdown"].value == pytest.approx(req.low, abs=1e-7)
+    # the cap ends one shell characteristic length past the arc (the interior bending formula holds there)
+    assert c["coverage_touchdown"].value < req.low
+    assert c["shell_edge_touchdown"].margin == pytest.approx(0.0, abs=1e-9)
+    # the strength checks bind: the wall (bending under the load), the boss (at the mount), the cap at the boss
+    for name in ("shell_bending", "boss_stress", "shell_root_touchdown"):
+        assert c[name].value == pytest.approx(req.allowed_stress, rel=1e-6)
     assert c["leg_length"].value == pytest.approx(mount.mount_length + mount.contact_radius, abs=1e-9)
     assert design.geometry.thickness >= req.material.min_wall - 1e-9
     # the objective the solver reports is the closed-form knee inertia of the foot
@@ -57,7 +62,8 @@ def test_no_random_feasible_design_nearby_is_better(mount):
         R = g0.radius * (1 + scale * rng.normal())
         g = FootGeometry(
             radius=R, thickness=g0.thickness * (1 + scale * rng.normal()), width=g0.width * (1 + scale * rng.normal()),
-            low=g0.low + scale * rng.normal(), high=g0.high + scale * rng.normal(), boss_radius=g0.boss_radius,
+            low=g0.low + scale * rng.normal(), high=g0.high + scale * rng.normal(),
+            boss_radius=g0.boss_radius * (1 + scale * rng.normal()), bore_radius=g0.bore_radius,
             centre_z=R - mount.contact_radius,  # on the leg-length equality
         )  # fmt: skip
         try:
@@ -71,7 +77,7 @@ def test_no_random_feasible_design_nearby_is_better(mount):
 
         knee = mass_properties(g, req.material.density).about_axis_y((0, 0, mount.mount_length))
         better += knee < design.knee_inertia * (1 - 1e-6)
-    assert feasible > 100
+    assert feasible > 30
     assert better == 0
 
 
@@ -79,7 +85,7 @@ def test_options_move_the_optimum_the_right_way(mount):
     base = optimise_foot(mount, requirements())
     heavier_load = optimise_foot(mount, requirements(peak_force=2000.0))
     assert heavier_load.geometry.radius > base.geometry.radius
-    wider_roll = optimise_foot(mount, requirements(roll=math.radians(30)))
+    wider_roll = optimise_foot(mount, requirements(roll=math.radians(60)))
     assert wider_roll.geometry.width > base.geometry.width
     fixed = optimise_foot(mount, requirements(radius=0.05, length_tolerance=0.01))
     assert fixed.geometry.radius == pytest.approx(0.05) and fixed.feasible
