@@ -11,8 +11,10 @@ Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order o
 ``joint_names``; torch stays torch (same dtype and device, autograd intact). Only numpy (and
 torch, when given tensors) are imported, besides the standard library: of hound-id, only
 :mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation`
-(with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs, and
-:mod:`hound_id.mor.clip_turn`, the statistics of how far it turns coupled joint torques (:meth:`Runtime.clip_turn`).
+(with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs,
+:mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse :meth:`Runtime.current` gives,
+and :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
+(:meth:`Runtime.clip_turn`).
 A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
 imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
 """
@@ -31,11 +33,19 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError, SpecError
 from hound_id.mor.clip_turn import ANGLE_FLOOR, ClipTurn, clip_turn
-from hound_id.mor.saturation import PER_JOINT_REFERENCE, Saturation, coupled_groups, per_joint_clip, polyline_of
+from hound_id.mor.current_curve import CurrentCurve
+from hound_id.mor.saturation import (
+    PER_JOINT_REFERENCE,
+    Saturation,
+    coupled_groups,
+    interp,
+    per_joint_clip,
+    polyline_of,
+)
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.
-READABLE = ("hound-id/bundle/1",)
+READABLE = ("hound-id/bundle/1", "hound-id/bundle/2")
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
 EPS_SPEED = 0.01
@@ -66,7 +76,10 @@ class Runtime:
     kt: NDArray[np.float64]
     """Per motor torque constant [N m/A] (the fitted one where a fit was given)."""
     compensation: tuple[tuple[tuple[int, ...], tuple[float, ...]] | None, ...]
-    """Per motor (powers, coefficients) of current [A] = sum c_k tau^k, or None (then tau / Kt)."""
+    """Per motor (powers, coefficients) of the fit's odd compensation polynomial, current [A] = sum c_k tau^k, or
+    None; an approximation of the curve's inverse kept for drivers that take a polynomial."""
+    curves: tuple[CurrentCurve | None, ...] = ()
+    """Per motor current-torque curve (bundle/2; empty for a bundle/1), whose exact inverse :meth:`current` uses."""
     own_motor: tuple[int, ...] = ()
     """Per joint, the index of the motor listed with it in the bundle (empty: motor i with joint i); differs when
     ``joint_names`` reorders the joints. Used by :meth:`clip_turn`'s per-joint comparison."""
@@ -199,12 +212,18 @@ class Runtime:
         f_motor = -(coulomb * sgn + viscous * w + stribeck * sgn * exp)
         return f_motor @ A_inv  # tau_j = A^-T f, row-vector form f @ A^-1
 
-    def current(self, tau_motor: Any) -> Any:
-        """Motor currents [A] that make the motor torques, from each fitted current-torque curve.
+    def current(self, tau_motor: Any, method: str = "exact") -> Any:
+        """Motor currents [A] that make the motor torques [N m], (..., n_motors) in, same shape out.
 
-        Uses the compensation polynomial of ``hound-id fit-current`` (odd powers) where the bundle
-        has one, tau / Kt elsewhere. (..., n_motors) in, same shape out.
+        ``exact`` (default): the exact inverse of each motor's current-torque curve (the fit's, or the quadratic
+        through the spec sheet's 20 % point): closed-form for the quadratic, i = 2 tau / (Kt + sqrt(Kt^2 -
+        4 k |tau|)), the table's interpolation otherwise; +-inf past the curve's top. A bundle/1 has no curves:
+        there the fit's polynomial, else tau / Kt, as before. ``polynomial``: the fit's odd polynomial (its error
+        against the exact inverse is in the bundle's ``compensation_polynomial``) where the motor has one, the
+        exact inverse elsewhere.
         """
+        if method not in ("exact", "polynomial"):
+            raise SaturationError(f"runtime.current: method {method!r}; expected 'exact' or 'polynomial'")
         tau_motor = self._array(tau_motor, "tau_motor")
         out: Any
         if _is_torch(tau_motor):
@@ -215,12 +234,33 @@ class Runtime:
             out = np.empty_like(np.asarray(tau_motor, dtype=float))
         for m, comp in enumerate(self.compensation):
             t = tau_motor[..., m]
-            if comp is None:
-                out[..., m] = t / float(self.kt[m])
-            else:
+            curve = self.curves[m] if self.curves else None
+            if comp is not None and (method == "polynomial" or curve is None):
                 powers, coefficients = comp
                 out[..., m] = sum(c * t**p for p, c in zip(powers, coefficients, strict=True))
+            elif curve is not None:
+                out[..., m] = _inverse(curve, t)
+            else:
+                out[..., m] = t / float(self.kt[m])
         return out
+
+
+def _inverse(curve: CurrentCurve, t: Any) -> Any:
+    """The curve's exact inverse at torques ``t``, numpy or torch (:meth:`CurrentCurve.current`)."""
+    if not _is_torch(t):
+        return curve.current(t)
+    import torch
+
+    mag = torch.abs(t)
+    if curve.currents is not None and curve.torques is not None:
+        kw = {"dtype": t.dtype, "device": t.device}
+        out = interp(mag, torch.tensor(np.array(curve.torques), **kw), torch.tensor(np.array(curve.currents), **kw))
+    elif curve.k_sat > 0:
+        out = 2.0 * mag / (curve.kt + torch.sqrt(torch.clamp(curve.kt**2 - 4.0 * curve.k_sat * mag, min=0.0)))
+    else:
+        out = mag / curve.kt
+    out = torch.where(mag > curve.top_torque, torch.full_like(out, float("inf")), out)
+    return torch.sign(t) * out
 
 
 def _validated(bundle: Mapping[str, Any], source: str) -> tuple[NDArray[np.float64], dict[str, Any], list[Any]]:
@@ -243,6 +283,20 @@ def _validated(bundle: Mapping[str, Any], source: str) -> tuple[NDArray[np.float
 
 
 _SAT_KEYS = ("stall_torque", "back_emf_damping", "torque_limit", "max_speed")
+
+
+def _optional(block: Mapping[str, Any], key: str, n: int, source: str) -> NDArray[np.float64] | None:
+    """A bundle/2 saturation array (``limit_x``, ``curve_q``), or None in a bundle/1 (linear motors)."""
+    values = block.get(key)
+    if values is None:
+        return None
+    try:
+        out = np.asarray(values, dtype=float)
+    except (TypeError, ValueError) as err:
+        raise SpecError(f"{source}: saturation.{key} is not a list of numbers ({err})") from err
+    if out.shape != (n,) or not np.all(np.isfinite(out)) or np.any(out < 0):
+        raise SpecError(f"{source}: saturation.{key} needs {n} finite numbers >= 0; re-export the bundle")
+    return frozen(out)
 
 
 def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
@@ -278,16 +332,21 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         back_emf_damping=frozen(arrays["back_emf_damping"]),
         torque_limit=frozen(arrays["torque_limit"]),
         max_speed=frozen(arrays["max_speed"]),
+        limit_x=_optional(bundle["saturation"], "limit_x", n=len(joints), source=source),
+        curve_q=_optional(bundle["saturation"], "curve_q", n=len(joints), source=source),
         polylines=lines if any(p is not None for p in lines) else (),
     )
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:
         return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))
 
-    comps = []
+    comps, curves = [], []
+    second = bundle.get("schema") != "hound-id/bundle/1"
     for m in motors:
-        c = m.get("compensation")
+        c = m.get("compensation_polynomial") if second else m.get("compensation")  # bundle/1: the polynomial
         comps.append((tuple(int(p) for p in c["powers"]), tuple(float(v) for v in c["coefficients"])) if c else None)
+        block = m.get("current_curve") if second else None
+        curves.append(CurrentCurve.from_dict(block, f"{source}: motor {m.get('name')}") if block else None)
     return Runtime(
         joints=tuple(joints),
         motors=tuple(m["name"] for m in motors),
@@ -298,6 +357,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         stribeck_speed=per_motor("stribeck_speed", 1.0),
         kt=frozen(np.array([float(m["kt"]) for m in motors])),
         compensation=tuple(comps),
+        curves=tuple(curves) if any(c is not None for c in curves) else (),
         own_motor=own,
     )
 

@@ -10,6 +10,7 @@ import pytest
 import torch
 
 import hound_id.runtime
+from hound_id.errors import SaturationError
 from hound_id.export.bundle import apply_fits, build_bundle
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
@@ -55,9 +56,33 @@ def test_friction_dissipates_and_maps_through_the_gears(fitted):
 def test_current_compensation(fitted):
     _, sat = fitted
     tau_m = np.array([[1.0, -2.0] + [0.5] * 10])
+    # the fitted motor's model has no saturation: its exact inverse is tau / Kt with the fitted Kt
     i = sat.current(tau_m)
+    assert i[0, :2] == pytest.approx(np.array([1.0, -2.0]) / 0.1375)
+    # its odd polynomial stays as an option
+    i = sat.current(tau_m, method="polynomial")
     assert i[0, 0] == pytest.approx(7.2727 + 0.001) and i[0, 1] == pytest.approx(-2 * 7.2727 - 0.008)
     assert sat.current(torch.tensor(tau_m)).shape == (1, 12)
+    with pytest.raises(SaturationError, match="method 'poly'"):
+        sat.current(tau_m, method="poly")
+
+
+def test_current_is_the_exact_inverse_of_the_sheet_curve():
+    """An unfitted robot: the quadratic through the 20 % point, inverted in closed form (numpy and torch), against
+    the forward curve written out here; the odd polynomial of the issue missed by 3 % at small torque."""
+    sat = hound_id.runtime.from_bundle(build_bundle(load_robot(ROBOT)))
+    kt, k = 0.138, 0.16 * 0.138**2 / 12.0
+    current = np.linspace(-120.0, 120.0, 12 * 101).reshape(101, 12)
+    torque = kt * current - k * current * np.abs(current)
+    got = sat.current(torque)
+    assert got == pytest.approx(current, rel=1e-12, abs=1e-12)
+    got_t = sat.current(torch.tensor(torque)).numpy()
+    assert got_t == pytest.approx(current, rel=1e-12, abs=1e-12)
+    # the slope at zero torque is exactly 1/Kt; the 20 % point (12 N m) needs 108.7 A
+    assert sat.current(np.full((1, 12), 1e-6))[0, 0] == pytest.approx(1e-6 / kt, rel=1e-9)
+    assert sat.current(np.full((1, 12), 12.0))[0, 0] == pytest.approx(12.0 / (0.8 * kt), rel=1e-12)
+    # past the curve's top (Kt^2 / 4k = 18.75 N m) no current makes the torque
+    assert np.isinf(sat.current(np.full((1, 12), 19.0))).all()
 
 
 def test_runtime_imports_nothing_heavy():

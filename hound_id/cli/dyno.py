@@ -125,12 +125,19 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
     )
     pk = report["peak_torque"]
     console.print(pk["note"], highlight=False)
-    comp = report["compensation"]
+    exact, comp = report["compensation"], report["compensation_polynomial"]
+    if exact:
+        console.print(
+            f"current compensation: the exact inverse of the fitted curve, {exact['method']}"
+            + (f" (table error {exact['max_error']:.2g} A)" if exact["max_error"] else ""),
+            highlight=False,
+        )
     if comp:
         terms = " + ".join(f"{c:.4g} tau^{p}" for p, c in zip(comp["powers"], comp["coefficients"], strict=True))
         console.print(
-            f"current compensation i(tau) = {terms} [A] (max error {comp['max_error']:.2g} A "
-            f"over |tau| <= {comp['torque_range']:.3g} N m)",
+            f"  or, for a driver that takes an odd polynomial: i(tau) = {terms} [A] (off the exact inverse by up "
+            f"to {comp['max_error']:.2g} A over |tau| <= {comp['torque_range']:.3g} N m, its slope at zero torque "
+            f"by {comp.get('slope_error', 0.0):+.1%})",
             highlight=False,
         )
     if ladder is not None:

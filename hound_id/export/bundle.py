@@ -1,25 +1,29 @@
-"""The parameter bundle (``hound-id/bundle/1``): everything a trainer needs, in one file.
+"""The parameter bundle (``hound-id/bundle/2``): everything a trainer needs, in one file.
 
 :func:`build_bundle` gathers, for a robot with its (optionally fitted) motors:
 
 * ``joints`` in the order of every joint-space array, and ``motors`` in motor order (motor i
   is the one listed with joint i in the robot file);
-* per motor: Kt, Kv, R, V_bus, peak torque, current limit, the torque limit, stall torque,
-  no-load speed, rated speed, rotor inertia, the operating region's half-spaces, and when a
-  dyno fit is given its current-compensation polynomial and every fitted effect, each
-  parameter with its value, standard error and unit; ``friction`` collects the friction
-  effects (motor side, zero where not fitted);
+* per motor: Kt, Kv, R, V_bus, peak torque, current limit, the torque limit (curve-limited) and
+  the linear-Kt one, the current at the torque limit, stall torque, no-load speed, rated speed,
+  rotor inertia, the operating region's half-spaces; its current-torque curve
+  (``current_curve``: the fit's, or the quadratic through the spec sheet's 20 % point) and the
+  current compensation, its exact inverse (``compensation``: method and error); when a dyno fit is
+  given, its odd compensation polynomial (``compensation_polynomial``, with its error against the
+  exact inverse) and every fitted effect, each parameter with its value, standard error and unit;
+  ``friction`` collects the friction effects (motor side, zero where not fitted);
 * per transmission its velocity map A (qd_joint = A thetad_motor) and the global map;
 * per joint the inner box (every point feasible whatever the coupled joints do) and the
   outer box (everything reachable), and the reflected rotor inertia A^-T diag(J) A^-1;
-* ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from, with the measured
-  envelopes' polyline edges (``mor --compare --out``) where a motor spec has one;
+* ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from (``limit_x``, Kt times
+  the current at the torque limit, and ``curve_q``, the quadratic curve's k / Kt^2), with polyline
+  edges where a motor has a measured envelope (``mor --compare --out``) or a table curve;
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
 Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unless a field says
 joint. The bundle is a frozen :class:`Bundle` (one :class:`BundleMotor` per motor, nested blocks
 read-only); :meth:`Bundle.to_dict` is the file's content. :func:`load_bundle` reads bundles of every
-schema version so far (there is one).
+schema version so far (/1: linear-Kt limits, ``compensation`` the polynomial; /2: the curve).
 """
 
 from __future__ import annotations
@@ -45,7 +49,7 @@ __all__ = [
     "load_bundle",
 ]  # fmt: skip
 
-SCHEMA = "hound-id/bundle/1"
+SCHEMA = "hound-id/bundle/2"
 #: Friction effects of the fit that the runtime and the simulators use (motor side).
 FRICTION = ("coulomb", "viscous", "stribeck")
 
@@ -73,7 +77,7 @@ class BundleMotor:
     max_current: float | None
     """Driver current limit [A], if any."""
     torque_limit: float
-    """min(peak torque, Kt i_max) [N m]."""
+    """min(peak torque, g(i_max)) [N m], g the current-torque curve (bundle/1: Kt i_max)."""
     stall_torque: float
     """Kt V_bus / R [N m]."""
     no_load_speed: float
@@ -91,21 +95,35 @@ class BundleMotor:
     friction: Mapping[str, float]
     """coulomb [N m], viscous [N m s/rad], stribeck [N m], stribeck_speed [rad/s] (0 where not fitted)."""
     compensation: Mapping[str, Any] | None
-    """The fit's current-compensation polynomial (powers, coefficients, ...), if any."""
+    """bundle/2: the exact current compensation, the inverse of ``current_curve`` (method, torque_range, max_error);
+    bundle/1: the fit's polynomial (powers, coefficients, ...), if any."""
     envelope: Mapping[str, Any] | None = None
     """The measured envelope as its spec carries it (``mor --compare --out``), if any."""
+    linear_torque_limit: float | None = None
+    """What a linear-Kt model takes for the torque limit, min(peak torque, Kt i_max) [N m] (bundle/2)."""
+    limit_current: float | None = None
+    """Current the torque limit needs [A] (bundle/2)."""
+    current_curve: Mapping[str, Any] | None = None
+    """The current-torque curve (:meth:`hound_id.mor.current_curve.CurrentCurve.to_dict`; bundle/2)."""
+    compensation_polynomial: Mapping[str, Any] | None = None
+    """The fit's odd compensation polynomial with its error against the exact inverse (bundle/2), if fitted."""
 
     def to_dict(self) -> dict[str, Any]:
         """The motor's entry in the bundle file."""
         return {f.name: plain(getattr(self, f.name)) for f in fields(self)}
 
 
+#: BundleMotor fields older bundles lack.
+_OPTIONAL = ("envelope", "linear_torque_limit", "limit_current", "current_curve", "compensation_polynomial")
+
+
 @dataclass(frozen=True)
 class Bundle:
-    """A ``hound-id/bundle/1`` bundle (see the module docstring); :meth:`to_dict` is the file's content."""
+    """A ``hound-id/bundle/2`` bundle (or a /1 one read back; see the module docstring); :meth:`to_dict` is the
+    file's content."""
 
     schema: str
-    """``hound-id/bundle/1``."""
+    """``hound-id/bundle/2`` (or /1)."""
     robot: str
     """Robot name."""
     units: str
@@ -139,8 +157,8 @@ class Bundle:
         try:
             motors = tuple(
                 BundleMotor(
-                    **{f.name: read_only(m[f.name]) for f in fields(BundleMotor) if f.name != "envelope"},
-                    envelope=read_only(m.get("envelope")),  # bundles written before measured envelopes have none
+                    **{f.name: read_only(m[f.name]) for f in fields(BundleMotor) if f.name not in _OPTIONAL},
+                    **{k: read_only(m.get(k)) for k in _OPTIONAL},  # absent from bundles written before them
                 )
                 for m in data["motors"]
             )
@@ -182,14 +200,52 @@ def apply_fits(robot: Robot, fitted: list[MotorSpec]) -> Robot:
 
 
 def _effects(spec: MotorSpec) -> tuple[dict[str, Any], dict[str, float], dict[str, Any] | None]:
-    """Fitted parameters (as the fit record writes them), friction terms and compensation of a spec's fit
-    (empty without a fit)."""
+    """Fitted parameters (as the fit record writes them), friction terms and compensation polynomial of a spec's
+    fit (empty without a fit), the polynomial with its largest current error against the curve's exact inverse."""
     if spec.fit is None:
         return {}, {k: 0.0 for k in (*FRICTION, "stribeck_speed")}, None
     written = spec.fit.to_dict()
     friction = {k: spec.fit.value(k) for k in (*FRICTION, "stribeck_speed")}
-    comp = written.get("compensation")
-    return dict(written.get("parameters") or {}), friction, (dict(comp) if comp else None)
+    comp = spec.fit.compensation
+    polynomial = None
+    if comp is not None:
+        block = dict(written.get("compensation") or {})
+        polynomial = {
+            "powers": list(comp.powers),
+            "coefficients": list(comp.coefficients),
+            "torque_range": block.get("torque_range"),
+            "max_error": block.get("max_error"),
+            "error_vs_exact": _polynomial_error(spec, comp.powers, comp.coefficients),
+            "units": "current [A] = sum c_k * torque[N m]^k; error_vs_exact [A] up to the torque limit",
+        }
+    return dict(written.get("parameters") or {}), friction, polynomial
+
+
+#: Torques at which a compensation polynomial is compared with the exact inverse (0 to the torque limit).
+POLYNOMIAL_CHECK_POINTS = 2001
+
+
+def _polynomial_error(spec: MotorSpec, powers: tuple[int, ...], coefficients: tuple[float, ...]) -> float:
+    """Largest |polynomial(tau) - exact inverse(tau)| [A] over 0..the torque limit."""
+    tau = np.linspace(0.0, spec.torque_limit, POLYNOMIAL_CHECK_POINTS)
+    poly = sum(c * tau**p for p, c in zip(powers, coefficients, strict=True))
+    return float(np.max(np.abs(poly - spec.current_curve.current(tau))))
+
+
+def _compensation(spec: MotorSpec) -> dict[str, Any]:
+    """The exact compensation of a motor's curve: how it is computed and its error."""
+    curve = spec.current_curve
+    method = {
+        "linear": "i = tau / Kt",
+        "quadratic": "closed form: i = 2 tau / (Kt + sqrt(Kt^2 - 4 k_sat |tau|))",
+        "table": "linear interpolation of the current_curve table",
+    }[curve.form]
+    return {
+        "method": method,
+        "torque_range": None if math.isinf(curve.top_torque) else curve.top_torque,
+        "max_error": curve.table_error,
+        "units": "current [A] for a torque [N m] (odd); max_error [A]: 0 for the closed form (rounding only)",
+    }
 
 
 def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict[str, Any] | None = None) -> Bundle:
@@ -213,6 +269,8 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "peak_torque": spec.peak_torque,
                 "max_current": spec.max_current,
                 "torque_limit": float(sat.torque_limit[i]),
+                "linear_torque_limit": spec.linear_torque_limit,
+                "limit_current": spec.limit_current,
                 "stall_torque": float(sat.stall_torque[i]),
                 "no_load_speed": r["no_load_speed"],
                 "max_speed": spec.max_speed,
@@ -221,7 +279,9 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "fitted": spec.fit is not None,
                 "effects": params,
                 "friction": friction,
-                "compensation": comp,
+                "current_curve": spec.current_curve.to_dict(),
+                "compensation": _compensation(spec),
+                "compensation_polynomial": comp,
                 "envelope": spec.envelope.to_dict() if spec.envelope else None,
             }
         )
@@ -251,6 +311,8 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
             "stall_torque": sat.stall_torque.tolist(),
             "back_emf_damping": sat.back_emf_damping.tolist(),
             "torque_limit": sat.torque_limit.tolist(),
+            "limit_x": (sat.torque_limit if sat.limit_x is None else sat.limit_x).tolist(),
+            "curve_q": (np.zeros(sat.n) if sat.curve_q is None else sat.curve_q).tolist(),
             "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
             "polylines": [
                 {"speeds": p[0].tolist(), "lower": _nan_to_none(p[1]), "upper": _nan_to_none(p[2])}

@@ -77,8 +77,12 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                     "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
                     "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle, joint_names)"
                     ".saturate(tau, qd) to the group (see the README); armature is the diagonal of the reflected "
-                    "inertia, friction the worst case sum |A^-T| f_c"
+                    "inertia (the off-diagonal terms are in reflected_inertia_group), friction the worst case "
+                    "sum |A^-T| f_c"
                 )
+                if reflected is not None:
+                    idx = [index[j] for j in tx["joints"]]
+                    entry["reflected_inertia_group"] = _group_inertia(reflected[np.ix_(idx, idx)], list(tx["joints"]))
             else:
                 gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
                 entry["gear_ratio"] = gear
@@ -97,6 +101,24 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                         "fields hold the spec sheet; apply hound_id.runtime.load(bundle, joint_names).saturate(tau, "
                         "qd) for the measured edge"
                     )
+                else:
+                    gap = _dcmotor_gap(ex, m)
+                    entry["dcmotor_error"] = {
+                        "over": gap[0] * gear,
+                        "under": gap[1] * gear,
+                        "units": "N m, joint side: the most DCMotor's clip passes (over) or falls short of (under) "
+                        "hound-id's within +-overspeed",
+                    }
+                    if gap[0] > DCMOTOR_EXACT * m.torque_limit:
+                        entry["use"] = "hound_id.runtime"
+                        entry["reason"] = (
+                            f"motor {m.name}'s current-torque curve bends its voltage edges (and its torque limit "
+                            f"is the curve's, {m.torque_limit * gear:.4g} N m at the joint): DCMotor's straight "
+                            f"line passes them by up to {gap[0] * gear:.4g} N m at the joint between the corner "
+                            "and the overspeed, and past overspeed DCMotor returns the torque limit where the "
+                            "back-EMF forces more braking. The dcmotor fields are the closest straight model; apply "
+                            "hound_id.runtime.load(bundle, joint_names).saturate(tau, qd) for the exact clip"
+                        )
             joints[joint] = entry
     return {
         "schema": ISAACLAB_SCHEMA,
@@ -105,15 +127,65 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
         "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']))",
         "joints": joints,
         "notes": [
-            "saturation_effort = stall torque Kt V/R x G, velocity_limit = no-load speed / G, effort_limit = "
-            "min(peak torque, Kt i_max) x G. Isaac Lab's DCMotor clip with these equals hound-id's at every "
-            "speed in releases that first clamp the joint speed to the speed at the effort limit "
-            "(vel_at_effort_lim, as mjlab's DcMotorActuator does); releases that only clamp the upper bound at >= 0 "
-            "differ past the no-load speed",
+            "saturation_effort = stall torque Kt V/R x G, velocity_limit = no-load speed / G, effort_limit = the "
+            "torque limit x G (the current-torque curve's torque at the driver's limit, or the peak torque). "
+            "DCMotor's torque-speed line is straight: for a motor whose curve saturates, hound-id's voltage edges "
+            "bend inwards and dcmotor_error says by how much DCMotor passes them; for a linear curve (kt_curve: "
+            "linear, or a fit without saturation) DCMotor's clip equals hound-id's within +-overspeed in releases "
+            "that first clamp the joint speed to the speed at the effort limit (vel_at_effort_lim, as mjlab's "
+            "DcMotorActuator does). Past overspeed DCMotor returns the torque limit; hound-id the braking torque the "
+            "back-EMF forces (larger)",
             "friction is in N m, joint side; viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's "
             "actuator 'damping' is a PD gain: do not put viscous friction there. Check your release's friction "
             "convention (older PhysX releases used a unitless coefficient)",
         ],
+    }
+
+
+#: A DCMotor whose clip passes hound-id's by less than this share of the torque limit reproduces it (rounding).
+DCMOTOR_EXACT = 1e-9
+#: Motor speeds at which a DCMotor clip is compared with hound-id's, across +-overspeed.
+DCMOTOR_POINTS = 4001
+
+
+def _dcmotor_gap(ex: Export, motor: BundleMotor) -> tuple[float, float]:
+    """(over, under) [N m, motor side]: the most Isaac Lab's DCMotor clip with the exported fields passes or falls
+    short of hound-id's interval, at motor speeds within +-overspeed (past it both hold a single torque, different
+    by design: the README)."""
+    from hound_id.mor.region import operating_region, torque_interval
+    from hound_id.mor.saturation import dc_motor_clip
+
+    region = operating_region(ex.robot.motor_specs[motor.name])
+    w = np.linspace(-region.overspeed, region.overspeed, DCMOTOR_POINTS)
+    lo, hi = torque_interval(w, region)
+    big = np.full_like(w, 1e6 * motor.torque_limit)
+    args = (motor.stall_torque, motor.no_load_speed, motor.torque_limit)
+    dc_hi, dc_lo = dc_motor_clip(big, w, *args), dc_motor_clip(-big, w, *args)
+    over = max(float(np.max(dc_hi - hi)), float(np.max(lo - dc_lo)), 0.0)
+    under = max(float(np.max(hi - dc_hi)), float(np.max(dc_lo - lo)), 0.0)
+    return over, under
+
+
+def _group_inertia(M: np.ndarray, joints: list[str]) -> dict[str, Any]:
+    """A coupled group's reflected rotor inertia, what Isaac Lab's per-joint armature keeps (the diagonal) and what
+    it drops: the off-diagonal terms, and the most the rotors' kinetic energy then errs, max |q'(D - M)q| / q'Mq
+    (the extreme generalised eigenvalues of D - M against M)."""
+    from scipy.linalg import eigh
+
+    D = np.diag(np.diag(M))
+    lam = eigh(D - M, M, eigvals_only=True)
+    off = M[~np.eye(len(M), dtype=bool)]
+    scale = np.sqrt(np.outer(np.diag(M), np.diag(M)))[~np.eye(len(M), dtype=bool)]
+    return {
+        "joints": joints,
+        "matrix": M.tolist(),
+        "dropped_off_diagonal": float(np.max(np.abs(off))) if off.size else 0.0,
+        "dropped_relative": float(np.max(np.abs(off) / scale)) if off.size else 0.0,
+        "kinetic_energy_error": float(np.max(np.abs(lam))),
+        "units": "kg m^2, joint side; dropped_relative = |M_ij| / sqrt(M_ii M_jj); kinetic_energy_error: the largest "
+        "relative error of the rotors' kinetic energy with the diagonal armature only (any joint velocities)",
+        "note": "Isaac Lab's armature is per joint: the off-diagonal terms cannot be set there; the MuJoCo export "
+        "(tendon armature) and hound_id.runtime keep them",
     }
 
 
@@ -142,12 +214,24 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
     path = out / f"{_stem(ex)}_isaaclab.yaml"
     io.write_text(path, yaml.safe_dump(data, sort_keys=False))
     coupled = [j for j, v in data["joints"].items() if v["coupled"]]
-    measured = [j for j, v in data["joints"].items() if not v["coupled"] and v.get("use")]
+    straight = [j for j, v in data["joints"].items() if not v["coupled"] and v.get("use")]
     notes: tuple[str, ...] = (f"{len(coupled)} coupled joints point to hound_id.runtime",) if coupled else ()
-    if measured:
+    if straight:
+        worst = max(data["joints"][j].get("dcmotor_error", {}).get("over", 0.0) for j in straight)
         notes += (
-            f"{len(measured)} uncoupled joints ({', '.join(measured)}) have motors with a measured envelope: their "
-            "dcmotor fields hold the spec sheet's straight lines; they point to hound_id.runtime",
+            f"{len(straight)} uncoupled joints ({', '.join(straight)}) have motors whose edges are not straight "
+            "(a saturating current-torque curve or a measured envelope): their dcmotor fields are the closest "
+            "straight model"
+            + (f" (passing hound-id's clip by up to {worst:.3g} N m)" if worst > 0 else "")
+            + "; they point to hound_id.runtime",
+        )
+    groups = [v["reflected_inertia_group"] for v in data["joints"].values() if "reflected_inertia_group" in v]
+    if groups:
+        g = max(groups, key=lambda x: x["kinetic_energy_error"])
+        notes += (
+            f"coupled armature: Isaac Lab takes the diagonal only; the dropped off-diagonal reflected inertia is up "
+            f"to {g['dropped_off_diagonal']:.4g} kg m^2 ({g['dropped_relative']:.1%} of sqrt(M_ii M_jj)), the rotors' "
+            f"kinetic energy then errs by up to {g['kinetic_energy_error']:.1%} (reflected_inertia_group)",
         )
     return Written((str(path),), notes)
 

@@ -27,7 +27,7 @@ class Export:
     robot: Robot
     """The robot, with fitted motor specs in place."""
     bundle: Bundle
-    """Its ``hound-id/bundle/1`` bundle."""
+    """Its ``hound-id/bundle/2`` bundle."""
     mujoco_actuator: str = "dcmotor"
     """``dcmotor`` (the region in MuJoCo) or ``motor`` (plain torque, saturate with the runtime)."""
 

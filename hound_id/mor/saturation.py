@@ -644,7 +644,7 @@ def polyline_of(
     )
 
 
-def _interp(x: Any, xp: Any, fp: Any) -> Any:
+def interp(x: Any, xp: Any, fp: Any) -> Any:
     """Piecewise-linear interpolation of (xp, fp) at x, numpy or torch (x outside xp: the end values);
     xp and fp are already in x's array type."""
     if not _is_torch(x):
@@ -678,8 +678,8 @@ def _polyline_bounds(lines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any
         first, last, speeds, lower, upper = line
         w = omega[..., m]
         inside = (w >= first) & (w <= last)
-        lo[..., m] = where(inside, _interp(w, speeds, lower), lo[..., m])
-        hi[..., m] = where(inside, _interp(w, speeds, upper), hi[..., m])
+        lo[..., m] = where(inside, interp(w, speeds, lower), lo[..., m])
+        hi[..., m] = where(inside, interp(w, speeds, upper), hi[..., m])
     return lo, hi
 
 

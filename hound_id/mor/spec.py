@@ -190,7 +190,9 @@ class FitRecord:
                     unit=str(p.get("unit", "")),
                     at_bound=bool(p.get("at_bound", False)),
                 )
-            comp = data.get("compensation")
+            # fit/3 keeps the odd polynomial in compensation_polynomial (compensation is the exact inverse); fit/2 and
+            # older in compensation
+            comp = data.get("compensation_polynomial") if "current_curve" in data else data.get("compensation")
             compensation = (
                 FitCompensation(tuple(int(k) for k in comp["powers"]), tuple(float(c) for c in comp["coefficients"]))
                 if comp

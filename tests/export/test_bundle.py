@@ -32,7 +32,17 @@ def test_bundle_carries_the_robot(robot):
     m = b["motors"][2]  # FL_KFE's motor on the sample spec sheet, no fit
     assert (m["joint"], m["kt"], m["bus_voltage"], m["fitted"]) == ("FL_KFE", 0.138, 81.0, False)
     assert m["friction"] == {"coulomb": 0.0, "viscous": 0.0, "stribeck": 0.0, "stribeck_speed": 0.0}
-    assert m["halfspaces"]["labels"] == ["voltage+", "voltage-", "torque+", "torque-"]
+    assert m["halfspaces"]["labels"][:4] == ["voltage+", "voltage-", "torque+", "torque-"]
+    assert all(label.startswith("curve") for label in m["halfspaces"]["labels"][4:])  # under the curved edges
+    # the curve-limited torque limit: the 20 % point's quadratic at the driver's 70 A, and its exact inverse
+    assert m["torque_limit"] == pytest.approx(9.66 - 0.16 * 0.138**2 / 12 * 70**2)
+    assert m["linear_torque_limit"] == pytest.approx(9.66) and m["limit_current"] == pytest.approx(70.0)
+    assert m["current_curve"]["form"] == "quadratic" and m["current_curve"]["k_sat"] == pytest.approx(
+        0.16 * 0.138**2 / 12
+    )
+    assert m["compensation"]["method"].startswith("closed form") and m["compensation_polynomial"] is None
+    assert b["saturation"]["limit_x"][2] == pytest.approx(9.66)
+    assert b["saturation"]["curve_q"][2] == pytest.approx(0.16 / 12)
     # the reflected inertia is A^-T diag(J) A^-1: for HAA (ratio 9) J 9^2
     assert b["reflected_inertia"][0][0] == pytest.approx(1.7e-4 * 81)
     assert b["foot"] is None
@@ -47,7 +57,12 @@ def test_fits_replace_the_spec_sheet(robot, tmp_path):
     m = b["motors"][0]
     assert m["fitted"] and m["kt"] == pytest.approx(0.1375)
     assert m["friction"]["coulomb"] == pytest.approx(0.08) and m["friction"]["viscous"] == pytest.approx(2e-4)
-    assert m["effects"]["coulomb"]["unit"] == "N m" and m["compensation"]["powers"] == [1, 3]
+    assert m["effects"]["coulomb"]["unit"] == "N m" and m["compensation_polynomial"]["powers"] == [1, 3]
+    # the fit has no saturation term: its curve is linear with the fitted Kt; the polynomial's error against it
+    assert m["current_curve"]["form"] == "linear" and m["compensation"]["method"] == "i = tau / Kt"
+    tau = np.linspace(0, m["torque_limit"], 2001)
+    poly = 7.2727 * tau + 0.001 * tau**3
+    assert m["compensation_polynomial"]["error_vs_exact"] == pytest.approx(np.max(np.abs(poly - tau / 0.1375)))
 
 
 def test_bundle_files_of_version_1_still_load():

@@ -115,10 +115,15 @@ def test_urdf_with_limits_loads_in_pinocchio(exported):
     assert model.friction[haa] == pytest.approx(0.72) and model.damping[haa] == pytest.approx(0.0162)
 
 
-def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported):
+@pytest.mark.parametrize("fitted", [True, False], ids=["linear_fit", "sheet_curve"])
+def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported, tmp_path, fitted):
     ex, _, out = exported
     import yaml
 
+    if not fitted:  # the spec sheet's 20 % point: a saturating curve
+        ex = prepare(ROBOT, [])
+        out = tmp_path / "out"
+        export_robot(ex, formats_from("bundle,isaaclab"), out)
     fields = yaml.safe_load((out / "hound_like_isaaclab.yaml").read_text())
     assert fields["schema"] == "hound-id/isaaclab/1"
     sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
@@ -130,18 +135,40 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported):
             continue
         d = f["dcmotor"]
         tau = rng.uniform(-300, 300, 2000)
-        qd = rng.uniform(-1.5, 1.5, 2000) * d["velocity_limit"]  # past the no-load speed too
+        overspeed = d["velocity_limit"] * (1 + d["effort_limit"] / d["saturation_effort"])  # of the straight line
+        qd = rng.uniform(-1.0, 1.0, 2000) * overspeed * 0.999
         full_tau, full_qd = np.zeros((2000, 12)), np.zeros((2000, 12))
         full_tau[:, i], full_qd[:, i] = tau, qd
         ours = sat.saturate(full_tau, full_qd)[:, i]
         isaac = dc_motor_clip(tau, qd, d["saturation_effort"], d["velocity_limit"], d["effort_limit"])
-        assert ours == pytest.approx(isaac, abs=1e-9)
-        assert d["armature"] == pytest.approx(1.7e-4 * 81) and d["friction"] == pytest.approx(0.72)
+        gap = f["dcmotor_error"]
+        if ex.robot.motor_specs[sat.motors[i]].current_curve.form == "linear":  # a fit without saturation
+            assert "use" not in f and gap["over"] == pytest.approx(0.0, abs=1e-9)
+            assert ours == pytest.approx(isaac, abs=1e-9)  # within overspeed DCMotor is exact
+            continue
+        # the spec sheet's curve saturates: DCMotor's straight line differs from the curved edges by at most the
+        # stated dcmotor_error, and the joint points to the runtime
+        assert f["use"] == "hound_id.runtime" and "curve" in f["reason"]
+        assert np.max(isaac - ours) <= gap["over"] * (1 + 1e-6) + 1e-9
+        assert np.max(ours - isaac) <= max(gap["over"], gap["under"]) * (1 + 1e-6) + 1e-9
+        assert gap["over"] > 0.05 * d["effort_limit"]  # about 0.94 N m at the motor, 8.4 N m at the joint
+        assert d["armature"] == pytest.approx(1.7e-4 * 81) and d["friction"] == pytest.approx(0.72 if fitted else 0.0)
         assert set(d) == {"saturation_effort", "effort_limit", "velocity_limit", "armature", "friction"}
     assert sum(not f["coupled"] for f in fields["joints"].values()) == 4
     # coupled joints still get their reflected inertia (diagonal of A^-T diag(J) A^-1) and friction
     hfe = fields["joints"]["FL_HFE"]
-    assert hfe["armature"] == pytest.approx(ex.bundle.reflected_inertia[1][1]) and hfe["friction"] > 0
+    assert hfe["armature"] == pytest.approx(ex.bundle.reflected_inertia[1][1]) and (hfe["friction"] > 0) == fitted
+    # ... and the off-diagonal term Isaac Lab cannot hold is written, with its size
+    group = hfe["reflected_inertia_group"]
+    M = np.asarray(ex.bundle.reflected_inertia)[np.ix_([1, 2], [1, 2])]
+    assert group["joints"] == ["FL_HFE", "FL_KFE"] and np.allclose(group["matrix"], M)
+    assert group["dropped_off_diagonal"] == pytest.approx(1.275e-3)
+    assert group["dropped_relative"] == pytest.approx(1.275e-3 / np.sqrt(M[0, 0] * M[1, 1]))
+    # the kinetic-energy error, by brute force over joint-velocity directions
+    a = np.linspace(0, np.pi, 20001)
+    q = np.stack([np.cos(a), np.sin(a)])
+    err = np.abs(np.einsum("in,ij,jn->n", q, np.diag(np.diag(M)) - M, q) / np.einsum("in,ij,jn->n", q, M, q))
+    assert group["kinetic_energy_error"] == pytest.approx(err.max(), rel=1e-6)
 
 
 def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):

@@ -6,9 +6,12 @@ family) at rest, at 20 degC, without offset, friction, cogging or ripple.
 * Peak torque (paper, after RoboDrive): the torque where the curve falls 20 % below
   the linear line Kt i.
 * Current compensation (paper, "Motor torque saturation"): the current a driver must
-  command for a wanted torque, i(tau), as an odd polynomial
-  i = c1 tau + c3 tau^3 + c5 tau^5 fitted over [0, tau_peak] (odd, so it serves
-  both signs).
+  command for a wanted torque, i(tau). The exact inverse of the fitted curve is the
+  compensation (:func:`fitted_curve`: closed form for the paper's quadratic, a monotone
+  table with its stated error otherwise; :class:`hound_id.mor.current_curve.CurrentCurve`).
+  The paper's odd polynomial i = c1 tau + c3 tau^3 + c5 tau^5 fitted over [0, tau_peak]
+  (:func:`compensation`) is kept as an option for drivers that take a polynomial, with its
+  error: it cannot follow the tau|tau| term (3 % off the slope at zero torque for the sample).
 """
 
 from __future__ import annotations
@@ -21,17 +24,42 @@ from numpy.typing import ArrayLike
 
 from hound_id.dyno.current.effects import Signals, get
 from hound_id.dyno.current.fit import Array, FitResult
+from hound_id.mor.current_curve import PEAK_DEVIATION, CurrentCurve, table_of
 
-#: Relative deviation from the linear line that defines the peak torque: where the torque has fallen 20 % below Kt i,
-#: the simulator's (and the spec sheets') convention for the end of the useful current range (each saturation form of
-#: the simulator drops Kt by 20 % at the motor's maximum current). Calibrated on
-#: test_curve::test_peak_torque_of_the_quadratic_curve and
-#: test_current::test_each_saturation_form_drops_kt_20_percent_at_max_current.
-PEAK_DEVIATION = 0.20
+__all__ = [
+    "EXTRAPOLATION_LIMIT", "PEAK_DEVIATION", "TABLE_POINTS", "Compensation", "PeakTorque", "compensation",
+    "curve_torque", "fitted_curve", "peak_torque",
+]  # fmt: skip
+
 #: How far past the measured current the peak may be extrapolated before giving up: ten times, beyond which the fitted
 #: curve says nothing and the advice is to test at higher current. Calibrated on test_curve::test_no_saturation_no_peak
 #: and test_fit_cli::test_spec_checks_name_both_numbers_and_an_extrapolated_peak_is_marked.
 EXTRAPOLATION_LIMIT = 10.0
+
+
+#: Points of a table curve (a fitted curve other than the paper's quadratic), denser towards its top; the table states
+#: its own inverse error (under 3 mA for a cubic saturation up to its top). Calibrated on
+#: test_curve::test_a_cubic_fit_gets_a_table_curve_with_its_error.
+TABLE_POINTS = 257
+
+
+def fitted_curve(fit: FitResult, max_measured_current: float) -> CurrentCurve:
+    """The fit's current-torque curve: linear (Kt only), the paper's quadratic in closed form (Kt and k_sat only), or a
+    table of the shape terms from 0 to the curve's top (where it stops rising) or :data:`EXTRAPOLATION_LIMIT` x the
+    measured current, whichever comes first."""
+    shape = {name for name in fit.model if get(name).shape}
+    kt = fit.value("kt")
+    source = f"fit-current ({'+'.join(n for n in fit.model if n in shape)})"
+    if shape <= {"linear"}:
+        return CurrentCurve(kt=kt, source=source)
+    if shape == {"linear", "saturation"} and fit.value("k_sat") > 0:
+        return CurrentCurve(kt=kt, k_sat=fit.value("k_sat"), source=source)
+    top = EXTRAPOLATION_LIMIT * max_measured_current
+    grid = np.linspace(0.0, top, 4001)
+    falling = np.flatnonzero(np.diff(curve_torque(fit, grid)) <= 0)
+    if falling.size:
+        top = float(grid[falling[0]])
+    return table_of(lambda i: curve_torque(fit, i), kt, top, TABLE_POINTS, source)
 
 
 def curve_torque(fit: FitResult, current: ArrayLike) -> Array:
@@ -124,7 +152,8 @@ def peak_torque(
 
 @dataclass(frozen=True)
 class Compensation:
-    """Current needed for a wanted torque: i = sum c_k tau^k over odd k."""
+    """The odd-polynomial approximation of the curve's inverse, i = sum c_k tau^k over odd k (an option: the exact
+    inverse is :func:`fitted_curve`'s)."""
 
     powers: tuple[int, ...]
     """Odd powers of torque."""
@@ -134,6 +163,8 @@ class Compensation:
     """Fitted over |tau| <= this [N m]."""
     max_error: float
     """Largest current error of the polynomial over the range [A]."""
+    slope_error: float = 0.0
+    """Relative error of its slope at zero torque against the exact 1/Kt, c1 Kt - 1 [-]."""
 
     def current(self, torque: Array) -> Array:
         """Current [A] the driver should command for a torque [N m]."""
@@ -146,7 +177,9 @@ class Compensation:
             "coefficients": list(self.coefficients),
             "torque_range": self.torque_range,
             "max_error": self.max_error,
-            "units": "current [A] = sum c_k * torque[N m]^k",
+            "slope_error": self.slope_error,
+            "units": "current [A] = sum c_k * torque[N m]^k; max_error [A] against the fitted curve; slope_error: "
+            "c1 Kt - 1, its relative error at small torque",
         }
 
 
@@ -161,4 +194,6 @@ def compensation(fit: FitResult, current_range: float, degree: int = 5) -> Compe
     coef, *_ = np.linalg.lstsq(A / scale, i, rcond=None)
     coef = coef / scale
     err = float(np.max(np.abs(A @ coef - i)))
-    return Compensation(powers, tuple(float(c) for c in coef), float(np.max(np.abs(tau))), err)
+    kt = fit.value("kt")
+    slope = float(coef[0] * kt - 1.0) if kt > 0 else 0.0
+    return Compensation(powers, tuple(float(c) for c in coef), float(np.max(np.abs(tau))), err, slope)

@@ -11,8 +11,9 @@ from typing import Any
 from hound_id.dyno.current.curve import Compensation, PeakTorque
 from hound_id.dyno.current.diagnose import Diagnosis, Step, Suggestion
 from hound_id.dyno.current.fit import FitResult
+from hound_id.mor.current_curve import CurrentCurve
 
-SCHEMA = "hound-id/fit/2"
+SCHEMA = "hound-id/fit/3"
 #: A fitted Kt or peak torque further than this factor from the spec sheet's is warned about.
 SPEC_FACTOR = 1.25
 
@@ -35,12 +36,13 @@ def summarize(
         current_limit: The driver's current limit the log shows [A], if any.
         time: Sample times [s] for the per-block table (None for a steady-state table).
     """
-    from hound_id.dyno.current.curve import compensation, peak_torque
+    from hound_id.dyno.current.curve import compensation, fitted_curve, peak_torque
 
     current_max = float(abs(current).max())
     peak = peak_torque(fit, current_max, current_limit=current_limit)
     comp = compensation(fit, peak.current if peak.current is not None else current_max)
-    report = fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read, time)
+    curve = fitted_curve(fit, current_max) if fit.value("kt") > 0 else None
+    report = fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read, time, curve)
     report["current_limit"] = current_limit
     return peak, comp, report
 
@@ -135,8 +137,12 @@ def fit_report(
     cleaning: Sequence[Any] = (),
     rows_read: int | None = None,
     time: Any = None,
+    curve: CurrentCurve | None = None,
 ) -> dict[str, Any]:
-    """JSON-ready report, schema ``hound-id/fit/2`` (SI units).
+    """JSON-ready report, schema ``hound-id/fit/3`` (SI units).
+
+    Version 3 (from 2): ``current_curve`` is the fitted current-torque curve, ``compensation`` its exact inverse
+    (method and error) and ``compensation_polynomial`` the odd polynomial that ``compensation`` was in version 2.
 
     Version 2 (from 1): ``rmse.test`` is the blocked cross-validated error (every fold held
     out once), ``rmse.blocks`` gives it per time block, ``flags`` names disagreeing blocks,
@@ -169,7 +175,9 @@ def fit_report(
         "unphysical": dict(fit.unphysical),
         "flags": list(diagnosis.flags),
         "peak_torque": peak.to_dict(),
-        "compensation": None if comp is None else comp.to_dict(),
+        "current_curve": None if curve is None else curve.to_dict(),
+        "compensation": None if curve is None else exact_compensation(curve),
+        "compensation_polynomial": None if comp is None else comp.to_dict(),
         "suggestions": [suggestion_dict(s) for s in diagnosis.suggestions],
         "skipped": list(diagnosis.skipped),
         "outliers": diagnosis.outliers,
@@ -179,6 +187,21 @@ def fit_report(
         "ladder": None if ladder is None else [step_dict(s) for s in ladder],
         "cleaning": [{"kind": n.kind, "rows": n.rows, "message": n.message} for n in cleaning],
         "units": {"torque": "N m", "current": "A", "rmse": "N m", "noise_floor": "N m"},
+    }
+
+
+def exact_compensation(curve: CurrentCurve) -> dict[str, Any]:
+    """The ``compensation`` block: the exact inverse of the fitted curve, how it is computed and its error."""
+    method = {
+        "linear": "i = tau / Kt",
+        "quadratic": "closed form: i = 2 tau / (Kt + sqrt(Kt^2 - 4 k_sat |tau|))",
+        "table": "linear interpolation of the current_curve table",
+    }[curve.form]
+    return {
+        "method": method,
+        "torque_range": None if math.isinf(curve.top_torque) else curve.top_torque,
+        "max_error": curve.table_error,
+        "units": "current [A] for a torque [N m] (odd); max_error [A]: 0 for the closed form (rounding only)",
     }
 
 
@@ -234,7 +257,9 @@ def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str
             "parameters",
             "rmse",
             "peak_torque",
+            "current_curve",
             "compensation",
+            "compensation_polynomial",
             "noise_floor",
             "at_noise_floor",
             "flags",
