@@ -227,6 +227,7 @@ def step_export(out: Path) -> StepResult:
     options = ExportOptions("all", (fit,) if fit.is_file() else (), foot if foot.is_file() else None)
     report = run_export(samples_dir() / "robots" / "hound_like.yaml", out / "export", options)
     stats = rollout_check(out / "export" / "hound_like.xml", out / "export" / "hound_like_bundle.yaml", seconds=1.0)
+    stats["straight_line_gap"] = _straight_line_gap(fit if fit.is_file() else None)
     files = tuple(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
     io.write_json(out / "export" / "export.json", report | {"mujoco_check": stats})
     return StepResult(
@@ -235,10 +236,21 @@ def step_export(out: Path) -> StepResult:
         f"(fitted: {', '.join(report['fitted_motors']) or 'none'}, "
         f"foot: {'optimised' if report['foot'] else 'original'}); MuJoCo ran {stats['steps']} steps with "
         f"{stats['clipped_fraction']:.0%} of the commands past the region: realised motor torques within "
-        f"{stats['max_difference']:.1e} N m of hound_id.runtime, {stats['max_outside']:.1e} N m outside the region",
+        f"{stats['max_difference']:.2g} N m of hound_id.runtime, {stats['max_outside']:.2g} N m outside the region "
+        f"(dcmotor's straight voltage lines against the curved edges: up to {stats['straight_line_gap']:.2g} N m; "
+        "--mujoco-actuator motor with the runtime is exact)",
         (*files, "export/export.json"),
         {k: float(v) for k, v in stats.items()},
     )
+
+
+def _straight_line_gap(fit: Path | None) -> float:
+    """The most a straight-line dcmotor passes the exported motor's curved region [N m, motor side]."""
+    from hound_id.mor.region import operating_region, straight_gap
+    from hound_id.mor.spec import load_motor_spec
+
+    spec = load_motor_spec(fit if fit is not None else samples_dir() / "motors" / "hound_ilm85.yaml")
+    return straight_gap(operating_region(spec))[0]
 
 
 STEPS: tuple[Callable[[Path], StepResult], ...] = (

@@ -244,8 +244,9 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         highlight=False,
     )
     console.print("which limit binds (motor side, omega >= 0; the region is point-symmetric):", highlight=False)
-    for b in run.bindings:
-        console.print(f"  {b.speeds[0]:.4g} to {b.speeds[1]:.4g} rad/s: {b.limit}: {b.detail}", highlight=False)
+    for binding in run.bindings:
+        w0, w1 = binding.speeds
+        console.print(f"  {w0:.4g} to {w1:.4g} rad/s: {binding.limit}: {binding.detail}", highlight=False)
     lk = run.linear_kt
     if lk.largest > 0:
         console.print(

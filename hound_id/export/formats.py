@@ -144,26 +144,14 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
 
 #: A DCMotor whose clip passes hound-id's by less than this share of the torque limit reproduces it (rounding).
 DCMOTOR_EXACT = 1e-9
-#: Motor speeds at which a DCMotor clip is compared with hound-id's, across +-overspeed.
-DCMOTOR_POINTS = 4001
 
 
 def _dcmotor_gap(ex: Export, motor: BundleMotor) -> tuple[float, float]:
     """(over, under) [N m, motor side]: the most Isaac Lab's DCMotor clip with the exported fields passes or falls
-    short of hound-id's interval, at motor speeds within +-overspeed (past it both hold a single torque, different
-    by design: the README)."""
-    from hound_id.mor.region import operating_region, torque_interval
-    from hound_id.mor.saturation import dc_motor_clip
+    short of hound-id's interval within +-overspeed (:func:`hound_id.mor.region.straight_gap`)."""
+    from hound_id.mor.region import operating_region, straight_gap
 
-    region = operating_region(ex.robot.motor_specs[motor.name])
-    w = np.linspace(-region.overspeed, region.overspeed, DCMOTOR_POINTS)
-    lo, hi = torque_interval(w, region)
-    big = np.full_like(w, 1e6 * motor.torque_limit)
-    args = (motor.stall_torque, motor.no_load_speed, motor.torque_limit)
-    dc_hi, dc_lo = dc_motor_clip(big, w, *args), dc_motor_clip(-big, w, *args)
-    over = max(float(np.max(dc_hi - hi)), float(np.max(lo - dc_lo)), 0.0)
-    under = max(float(np.max(hi - dc_hi)), float(np.max(dc_lo - lo)), 0.0)
-    return over, under
+    return straight_gap(operating_region(ex.robot.motor_specs[motor.name]))
 
 
 def _group_inertia(M: np.ndarray, joints: list[str]) -> dict[str, Any]:

@@ -143,13 +143,24 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     path = out / f"{io.file_stem(ex.robot.name, 'robot field name')}.xml"
     io.write_text(path, xml)
     curved = [m.name for m in ex.bundle.motors if m.envelope]
+    notes: tuple[str, ...] = ()
     if curved and ex.mujoco_actuator == "dcmotor":
-        note = (
+        notes += (
             f"motors {', '.join(curved)} have a measured envelope (mor --compare --out): dcmotor holds the spec "
             "sheet's straight voltage lines, not its polyline; use --mujoco-actuator motor with hound_id.runtime to "
-            "apply it"
+            "apply it",
         )
-        return Written((str(path),), (*DIFFERENCES, note))
+    bent = _curve_gaps(ex)
+    if bent and ex.mujoco_actuator == "dcmotor":
+        worst = max(bent.values())
+        notes += (
+            f"motors {', '.join(bent)} have a saturating current-torque curve: dcmotor's torque limit is the curve's "
+            f"but its voltage lines are straight, passing hound-id's curved edges by up to {worst:.3g} N m (motor "
+            "side, between the corner and the overspeed); past overspeed dcmotor holds the torque limit where the "
+            "back-EMF forces more braking. For the exact clip use --mujoco-actuator motor with hound_id.runtime",
+        )
+    if notes:
+        return Written((str(path),), (*DIFFERENCES, *notes))
     if ex.mujoco_actuator == "motor":
         notes = (
             "plain <motor> actuators on the tendons, force-limited to the torque limit only: call "
@@ -157,6 +168,18 @@ def write_mujoco(ex: Export, out: Path) -> Written:
         )
         return Written((str(path),), notes)
     return Written((str(path),), DIFFERENCES)
+
+
+def _curve_gaps(ex: Export) -> dict[str, float]:
+    """Per motor whose curve saturates (no measured envelope): the most a straight dcmotor passes its region [N m]."""
+    from hound_id.mor.region import operating_region, straight_gap
+
+    out = {}
+    for m in ex.bundle.motors:
+        spec = ex.robot.motor_specs[m.name]
+        if not m.envelope and spec.current_curve.form != "linear":
+            out[m.name] = straight_gap(operating_region(spec))[0]
+    return out
 
 
 def rollout_check(xml: Path, bundle: Path, seconds: float = 1.0) -> dict[str, float]:

@@ -642,3 +642,24 @@ def overpromise(linear: OperatingRegion, curved: OperatingRegion) -> Overpromise
         at_speed=float(w[k]),
         share=float(excess[k] / max(abs(hi_c[k]), 1e-12)),
     )
+
+
+#: Motor speeds at which a straight-line clip is compared with a region, across +-overspeed.
+STRAIGHT_POINTS = 4001
+
+
+def straight_gap(region: OperatingRegion) -> tuple[float, float]:
+    """(over, under) [N m, motor side]: the most a straight-line DC-motor clip (the voltage line through the linear
+    stall torque Kt V/R and the no-load speed, cut at the torque limit: Isaac Lab's ``DCMotor``, MuJoCo's
+    ``dcmotor``) passes or falls short of the region's interval, at speeds within +-overspeed. Both are 0 for a
+    linear curve; past overspeed the straight clip holds the torque limit, the region the braking torque the back-EMF
+    forces (larger), by design."""
+    w = np.linspace(-region.overspeed, region.overspeed, STRAIGHT_POINTS)
+    lo, hi = torque_interval(w, region)
+    tl, stall, d = region.torque_limit, region.stall_torque, region.back_emf_damping
+    w_clamped = np.clip(w, -(stall + tl) / d, (stall + tl) / d)  # DCMotor clamps the speed at its overspeed
+    s_hi = np.minimum(stall - d * w_clamped, tl)
+    s_lo = np.maximum(-stall - d * w_clamped, -tl)
+    over = max(float(np.max(s_hi - hi)), float(np.max(lo - s_lo)), 0.0)
+    under = max(float(np.max(hi - s_hi)), float(np.max(s_lo - lo)), 0.0)
+    return over, under

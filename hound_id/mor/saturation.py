@@ -277,8 +277,8 @@ class Saturation:
         q = np.zeros(self.n) if self.curve_q is None else self.curve_q
         with np.errstate(divide="ignore"):
             top = np.where(q > 0, 0.5 / np.where(q > 0, q, 1.0), np.inf)
-        vectors = (self.stall_torque, -self.stall_torque, self.torque_limit, -self.torque_limit, limit_x, -limit_x, q)
-        vectors = (*vectors, top, wmax)
+        vectors: tuple[NDArray[Any], ...] = (self.stall_torque, -self.stall_torque, self.torque_limit)
+        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, wmax)
         if torch_like:
             import torch
 

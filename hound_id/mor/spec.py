@@ -323,12 +323,16 @@ class MotorSpec:
 
     @cached_property
     def current_curve(self) -> CurrentCurve:
-        """The current-torque curve: the fit's (``fit-current --out``) if this spec carries one that defines it,
-        else the quadratic through the spec sheet's 20 % point (:func:`hound_id.mor.current_curve.sheet_curve`)."""
+        """The current-torque curve: the fit's (``fit-current --out``) if this spec carries one that defines it; else
+        linear for ``kt_curve: linear`` or a spec with a measured envelope (whose model, :mod:`hound_id.mor.envelope`,
+        starts from linear Kt and takes a measured curve as an effect); else the quadratic through the spec sheet's
+        20 % point (:func:`hound_id.mor.current_curve.sheet_curve`)."""
         if self.fit is not None and self.fit.curve is not None:
             return self.fit.curve
         if self.kt_curve == "linear":
             return CurrentCurve(kt=self.kt, source="spec sheet: linear (kt_curve: linear)")
+        if self.envelope is not None:  # the envelope's model starts from linear Kt; the log, not the sheet, decides
+            return CurrentCurve(kt=self.kt, source="linear: the measured envelope's model (mor --compare) starts there")
         return sheet_curve(self.kt, self.peak_torque)
 
     @property

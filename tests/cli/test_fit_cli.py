@@ -40,7 +40,7 @@ def test_sample_auto_finds_every_hidden_effect(tmp_path):
     )
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/fit/2"
+    assert data["schema"] == "hound-id/fit/3"
     hidden = set(TRUTH["effects"]) - {"linear", "saturation"}
     assert set(data["model"]) == {"linear", "saturation"} | hidden
     assert [s["added"] for s in data["ladder"][1:]] and set(s["added"] for s in data["ladder"][1:]) == hidden
@@ -56,7 +56,8 @@ def test_sample_auto_finds_every_hidden_effect(tmp_path):
     assert data["noise_floor"] == pytest.approx(truth["noise_std"], rel=0.2)
     assert data["at_noise_floor"] and not any(s["significant"] for s in data["suggestions"])
     assert {"torque", "current"} <= set(data["peak_torque"])
-    assert data["compensation"]["powers"] == [1, 3, 5]
+    assert data["compensation_polynomial"]["powers"] == [1, 3, 5] and data["current_curve"]["form"] == "quadratic"
+    assert data["compensation"]["method"].startswith("closed form") and data["compensation"]["max_error"] == 0.0
     kinds = {n["kind"] for n in data["cleaning"]}
     assert {"nan_rows", "glitch", "duplicate_time", "unit"} <= kinds
     assert plot.read_bytes().startswith(PNG_MAGIC)

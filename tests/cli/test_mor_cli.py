@@ -22,9 +22,14 @@ def test_mor_spec_json(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/mor/1"
+    assert data["schema"] == "hound-id/mor/2"
     assert data["motor"] == "hound_ilm85"
-    assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"]) == 4
+    assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"]) > 4  # voltage, torque and curve rows
+    # the curve-limited torque limit and what linear Kt over-promises (the 20 % point's quadratic at 70 A)
+    tl = 0.138 * 70 - 0.16 * 0.138**2 / 12 * 70**2
+    assert data["torque_limit"] == pytest.approx(tl) and data["linear_torque_limit"] == pytest.approx(9.66)
+    assert data["linear_kt"]["largest_excess"] == pytest.approx(9.66 - tl)
+    assert [b["limit"] for b in data["bindings"]] == ["current", "voltage", "voltage", "back-EMF"]
     assert data["corner_speed"] < data["no_load_speed"] < data["overspeed"]
     assert data["stall_torque"] == pytest.approx(0.138 * 81 / (math.sqrt(3) / 2 * 0.115))
 
@@ -33,7 +38,9 @@ def test_mor_spec_table_and_plot(tmp_path):
     plot = tmp_path / "region.png"
     proc = run_cli("mor", "--spec", str(SMALL_MOTOR), "--plot", str(plot))
     assert proc.returncode == 0, proc.stderr
-    assert "corner speed" in proc.stdout and "1504 rpm" in proc.stdout
+    # the curve needs 36.14 A for the 2.4 N m peak (linear Kt: 28.9 A): corner Kv (V - R I) = 134.0 rad/s, 1280 rpm
+    assert "corner speed" in proc.stdout and "1280 rpm" in proc.stdout and "1504 rpm" not in proc.stdout
+    assert "linear-Kt region" in proc.stdout and "157.5 rad/s" in proc.stdout
     assert plot.read_bytes().startswith(PNG_MAGIC)
     assert [p.name for p in tmp_path.iterdir()] == ["region.png"]  # no temporary left behind
 

@@ -1,7 +1,7 @@
 import numpy as np
 import pytest
 
-from hound_id.dyno.current.curve import compensation, curve_torque, peak_torque
+from hound_id.dyno.current.curve import compensation, curve_torque, fitted_curve, peak_torque
 from hound_id.dyno.current.fit import fit_model
 from tests.dyno.conftest import simulated
 
@@ -39,3 +39,30 @@ def test_no_saturation_no_peak():
         assert "add a saturation effect" in peak.note
     else:  # a linear fit of saturated data can still bend only through other shape terms: none here
         raise AssertionError("a linear-only model cannot have a 20 % point")
+
+
+def test_the_quadratic_fit_gets_its_closed_form_inverse():
+    signals, torque, _ = simulated(("linear", "saturation"), 3)
+    fit = fit_model(signals, torque, ("linear", "saturation"))
+    curve = fitted_curve(fit, float(np.abs(signals.current).max()))
+    assert curve.form == "quadratic" and curve.k_sat == fit.value("k_sat") and curve.kt == fit.value("kt")
+    i = np.linspace(-1.5, 1.5, 301) * float(np.abs(signals.current).max())
+    assert curve.current(curve_torque(fit, i)) == pytest.approx(i, rel=1e-12, abs=1e-12)
+    # the odd polynomial stays an option: its slope at zero torque misses 1/Kt (it cannot follow tau|tau|)
+    comp = compensation(fit, peak_torque(fit, float(np.abs(signals.current).max())).current)
+    assert abs(comp.slope_error) > 0.01 and comp.slope_error == pytest.approx(comp.coefficients[0] * curve.kt - 1)
+
+
+def test_a_cubic_fit_gets_a_table_curve_with_its_error():
+    signals, torque, _ = simulated(("linear", "saturation_cubic"), 3)
+    fit = fit_model(signals, torque, ("linear", "saturation_cubic"))
+    top = float(np.abs(signals.current).max())
+    curve = fitted_curve(fit, top)
+    assert curve.form == "table" and curve.torques is not None and curve.currents is not None
+    # the table ends where the cubic stops rising, Kt - 3 k i^2 = 0, or at ten times the measured current
+    kt, k3 = fit.value("kt"), fit.value("k_sat3")
+    assert curve.top_current == pytest.approx(min(np.sqrt(kt / (3 * k3)), 10 * top), rel=2e-3)
+    # its inverse error, measured here at points between the table's, is within what it states, and small
+    i = np.linspace(0.0, curve.top_current, 5001)
+    err = np.max(np.abs(curve.current(curve_torque(fit, i)) - i))
+    assert err <= curve.table_error * 1.5 + 1e-9 and curve.table_error < 0.01
