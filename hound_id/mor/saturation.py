@@ -64,38 +64,43 @@ def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
     return np.minimum(out, hi, out=out)
 
 
-def _np_bounds(c: Any, u: Any, lo: Any, hi: Any, tmp: Any) -> None:
-    """The motors' torque intervals into ``lo`` and ``hi`` from u = back-EMF damping x motor speed
-    (:func:`hound_id.mor.region.torque_interval`): the linear-equivalent window [-S - u, S - u] cut to [-X, X] (past
-    overspeed, collapsed onto the end nearest it), then the current-torque curve. ``u`` may be ``tmp``; both are
-    overwritten."""
+def _np_bounds(c: Any, u: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
+    """The motors' torque intervals from u = back-EMF damping x motor speed
+    (:func:`hound_id.mor.region.torque_interval`): the linear-equivalent window [-S - u, S - u] cut to [-X, X]
+    (past overspeed, collapsed onto the end nearest it), then the current-torque curve. Returns (lower, upper) in
+    two of the buffers ``u``, ``lo`` and ``hi`` (all three are overwritten).
+
+    With a curve, the line ends that can pass the curve's top are held there first (the upper line only falls past
+    -top, the lower only rises past +top; their other ends are cut to +-X <= top by the window), so the curve needs
+    no clip of its own."""
     np.subtract(c.stall, u, out=hi)  # x_hi, upper voltage line
     np.subtract(c.neg_stall, u, out=lo)  # x_lo
-    np.minimum(hi, c.limit_x, out=tmp)
-    np.maximum(tmp, lo, out=tmp)  # upper end of the window
+    if c.has_curve:
+        np.maximum(hi, c.neg_curve_top, out=hi)
+        np.minimum(lo, c.curve_top, out=lo)
+    np.minimum(hi, c.limit_x, out=u)
+    np.maximum(u, lo, out=u)  # upper end of the window
     np.maximum(lo, c.neg_limit_x, out=lo)
     np.minimum(lo, hi, out=lo)  # lower end
-    np.copyto(hi, tmp)
     if c.has_curve:
-        _np_curve(hi, c, tmp)
-        _np_curve(lo, c, tmp)
+        _np_curve(u, c, hi)
+        _np_curve(lo, c, hi)
+    return lo, u
 
 
 def _np_curve(x: Any, c: Any, tmp: Any) -> None:
-    """x -> xc - q xc|xc|, xc = x held within the curve's top (in place; ``tmp`` is scratch)."""
-    _np_clip(x, -c.curve_top, c.curve_top, out=x)
+    """x -> x - q x|x| in place, for |x| within the curve's top (``tmp`` is scratch)."""
     np.absolute(x, out=tmp)
-    tmp *= x
     tmp *= c.curve_q
+    tmp *= x
     x -= tmp
 
 
 def _torch_curve(x: Any, c: Any) -> Any:
-    """:func:`_np_curve` in torch (a new tensor)."""
+    """:func:`_np_curve` in torch (a new tensor; ``x`` within the curve's top)."""
     import torch
 
-    xc = torch.minimum(torch.maximum(x, -c.curve_top), c.curve_top)
-    return xc - c.curve_q * xc * torch.abs(xc)
+    return x - c.curve_q * x * torch.abs(x)
 
 
 def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
@@ -169,6 +174,7 @@ class _Constants(NamedTuple):
     """Per motor q of the quadratic current-torque curve, x - q x|x| (0: linear)."""
     curve_top: Any
     """Per motor linear-equivalent torque at the curve's top, 1 / (2 q) (inf: linear)."""
+    neg_curve_top: Any
     has_curve: bool
     wmax: Any
     has_max_speed: bool
@@ -278,7 +284,7 @@ class Saturation:
         with np.errstate(divide="ignore"):
             top = np.where(q > 0, 0.5 / np.where(q > 0, q, 1.0), np.inf)
         vectors: tuple[NDArray[Any], ...] = (self.stall_torque, -self.stall_torque, self.torque_limit)
-        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, wmax)
+        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, -top, wmax)
         if torch_like:
             import torch
 
@@ -307,8 +313,9 @@ class Saturation:
             neg_limit_x=vecs[5],
             curve_q=vecs[6],
             curve_top=vecs[7],
+            neg_curve_top=vecs[8],
             has_curve=bool(np.any(q > 0)),
-            wmax=vecs[8],
+            wmax=vecs[9],
             has_max_speed=bool(np.isfinite(self.max_speed).any()),
             tau_cap=tau_cap,
             qd_cap=qd_cap,
@@ -397,6 +404,8 @@ class Saturation:
             import torch
 
             hi_x, lo_x = c.stall - u, c.neg_stall - u
+            if c.has_curve:
+                hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
             hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)
             lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
             if c.has_curve:
@@ -406,8 +415,7 @@ class Saturation:
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        lo, hi = np.empty_like(u), np.empty_like(u)
-        _np_bounds(c, u, lo, hi, np.empty_like(u))
+        lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u))
         if c.has_max_speed:
             omega = qd @ c.A_inv.T
             hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
@@ -494,8 +502,8 @@ class Saturation:
         u, v, tau_m, _, _, w = self._workspace(tau)
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
-        _np_bounds(c, u, v, w, u)  # v, w = lower, upper torque
-        _np_clip(tau_m, v, w, out=v)
+        lo, hi = _np_bounds(c, u, v, w)  # lo is v
+        _np_clip(tau_m, lo, hi, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
             omega = qd @ c.A_inv.T
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
@@ -515,8 +523,8 @@ class Saturation:
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
         omega = qd @ c.A_inv.T if c.has_max_speed else None
-        _np_bounds(c, u, v, w, u)  # v, w = lower, upper torque
-        _np_clip(tau_m, v, w, out=v)
+        lo, hi = _np_bounds(c, u, v, w)  # lo is v
+        _np_clip(tau_m, lo, hi, out=v)
         if omega is not None:  # past the rated speed only braking torque passes
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
             np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
@@ -544,6 +552,9 @@ class Saturation:
         torch.matmul(tau_in, c.A, out=tau_m)
         torch.sub(c.stall, u, out=w)  # upper voltage line, x_hi
         torch.sub(c.neg_stall, u, out=v)  # lower, x_lo
+        if c.has_curve:  # the ends that can pass the curve's top are held there (see _np_bounds)
+            torch.maximum(w, c.neg_curve_top, out=w)
+            torch.minimum(v, c.curve_top, out=v)
         torch.minimum(w, c.limit_x, out=u)
         torch.maximum(u, v, out=u)  # upper end of the window (past overspeed: x_lo's side collapses onto it)
         torch.maximum(v, c.neg_limit_x, out=v)
