@@ -22,6 +22,7 @@ imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py``
 from __future__ import annotations
 
 import json
+import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -255,12 +256,12 @@ def _inverse(curve: CurrentCurve, t: Any) -> Any:
     if curve.currents is not None and curve.torques is not None:
         kw = {"dtype": t.dtype, "device": t.device}
         out = interp(mag, torch.tensor(np.array(curve.torques), **kw), torch.tensor(np.array(curve.currents), **kw))
-    elif curve.k_sat > 0:
-        out = 2.0 * mag / (curve.kt + torch.sqrt(torch.clamp(curve.kt**2 - 4.0 * curve.k_sat * mag, min=0.0)))
+        out = torch.sign(t) * out
+    elif curve.k_sat > 0:  # tau itself in the numerator: autograd gives the slope 1/Kt at zero torque too
+        out = 2.0 * t / (curve.kt + torch.sqrt(torch.clamp(curve.kt**2 - 4.0 * curve.k_sat * mag, min=0.0)))
     else:
-        out = mag / curve.kt
-    out = torch.where(mag > curve.top_torque, torch.full_like(out, float("inf")), out)
-    return torch.sign(t) * out
+        out = t / curve.kt
+    return torch.where(mag > curve.top_torque, torch.copysign(torch.full_like(t, float("inf")), t), out)
 
 
 def _validated(bundle: Mapping[str, Any], source: str) -> tuple[NDArray[np.float64], dict[str, Any], list[Any]]:
@@ -285,18 +286,59 @@ def _validated(bundle: Mapping[str, Any], source: str) -> tuple[NDArray[np.float
 _SAT_KEYS = ("stall_torque", "back_emf_damping", "torque_limit", "max_speed")
 
 
-def _optional(block: Mapping[str, Any], key: str, n: int, source: str) -> NDArray[np.float64] | None:
-    """A bundle/2 saturation array (``limit_x``, ``curve_q``), or None in a bundle/1 (linear motors)."""
-    values = block.get(key)
-    if values is None:
-        return None
-    try:
-        out = np.asarray(values, dtype=float)
-    except (TypeError, ValueError) as err:
-        raise SpecError(f"{source}: saturation.{key} is not a list of numbers ({err})") from err
-    if out.shape != (n,) or not np.all(np.isfinite(out)) or np.any(out < 0):
-        raise SpecError(f"{source}: saturation.{key} needs {n} finite numbers >= 0; re-export the bundle")
-    return frozen(out)
+def _curve_of(motor: Mapping[str, Any], source: str) -> CurrentCurve:
+    """A bundle/2 motor's current-torque curve; SpecError when missing or malformed."""
+    block = motor.get("current_curve")
+    if not isinstance(block, Mapping):
+        raise SpecError(f"{source}: motor {motor.get('name')!r} has no current_curve; re-export the bundle")
+    return CurrentCurve.from_dict(block, f"{source}: motor {motor.get('name')}")
+
+
+#: Relative agreement the clip's curve arrays must have with the motors' current_curve and torque_limit in a bundle.
+CURVE_AGREEMENT = 1e-6
+
+
+def _curve_arrays(
+    block: Mapping[str, Any], curves: list[Any], torque_limit: NDArray[np.float64], source: str
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(limit_x, curve_q, top_torque) of a bundle/2's saturation block, checked against each motor's current_curve
+    and torque limit (the clip must hold the curve the file describes); SpecError names the first disagreement."""
+    n = len(curves)
+    out = []
+    for key in ("limit_x", "curve_q", "top_torque"):
+        values = block.get(key)
+        try:
+            arr = np.asarray([np.inf if v is None else v for v in values], dtype=float) if values is not None else None
+        except (TypeError, ValueError) as err:
+            raise SpecError(
+                f"{source}: saturation.{key} is not a list of numbers ({err}); re-export the bundle"
+            ) from err
+        if arr is None or arr.shape != (n,) or np.any(np.isnan(arr)) or np.any(arr < 0):
+            raise SpecError(f"{source}: saturation.{key} needs {n} numbers >= 0 (a bundle/2 has it); re-export it")
+        out.append(arr)
+    limit_x, q, top = out
+    for m, curve in enumerate(curves):
+        want_q = curve.q
+        want_top = curve.top_torque if curve.form == "table" else np.inf
+        made = float(curve.torque(limit_x[m] / curve.kt))  # the torque the clip's current limit makes on the curve
+        checks = (
+            ("curve_q", q[m], want_q, f"is {q[m]:.6g}, but k_sat / Kt^2 of its current_curve is {want_q:.6g}"),
+            ("top_torque", top[m], want_top, f"is {top[m]:.6g}, but its current_curve's is {want_top:.6g} (inf: none)"),
+            (
+                "limit_x",
+                made,
+                float(torque_limit[m]),
+                f"makes {made:.6g} N m through its current_curve, but its torque limit is {torque_limit[m]:.6g} N m",
+            ),
+        )
+        for key, got, want, what in checks:
+            same = got == want or (math.isfinite(want) and abs(got - want) <= CURVE_AGREEMENT * max(1.0, abs(want)))
+            if not same:
+                raise SpecError(
+                    f"{source}: saturation.{key} of motor {m} {what}; the file is damaged or was edited by hand: "
+                    "re-export the bundle"
+                )
+    return frozen(limit_x), frozen(q), frozen(top)
 
 
 def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
@@ -324,6 +366,11 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         A = A[list(own), :]  # rows follow your joints; motors keep their order
         joints = names
     lines = tuple(polyline_of(p) for p in bundle["saturation"].get("polylines") or [])
+    second = bundle.get("schema") != "hound-id/bundle/1"
+    curves = [_curve_of(m, source) for m in motors] if second else [None] * len(motors)
+    curve_arrays = (
+        _curve_arrays(bundle["saturation"], curves, arrays["torque_limit"], source) if second else (None,) * 3
+    )
     clip = Saturation(
         joints=tuple(joints),
         A=frozen(A),
@@ -332,21 +379,19 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         back_emf_damping=frozen(arrays["back_emf_damping"]),
         torque_limit=frozen(arrays["torque_limit"]),
         max_speed=frozen(arrays["max_speed"]),
-        limit_x=_optional(bundle["saturation"], "limit_x", n=len(joints), source=source),
-        curve_q=_optional(bundle["saturation"], "curve_q", n=len(joints), source=source),
+        limit_x=curve_arrays[0],
+        curve_q=curve_arrays[1],
+        top_torque=curve_arrays[2],
         polylines=lines if any(p is not None for p in lines) else (),
     )
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:
         return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))
 
-    comps, curves = [], []
-    second = bundle.get("schema") != "hound-id/bundle/1"
+    comps = []
     for m in motors:
         c = m.get("compensation_polynomial") if second else m.get("compensation")  # bundle/1: the polynomial
         comps.append((tuple(int(p) for p in c["powers"]), tuple(float(v) for v in c["coefficients"])) if c else None)
-        block = m.get("current_curve") if second else None
-        curves.append(CurrentCurve.from_dict(block, f"{source}: motor {m.get('name')}") if block else None)
     return Runtime(
         joints=tuple(joints),
         motors=tuple(m["name"] for m in motors),

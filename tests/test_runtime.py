@@ -10,7 +10,7 @@ import pytest
 import torch
 
 import hound_id.runtime
-from hound_id.errors import SaturationError
+from hound_id.errors import SaturationError, SpecError
 from hound_id.export.bundle import apply_fits, build_bundle
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
@@ -83,6 +83,32 @@ def test_current_is_the_exact_inverse_of_the_sheet_curve():
     assert sat.current(np.full((1, 12), 12.0))[0, 0] == pytest.approx(12.0 / (0.8 * kt), rel=1e-12)
     # past the curve's top (Kt^2 / 4k = 18.75 N m) no current makes the torque
     assert np.isinf(sat.current(np.full((1, 12), 19.0))).all()
+    assert np.all(sat.current(np.full((1, 12), -19.0)) == -np.inf)
+    # autograd gives the slope 1/Kt at zero torque too (the closed form is written odd, tau in the numerator)
+    t = torch.zeros((1, 12), dtype=torch.float64, requires_grad=True)
+    sat.current(t).sum().backward()
+    assert t.grad[0] == pytest.approx(np.full(12, 1 / kt), rel=1e-12)
+
+
+def test_a_damaged_bundle_2_is_refused(tmp_path):
+    """The clip's curve arrays must agree with the motors' current_curve and torque limit in the same file."""
+    import copy
+
+    good = build_bundle(load_robot(ROBOT)).to_dict()
+    hound_id.runtime.from_bundle(good)
+    cases = [
+        (lambda b: b["saturation"].pop("curve_q"), "saturation.curve_q needs 12 numbers"),
+        (lambda b: b["saturation"]["curve_q"].__setitem__(0, 0.5), "saturation.curve_q of motor 0 is 0.5, but"),
+        (lambda b: b["saturation"]["limit_x"].__setitem__(3, 9.0), "saturation.limit_x of motor 3"),
+        (lambda b: b["saturation"]["top_torque"].__setitem__(1, 4.0), "saturation.top_torque of motor 1"),
+        (lambda b: b["motors"][2].pop("current_curve"), "motor 'FL_KFE_motor' has no current_curve"),
+        (lambda b: b["saturation"].__setitem__("curve_q", "x"), "saturation.curve_q"),
+    ]
+    for damage, message in cases:
+        bundle = copy.deepcopy(good)
+        damage(bundle)
+        with pytest.raises(SpecError, match=re.escape(message)):
+            hound_id.runtime.from_bundle(bundle)
 
 
 def test_runtime_imports_nothing_heavy():

@@ -16,7 +16,8 @@
 * per joint the inner box (every point feasible whatever the coupled joints do) and the
   outer box (everything reachable), and the reflected rotor inertia A^-T diag(J) A^-1;
 * ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from (``limit_x``, Kt times
-  the current at the torque limit, and ``curve_q``, the quadratic curve's k / Kt^2), with polyline
+  the current at the torque limit, ``curve_q``, the quadratic curve's k / Kt^2, and ``top_torque``,
+  a table curve's top, null for the others), with polyline
   edges where a motor has a measured envelope (``mor --compare --out``) or a table curve;
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
@@ -208,13 +209,14 @@ def _effects(spec: MotorSpec) -> tuple[dict[str, Any], dict[str, float], dict[st
     friction = {k: spec.fit.value(k) for k in (*FRICTION, "stribeck_speed")}
     comp = spec.fit.compensation
     polynomial = None
-    if comp is not None:
-        block = dict(written.get("compensation") or {})
+    if comp is not None:  # fit/3 keeps the polynomial's own block apart; fit/2 had it as compensation
+        block = dict(written.get("compensation_polynomial") or written.get("compensation") or {})
         polynomial = {
             "powers": list(comp.powers),
             "coefficients": list(comp.coefficients),
             "torque_range": block.get("torque_range"),
             "max_error": block.get("max_error"),
+            "slope_error": block.get("slope_error"),
             "error_vs_exact": _polynomial_error(spec, comp.powers, comp.coefficients),
             "units": "current [A] = sum c_k * torque[N m]^k; error_vs_exact [A] up to the torque limit",
         }
@@ -313,6 +315,7 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
             "torque_limit": sat.torque_limit.tolist(),
             "limit_x": (sat.torque_limit if sat.limit_x is None else sat.limit_x).tolist(),
             "curve_q": (np.zeros(sat.n) if sat.curve_q is None else sat.curve_q).tolist(),
+            "top_torque": [None] * sat.n if sat.top_torque is None else _nan_to_none(sat.top_torque),
             "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
             "polylines": [
                 {"speeds": p[0].tolist(), "lower": _nan_to_none(p[1]), "upper": _nan_to_none(p[2])}

@@ -123,11 +123,11 @@ class CurrentCurve:
         mag = np.abs(tau)
         if self.currents is not None and self.torques is not None:
             out = np.interp(mag, self.torques, self.currents)
-        elif self.k_sat > 0:
-            with np.errstate(invalid="ignore"):
-                out = 2.0 * mag / (self.kt + np.sqrt(np.maximum(self.kt**2 - 4.0 * self.k_sat * mag, 0.0)))
+        elif self.k_sat > 0:  # odd as written: tau itself in the numerator (its slope at zero is 1/Kt)
+            root = np.sqrt(np.maximum(self.kt**2 - 4.0 * self.k_sat * mag, 0.0))
+            return np.asarray(np.where(mag > self.top_torque, np.copysign(np.inf, tau), 2.0 * tau / (self.kt + root)))
         else:
-            out = mag / self.kt
+            return np.asarray(tau / self.kt, dtype=float)
         out = np.where(mag > self.top_torque, np.inf, out)
         return np.asarray(np.sign(tau) * out, dtype=float)
 

@@ -260,13 +260,16 @@ def linear_region(spec: MotorSpec) -> OperatingRegion:
     )
 
 
-def curved_edges(region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
-    """(speeds [rad/s], lower [N m], upper [N m]) of a region's edges from -overspeed to +overspeed, refined until
+def curved_edges(
+    region: OperatingRegion, reach: float | None = None
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(speeds [rad/s], lower [N m], upper [N m]) of a region's edges from -``reach`` to +``reach`` (default the
+    overspeed; past it both edges are the forced braking torque), refined until
     linear interpolation misses :func:`torque_interval` by at most :data:`EDGE_TOLERANCE` x the torque limit at
     every segment's midpoint. The breakpoints of the edges (the corner speeds, where the current limit stops
     binding; the no-load speeds; the rated speeds) are points of the polyline."""
     d, stall, X = region.back_emf_damping, region.stall_torque, region.limit_x
-    top = region.overspeed
+    top = region.overspeed if reach is None else reach
     marks = [(stall - X) / d, stall / d, (stall + X) / d, (X - stall) / d, -stall / d]
     if region.max_speed is not None:
         marks += [region.max_speed, region.max_speed * (1 + 2 * SPEED_TOLERANCE)]
@@ -550,7 +553,9 @@ class Binding:
     """One sentence with the numbers."""
 
     def to_dict(self) -> dict[str, Any]:
-        return {"limit": self.limit, "speeds": list(self.speeds), "detail": self.detail}
+        """JSON-ready (an open end, inf, is written as null: JSON has no infinity)."""
+        speeds = [None if math.isinf(w) else w for w in self.speeds]
+        return {"limit": self.limit, "speeds": speeds, "detail": self.detail}
 
 
 def bindings(region: OperatingRegion, spec: MotorSpec) -> tuple[Binding, ...]:
@@ -654,9 +659,15 @@ def straight_gap(region: OperatingRegion) -> tuple[float, float]:
     ``dcmotor``) passes or falls short of the region's interval, at speeds within +-overspeed. Both are 0 for a
     linear curve; past overspeed the straight clip holds the torque limit, the region the braking torque the back-EMF
     forces (larger), by design."""
-    w = np.linspace(-region.overspeed, region.overspeed, STRAIGHT_POINTS)
-    lo, hi = torque_interval(w, region)
     tl, stall, d = region.torque_limit, region.stall_torque, region.back_emf_damping
+    # the kinks of both clips: where each leaves the torque limit, where each reaches the no-load speed, and where
+    # the straight one clamps the speed (its own overspeed)
+    kinks = np.array([(stall - tl) / d, (stall + tl) / d, (stall - region.limit_x) / d, stall / d])
+    if region.max_speed is not None:  # the braking-only cut past the rated speed (the straight clip has none)
+        kinks = np.append(kinks, region.max_speed * (1 + 4 * SPEED_TOLERANCE))
+    kinks = kinks[np.abs(kinks) < region.overspeed]
+    w = np.unique(np.concatenate([np.linspace(-region.overspeed, region.overspeed, STRAIGHT_POINTS), kinks, -kinks]))
+    lo, hi = torque_interval(w, region)
     w_clamped = np.clip(w, -(stall + tl) / d, (stall + tl) / d)  # DCMotor clamps the speed at its overspeed
     s_hi = np.minimum(stall - d * w_clamped, tl)
     s_lo = np.maximum(-stall - d * w_clamped, -tl)

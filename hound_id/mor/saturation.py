@@ -85,6 +85,9 @@ def _np_bounds(c: Any, u: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
     if c.has_curve:
         _np_curve(u, c, hi)
         _np_curve(lo, c, hi)
+    if c.has_cap:  # table curves past their polylines: held at the curve's top
+        _np_clip(u, c.neg_top_torque, c.top_torque, out=u)
+        _np_clip(lo, c.neg_top_torque, c.top_torque, out=lo)
     return lo, u
 
 
@@ -175,6 +178,10 @@ class _Constants(NamedTuple):
     curve_top: Any
     """Per motor linear-equivalent torque at the curve's top, 1 / (2 q) (inf: linear)."""
     neg_curve_top: Any
+    top_torque: Any
+    """Per motor torque cap of a table curve past its polyline (inf elsewhere)."""
+    neg_top_torque: Any
+    has_cap: bool
     has_curve: bool
     wmax: Any
     has_max_speed: bool
@@ -213,6 +220,10 @@ class Saturation:
     curve_q: NDArray[np.float64] | None = None
     """Per motor q [1/(N m)] of the quadratic current-torque curve: torque = x - q x|x| in the linear-equivalent
     torque x = Kt i (None or 0: linear). A table curve is carried as a polyline."""
+    top_torque: NDArray[np.float64] | None = None
+    """Per motor the most torque a table curve makes [N m] (inf elsewhere; None: inf for all): past its polyline,
+    which reaches the speed where the braking current meets the curve's top, a table motor's interval is held
+    there."""
     polylines: tuple[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None, ...] = ()
     """Per motor (speeds, lower, upper) edges of a measured envelope (``mor --compare --out``), or None.
     Where given, the motor's torque interval at speeds inside the polyline is interpolated from it."""
@@ -237,6 +248,7 @@ class Saturation:
             max_speed=frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
             limit_x=frozen([r.limit_x for r in regions]),
             curve_q=frozen([_quadratic_q(r) for r in regions]),
+            top_torque=frozen([_table_top(r) for r in regions]),
             polylines=polylines if any(p is not None for p in polylines) else (),
         )
 
@@ -284,7 +296,8 @@ class Saturation:
         with np.errstate(divide="ignore"):
             top = np.where(q > 0, 0.5 / np.where(q > 0, q, 1.0), np.inf)
         vectors: tuple[NDArray[Any], ...] = (self.stall_torque, -self.stall_torque, self.torque_limit)
-        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, -top, wmax)
+        cap = np.full(self.n, np.inf) if self.top_torque is None else self.top_torque
+        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, -top, cap, -cap, wmax)
         if torch_like:
             import torch
 
@@ -314,8 +327,11 @@ class Saturation:
             curve_q=vecs[6],
             curve_top=vecs[7],
             neg_curve_top=vecs[8],
+            top_torque=vecs[9],
+            neg_top_torque=vecs[10],
+            has_cap=bool(np.isfinite(cap).any()),
             has_curve=bool(np.any(q > 0)),
-            wmax=vecs[9],
+            wmax=vecs[11],
             has_max_speed=bool(np.isfinite(self.max_speed).any()),
             tau_cap=tau_cap,
             qd_cap=qd_cap,
@@ -410,6 +426,9 @@ class Saturation:
             lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
             if c.has_curve:
                 hi, lo = _torch_curve(hi, c), _torch_curve(lo, c)
+            if c.has_cap:
+                hi = torch.minimum(torch.maximum(hi, c.neg_top_torque), c.top_torque)
+                lo = torch.minimum(torch.maximum(lo, c.neg_top_torque), c.top_torque)
             if c.has_max_speed:
                 omega = qd @ c.A_inv.T
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
@@ -561,6 +580,9 @@ class Saturation:
         torch.minimum(v, w, out=v)  # lower end
         if c.has_curve:
             u, v = _torch_curve(u, c), _torch_curve(v, c)
+        if c.has_cap:
+            u = torch.minimum(torch.maximum(u, c.neg_top_torque), c.top_torque)
+            v = torch.minimum(torch.maximum(v, c.neg_top_torque), c.top_torque)
         torch.clamp(tau_m, v, u, out=v)
         if c.has_max_speed:
             omega = qd_in @ c.A_inv.T
@@ -708,7 +730,14 @@ def _table_polyline(
 
     if region.curve is None or region.curve.form != "table":
         return None
-    return curved_edges(region)
+    # out to where the forced braking current reaches the curve's top (beyond, the interval is the top: top_torque)
+    reach = (region.stall_torque + region.curve.kt * region.curve.top_current) / region.back_emf_damping
+    return curved_edges(region, reach=max(reach, region.overspeed) * (1 + 1e-6))
+
+
+def _table_top(region: OperatingRegion) -> float:
+    """The most a table curve makes [N m]; inf for a linear or quadratic one."""
+    return region.curve.top_torque if region.curve is not None and region.curve.form == "table" else math.inf
 
 
 def saturation_for(robot: Robot) -> Saturation:

@@ -21,8 +21,9 @@ def assert_one_line_error(proc, *fragments):
 def test_mor_spec_json(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--json")
     assert proc.returncode == 0, proc.stderr
-    data = json.loads(proc.stdout)
+    data = json.loads(proc.stdout, parse_constant=lambda c: pytest.fail(f"not JSON: {c}"))  # no Infinity or NaN
     assert data["schema"] == "hound-id/mor/2"
+    assert data["bindings"][-1]["speeds"][1] is None  # the open end past overspeed
     assert data["motor"] == "hound_ilm85"
     assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"]) > 4  # voltage, torque and curve rows
     # the curve-limited torque limit and what linear Kt over-promises (the 20 % point's quadratic at 70 A)

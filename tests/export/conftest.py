@@ -24,3 +24,57 @@ fit:
 """
     )
     return path
+
+
+def cubic_fitted_motor(folder: Path) -> Path:
+    """A fitted-motor YAML of schema hound-id/fit/2 whose curve has a cubic saturation term (rebuilt as a table: the
+    form whose saturation runs through a polyline), with its compensation polynomial."""
+    path = folder / "fitted_cubic.yaml"
+    path.write_text(
+        f"""schema: hound-id/motor/1
+base: {SAMPLES / "motors" / "hound_ilm85.yaml"}
+kt: 0.138
+peak_torque: 8.7
+fit:
+  schema: hound-id/fit/2
+  model: [linear, saturation_cubic, coulomb]
+  parameters:
+    kt: {{value: 0.138, stderr: 1.0e-5, unit: N m/A}}
+    k_sat3: {{value: 5.0e-6, stderr: 1.0e-8, unit: N m/A^3}}
+    coulomb: {{value: 0.05, stderr: 1.0e-4, unit: N m}}
+  compensation:
+    powers: [1, 3, 5]
+    coefficients: [7.25, 0.02, 1.0e-4]
+    torque_range: 8.7
+    max_error: 0.66
+"""
+    )
+    return path
+
+
+def fit3_motor(folder: Path) -> Path:
+    """A fitted-motor YAML of schema hound-id/fit/3 (the quadratic curve, its exact compensation and the polynomial
+    apart), as fit-current --out now writes it."""
+    path = folder / "fitted_fit3.yaml"
+    path.write_text(
+        f"""schema: hound-id/motor/1
+base: {SAMPLES / "motors" / "hound_ilm85.yaml"}
+kt: 0.138
+peak_torque: 7.73
+fit:
+  schema: hound-id/fit/3
+  model: [linear, saturation]
+  parameters:
+    kt: {{value: 0.138, stderr: 1.0e-5, unit: N m/A}}
+    k_sat: {{value: 3.94e-4, stderr: 1.0e-7, unit: N m/A^2}}
+  current_curve: {{form: quadratic, kt: 0.138, k_sat: 3.94e-4}}
+  compensation: {{method: closed form, torque_range: 12.08, max_error: 0.0}}
+  compensation_polynomial:
+    powers: [1, 3, 5]
+    coefficients: [7.493, 0.03008, -6.941e-05]
+    torque_range: 7.73
+    max_error: 0.1319
+    slope_error: 0.034
+"""
+    )
+    return path

@@ -115,3 +115,19 @@ def test_the_bundle_is_a_frozen_value_that_writes_the_same_file(robot, tmp_path)
     assert json.dumps(load_bundle(path).to_dict()) == path.read_text()
     old = load_bundle(V1)
     assert all(m.envelope is None for m in old.motors) and "polylines" not in old.saturation
+
+
+def test_a_fit_3_polynomial_keeps_its_own_error(robot, tmp_path):
+    """fit/3 keeps the polynomial apart from the exact compensation: the bundle takes the polynomial's own range,
+    error and slope error, and measures its error against the exact inverse."""
+    from tests.export.conftest import fit3_motor
+
+    b = build_bundle(apply_fits(robot, [load_motor_spec(fit3_motor(tmp_path))])).to_dict()
+    poly = b["motors"][0]["compensation_polynomial"]
+    assert (poly["torque_range"], poly["max_error"], poly["slope_error"]) == (7.73, 0.1319, 0.034)
+    assert b["motors"][0]["compensation"]["method"].startswith("closed form")
+    kt, k = 0.138, 3.94e-4
+    tau = np.linspace(0, b["motors"][0]["torque_limit"], 2001)
+    exact = 2 * tau / (kt + np.sqrt(kt**2 - 4 * k * tau))
+    poly_i = 7.493 * tau + 0.03008 * tau**3 - 6.941e-05 * tau**5
+    assert poly["error_vs_exact"] == pytest.approx(np.max(np.abs(poly_i - exact)))

@@ -284,3 +284,24 @@ def test_curved_vertices_lie_on_the_edges_and_the_cut_inside(spec):
     T, W = region.inner_box
     blo, bhi = torque_interval(np.array([-W, W]), region)
     assert np.all(bhi >= T * (1 - 1e-9)) and np.all(blo <= -T * (1 - 1e-9))
+
+
+@settings(max_examples=40, deadline=None)
+@given(specs())
+def test_the_straight_line_gap_is_the_largest_over_a_dense_grid(spec):
+    from hound_id.mor.region import straight_gap
+    from hound_id.mor.saturation import dc_motor_clip
+
+    region = operating_region(spec)
+    over, under = straight_gap(region)
+    w = np.linspace(-region.overspeed, region.overspeed, 400001)
+    lo, hi = torque_interval(w, region)
+    big = np.full_like(w, 1e9)
+    args = (region.stall_torque, region.no_load_speed, region.torque_limit)
+    dc_hi, dc_lo = dc_motor_clip(big, w, *args), dc_motor_clip(-big, w, *args)
+    dense_over = max(float(np.max(dc_hi - hi)), float(np.max(lo - dc_lo)), 0.0)
+    dense_under = max(float(np.max(hi - dc_hi)), float(np.max(dc_lo - lo)), 0.0)
+    tol = 1e-9 * max(region.torque_limit, 1.0)
+    assert over >= dense_over - tol and under >= dense_under - tol  # the kinks are on its grid
+    step = 2 * region.overspeed / 400000 * region.back_emf_damping * 4  # what the dense grid can miss at a kink
+    assert over <= dense_over + step + tol and under <= dense_under + step + tol

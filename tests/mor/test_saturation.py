@@ -541,3 +541,35 @@ def test_ordinary_commands_are_feasible_in_every_dtype(dtype, backend, cmd, size
     tau = u_tau * size * ROBOT_SAT._constants(np.zeros((1, N))).ordinary
     out = saturate(ROBOT_SAT, tau, qd, backend, dtype)
     assert feasibility_error(ROBOT_SAT, out, qd.astype(dtype), dtype)[0] <= 1.0
+
+
+@pytest.mark.parametrize("backend", ["numpy", "torch", "torch-gpu", "runtime"])
+def test_a_table_curve_brakes_like_its_region_past_overspeed(tmp_path, backend):
+    """A fit with a cubic term is a table curve, carried to the clip as a polyline out to where the forced braking
+    current reaches the curve's top, and held at the top beyond: the clip equals the region everywhere."""
+    from hound_id.export.bundle import build_bundle
+    from hound_id.mor.region import torque_interval
+    from hound_id.mor.spec import load_motor_spec
+    from hound_id.runtime import from_bundle
+    from tests.export.conftest import cubic_fitted_motor
+
+    spec = load_motor_spec(cubic_fitted_motor(tmp_path))
+    region = operating_region(spec)
+    assert region.curve.form == "table"
+    robot = robot_from_mapping(
+        {"name": "t", "motor_specs": {"s": str(tmp_path / "fitted_cubic.yaml")}, "joints": ["j"],
+         "transmissions": [{"type": "ratio", "joints": ["j"], "motors": ["m"], "motor_spec": "s", "ratios": [9.0]}]},
+        source="inline", base=tmp_path,
+    )  # fmt: skip
+    sat = saturation_for(robot) if backend != "runtime" else from_bundle(build_bundle(robot)).clip
+    omega = np.concatenate([np.linspace(-6, 6, 241) * region.overspeed, [-1e4, 1e4]])
+    for command in (-1e3, -3.0, 0.0, 3.0, 1e3):
+        tau_j = np.full((omega.size, 1), command * 9.0)
+        qd = (omega / 9.0)[:, None]
+        out = saturate(sat, tau_j, qd, "numpy" if backend == "runtime" else backend, np.float64)
+        got = to_numpy(out)[:, 0] / 9.0
+        lo, hi = torque_interval(omega, region)
+        want = np.minimum(np.maximum(command, lo), hi)
+        assert got == pytest.approx(want, abs=2e-4 * region.torque_limit)  # the polyline's accuracy
+    far_lo, far_hi = torque_interval(np.array([1e4]), region)
+    assert far_hi[0] == pytest.approx(-region.curve.top_torque)
