@@ -234,22 +234,6 @@ def _polynomial_error(spec: MotorSpec, powers: tuple[int, ...], coefficients: tu
     return float(np.max(np.abs(poly - spec.current_curve.current(tau))))
 
 
-def _compensation(spec: MotorSpec) -> dict[str, Any]:
-    """The exact compensation of a motor's curve: how it is computed and its error."""
-    curve = spec.current_curve
-    method = {
-        "linear": "i = tau / Kt",
-        "quadratic": "closed form: i = 2 tau / (Kt + sqrt(Kt^2 - 4 k_sat |tau|))",
-        "table": "linear interpolation of the current_curve table",
-    }[curve.form]
-    return {
-        "method": method,
-        "torque_range": None if math.isinf(curve.top_torque) else curve.top_torque,
-        "max_error": curve.table_error,
-        "units": "current [A] for a torque [N m] (odd); max_error [A]: 0 for the closed form (rounding only)",
-    }
-
-
 def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict[str, Any] | None = None) -> Bundle:
     """The bundle of a robot (fits already applied with :func:`apply_fits`); see the module docstring."""
     regions = robot_regions(robot)
@@ -282,7 +266,7 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "effects": params,
                 "friction": friction,
                 "current_curve": spec.current_curve.to_dict(),
-                "compensation": _compensation(spec),
+                "compensation": spec.current_curve.compensation(),
                 "compensation_polynomial": comp,
                 "envelope": spec.envelope.to_dict() if spec.envelope else None,
             }

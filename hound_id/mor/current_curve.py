@@ -135,6 +135,21 @@ class CurrentCurve:
         """Kt times the current for each torque [N m]: the torque a linear-Kt model credits that current with."""
         return np.asarray(self.kt * self.current(torque), dtype=float)
 
+    def compensation(self) -> dict[str, Any]:
+        """The ``compensation`` block of a fit report and a bundle: how the exact inverse is computed and its
+        error [A] (0 for the closed form: rounding only)."""
+        method = {
+            "linear": "i = tau / Kt",
+            "quadratic": "closed form: i = 2 tau / (Kt + sqrt(Kt^2 - 4 k_sat |tau|))",
+            "table": "linear interpolation of the current_curve table",
+        }[self.form]
+        return {
+            "method": method,
+            "torque_range": None if math.isinf(self.top_torque) else self.top_torque,
+            "max_error": self.table_error,
+            "units": "current [A] for a torque [N m] (odd); max_error [A]: 0 for the closed form (rounding only)",
+        }
+
     def to_dict(self) -> dict[str, Any]:
         """JSON-ready content (SI units), schema ``hound-id/current-curve/1``."""
         out: dict[str, Any] = {"schema": SCHEMA, "form": self.form, "kt": self.kt}

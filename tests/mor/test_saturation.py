@@ -120,12 +120,11 @@ def uncoupled_robot(draw, curve="linear"):
     return specs, transmissions, np.array(ratios)
 
 
-@settings(max_examples=100, deadline=None)
-@given(uncoupled_robot(), st.data())
-def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
-    specs, transmissions, ratios = robot_def
+def uncoupled_saturation(robot_def):
+    """The saturation and the motor regions of an :func:`uncoupled_robot`."""
     import hound_id.mor.robot as robot_mod
 
+    specs, transmissions, ratios = robot_def
     k = len(ratios)
     robot = robot_mod.Robot(
         name="u",
@@ -133,8 +132,15 @@ def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
         transmissions=tuple(robot_mod.from_ratios(t["joints"], t["motors"], t["ratios"]) for t in transmissions),
         motor_specs={f"m{i}": specs[f"m{i}"] for i in range(k)},
     )
-    sat = saturation_for(robot)
-    regions = [operating_region(specs[f"m{i}"]) for i in range(k)]
+    return saturation_for(robot), [operating_region(specs[f"m{i}"]) for i in range(k)]
+
+
+@settings(max_examples=100, deadline=None)
+@given(uncoupled_robot(), st.data())
+def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
+    specs, _, ratios = robot_def
+    k = len(ratios)
+    sat, regions = uncoupled_saturation(robot_def)
     g = np.abs(ratios)
     saturation_effort = np.array([r.stall_torque for r in regions]) * g
     velocity_limit = np.array([r.no_load_speed for r in regions]) / g
@@ -165,18 +171,9 @@ def test_uncoupled_joints_equal_the_per_joint_dc_motor_clip(robot_def, data):
 @given(uncoupled_robot(curve="quadratic"), st.data())
 def test_uncoupled_curved_joints_clip_to_the_brute_force_interval(robot_def, data):
     """The clip's fused numpy arithmetic against the brute-force current scan of tests/mor/test_region.py."""
-    specs, transmissions, ratios = robot_def
-    import hound_id.mor.robot as robot_mod
-
+    specs, _, ratios = robot_def
     k = len(ratios)
-    robot = robot_mod.Robot(
-        name="u",
-        joints=tuple(f"j{i}" for i in range(k)),
-        transmissions=tuple(robot_mod.from_ratios(t["joints"], t["motors"], t["ratios"]) for t in transmissions),
-        motor_specs={f"m{i}": specs[f"m{i}"] for i in range(k)},
-    )
-    sat = saturation_for(robot)
-    regions = [operating_region(specs[f"m{i}"]) for i in range(k)]
+    sat, regions = uncoupled_saturation(robot_def)
     u = data.draw(arrays(float, (2, 4, k), elements=unit))
     tau_m = u[0] * np.array([r.torque_limit for r in regions]) * 1.5
     omega = u[1] * np.array([r.overspeed for r in regions]) * 0.999

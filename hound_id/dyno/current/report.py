@@ -176,7 +176,7 @@ def fit_report(
         "flags": list(diagnosis.flags),
         "peak_torque": peak.to_dict(),
         "current_curve": None if curve is None else curve.to_dict(),
-        "compensation": None if curve is None else exact_compensation(curve),
+        "compensation": None if curve is None else curve.compensation(),
         "compensation_polynomial": None if comp is None else comp.to_dict(),
         "suggestions": [suggestion_dict(s) for s in diagnosis.suggestions],
         "skipped": list(diagnosis.skipped),
@@ -187,21 +187,6 @@ def fit_report(
         "ladder": None if ladder is None else [step_dict(s) for s in ladder],
         "cleaning": [{"kind": n.kind, "rows": n.rows, "message": n.message} for n in cleaning],
         "units": {"torque": "N m", "current": "A", "rmse": "N m", "noise_floor": "N m"},
-    }
-
-
-def exact_compensation(curve: CurrentCurve) -> dict[str, Any]:
-    """The ``compensation`` block: the exact inverse of the fitted curve, how it is computed and its error."""
-    method = {
-        "linear": "i = tau / Kt",
-        "quadratic": "closed form: i = 2 tau / (Kt + sqrt(Kt^2 - 4 k_sat |tau|))",
-        "table": "linear interpolation of the current_curve table",
-    }[curve.form]
-    return {
-        "method": method,
-        "torque_range": None if math.isinf(curve.top_torque) else curve.top_torque,
-        "max_error": curve.table_error,
-        "units": "current [A] for a torque [N m] (odd); max_error [A]: 0 for the closed form (rounding only)",
     }
 
 
