@@ -79,6 +79,12 @@ class Runtime:
     compensation: tuple[tuple[tuple[int, ...], tuple[float, ...]] | None, ...]
     """Per motor (powers, coefficients) of the fit's odd compensation polynomial, current [A] = sum c_k tau^k, or
     None; an approximation of the curve's inverse kept for drivers that take a polynomial."""
+    resistance: NDArray[np.float64] | None = None
+    """Per motor model resistance R [ohm] (for :meth:`voltage`)."""
+    kv: NDArray[np.float64] | None = None
+    """Per motor speed constant [rad/s/V]."""
+    bus_voltage: NDArray[np.float64] | None = None
+    """Per motor bus voltage [V]."""
     curves: tuple[CurrentCurve | None, ...] = ()
     """Per motor current-torque curve (bundle/2; empty for a bundle/1), whose exact inverse :meth:`current` uses."""
     own_motor: tuple[int, ...] = ()
@@ -245,6 +251,29 @@ class Runtime:
                 out[..., m] = t / float(self.kt[m])
         return out
 
+    def voltage(self, tau_cmd: Any, qd: Any) -> Any:
+        """Motor voltages [V] for MuJoCo's voltage-input dcmotor (``hound-id export``, ``--mujoco-actuator dcmotor``):
+        v = R tau_m / Kt + omega_m / Kv of the saturated motor torques, clamped to +-V_bus, (..., n_motors).
+
+        MuJoCo's dcmotor (one motor constant K = 1/Kv, R' = R Ke/Kt) turns v back into tau_m wherever it lies within
+        the bus, which it does wherever the region's edges are the straight voltage lines. For a saturating
+        current-torque curve past the no-load speed, and past overspeed, the clamp binds and MuJoCo applies its
+        straight line instead (by at most the export note's straight-line gap). Numpy or torch, like
+        :meth:`saturate`.
+        """
+        if self.resistance is None or self.kv is None or self.bus_voltage is None:
+            raise SaturationError("runtime.voltage: this runtime has no motor resistance, Kv and bus voltage")
+        tau_m = self.motor_torque(self.saturate(tau_cmd, qd))
+        omega = self.motor_velocity(qd)
+        r_kt, inv_kv, v_bus = self.resistance / self.kt, 1.0 / self.kv, self.bus_voltage
+        if _is_torch(tau_m):
+            import torch
+
+            kw = {"dtype": tau_m.dtype, "device": tau_m.device}
+            r, w, v = (torch.tensor(np.array(a), **kw) for a in (r_kt, inv_kv, v_bus))
+            return torch.minimum(torch.maximum(tau_m * r + omega * w, -v), v)
+        return np.clip(tau_m * r_kt + omega * inv_kv, -v_bus, v_bus)
+
 
 def _inverse(curve: CurrentCurve, t: Any) -> Any:
     """The curve's exact inverse at torques ``t``, numpy or torch (:meth:`CurrentCurve.current`)."""
@@ -401,6 +430,9 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         stribeck=per_motor("stribeck", 0.0),
         stribeck_speed=per_motor("stribeck_speed", 1.0),
         kt=frozen(np.array([float(m["kt"]) for m in motors])),
+        resistance=frozen(np.array([float(m["resistance"]) for m in motors])),
+        kv=frozen(np.array([float(m["kv"]) for m in motors])),
+        bus_voltage=frozen(np.array([float(m["bus_voltage"]) for m in motors])),
         compensation=tuple(comps),
         curves=tuple(curves) if any(c is not None for c in curves) else (),
         own_motor=own,

@@ -22,7 +22,10 @@ def export(
     ),
     urdf: Optional[Path] = typer.Option(None, "--urdf", help="The robot's URDF, instead of the robot file's 'urdf:'."),
     mujoco_actuator: str = typer.Option(
-        "dcmotor", "--mujoco-actuator", help="dcmotor (the region in MuJoCo) or motor (saturate with the runtime)."
+        "dcmotor",
+        "--mujoco-actuator",
+        help="dcmotor (voltage input: MuJoCo 3.x and 4.x; ctrl = runtime.voltage), dcmotor-ff (torque input, "
+        "MuJoCo >= 4.0) or motor (saturate with the runtime).",
     ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/export/1)."),
 ) -> None:

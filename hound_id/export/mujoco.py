@@ -9,12 +9,20 @@ A^-T f: the coupled hip/knee is exact, and power balances. On the tendon:
 * ``frictionloss`` = the fitted Coulomb friction, ``damping`` = the fitted viscous friction
   (motor side).
 
-The actuator is MuJoCo's ``dcmotor`` with a torque feed-forward input (``input="ff"``): its
-on-board controller drives the voltage v = (R/K) tau + K omega, clamped to V_bus
-(``controller`` Vmax), and the torque is clamped to the torque limit (``saturation``). That is
-the operating region's clip at the current speed. MuJoCo has one motor constant K for torque
-and back-EMF, so hound-id sets K = Ke = 1/Kv and scales the resistance to R Ke/Kt: then
-stall torque Kt V/R and no-load speed V Kv are the spec's, and the voltage lines are exact.
+The actuator is MuJoCo's ``dcmotor``. MuJoCo has one motor constant K for torque and back-EMF, so
+hound-id sets K = Ke = 1/Kv and scales the resistance to R' = R Ke/Kt: then stall torque Kt V/R
+and no-load speed V Kv are the spec's, and the voltage lines are exact. Two inputs:
+
+* ``dcmotor`` (the default): voltage input, ``ctrl`` limited to +-V_bus; the torque is
+  K (v - K omega) / R' clamped to the torque limit (``saturation``). It loads in MuJoCo 3.x and
+  4.x (the ``input`` attribute is left at its default, which 3.x reads). Send
+  ``hound_id.runtime.Runtime.voltage(tau, qd)``: the voltage R tau_m / Kt + omega_m / Kv of the
+  saturated motor torques, clamped to the bus, which MuJoCo turns back into those torques;
+* ``dcmotor-ff`` (MuJoCo >= 4.0): a torque feed-forward input (``input="ff"``): its on-board
+  controller drives v = (R'/K) tau + K omega, clamped to V_bus (``controller`` Vmax), and the
+  torque is clamped to the torque limit: the operating region's clip at the current speed.
+
+Numbers are written at full precision (:func:`full_precision`), not MuJoCo's 6 digits.
 
 Differences from the paper's clip are listed in :data:`DIFFERENCES`; the tests measure them.
 """
@@ -69,8 +77,8 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
     """The MjSpec of the robot with tendons and actuators (see the module docstring)."""
     import mujoco
 
-    if actuator not in ("dcmotor", "motor"):
-        raise SpecError(f"--mujoco-actuator: found {actuator!r}, expected dcmotor or motor")
+    if actuator not in ("dcmotor", "dcmotor-ff", "motor"):
+        raise SpecError(f"--mujoco-actuator: found {actuator!r}, expected dcmotor, dcmotor-ff or motor")
     try:
         spec = mujoco.MjSpec.from_string(_foot_urdf(ex))
     except ValueError as err:
@@ -95,7 +103,7 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
         tendon.frictionloss = float(m.friction["coulomb"])
         tendon.damping = [float(m.friction["viscous"]), 0.0, 0.0]  # linear: f = -a v
         act = spec.add_actuator(name=m.name, target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
-        if actuator == "dcmotor":
+        if actuator == "dcmotor-ff":
             ke = 1.0 / float(m.kv)
             act.set_to_dcmotor(
                 motorconst=[ke, ke],
@@ -104,6 +112,18 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
                 controller=[0.0, 0.0, 0.0, 0.0, 0.0, float(m.bus_voltage)],
                 ctrlspec=int(mujoco.mjtCtrlInput.mjINPUT_FF),
             )
+        elif actuator == "dcmotor":  # voltage input, ctrl limited to the bus: loads in MuJoCo 3.x and 4.x
+            ke = 1.0 / float(m.kv)
+            inputs = getattr(mujoco, "mjtCtrlInput", None)  # MuJoCo 3.x has the voltage input only
+            extra = {"ctrlspec": int(inputs.mjINPUT_VOLTAGE)} if inputs is not None else {}
+            act.set_to_dcmotor(
+                motorconst=[ke, ke],
+                resistance=float(m.resistance) * ke / float(m.kt),
+                saturation=[float(m.torque_limit), 0.0, 0.0],
+                **extra,
+            )
+            act.ctrllimited = mujoco.mjtLimited.mjLIMITED_TRUE
+            act.ctrlrange = [-float(m.bus_voltage), float(m.bus_voltage)]
         else:
             act.set_to_motor()
             act.forcelimited = True
@@ -138,26 +158,32 @@ def write_mujoco(ex: Export, out: Path) -> Written:
 
     spec = mujoco_spec(ex, ex.mujoco_actuator)
     spec.compile()
-    xml = spec.to_xml()
+    xml = full_precision(spec.to_xml(), ex)
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
     path = out / f"{io.file_stem(ex.robot.name, 'robot field name')}.xml"
     io.write_text(path, xml)
     curved = [m.name for m in ex.bundle.motors if m.envelope]
     notes: tuple[str, ...] = ()
-    if curved and ex.mujoco_actuator == "dcmotor":
+    if curved and ex.mujoco_actuator.startswith("dcmotor"):
         notes += (
             f"motors {', '.join(curved)} have a measured envelope (mor --compare --out): dcmotor holds the spec "
             "sheet's straight voltage lines, not its polyline; use --mujoco-actuator motor with hound_id.runtime to "
             "apply it",
         )
     bent = _curve_gaps(ex)
-    if bent and ex.mujoco_actuator == "dcmotor":
+    if bent and ex.mujoco_actuator.startswith("dcmotor"):
         worst = max(bent.values())
         notes += (
             f"motors {', '.join(bent)} have a saturating current-torque curve: dcmotor's torque limit is the curve's "
             f"but its voltage lines are straight, passing hound-id's curved edges by up to {worst:.3g} N m (motor "
             "side, between the corner and the overspeed); past overspeed dcmotor holds the torque limit where the "
             "back-EMF forces more braking. For the exact clip use --mujoco-actuator motor with hound_id.runtime",
+        )
+    if ex.mujoco_actuator == "dcmotor":
+        notes = (
+            "voltage input (loads in MuJoCo 3.x and 4.x): ctrl is each motor's voltage, limited to the bus; send "
+            "hound_id.runtime.load(bundle).voltage(tau, qd) for the saturated torques",
+            *notes,
         )
     if notes:
         return Written((str(path),), (*DIFFERENCES, *notes))
@@ -168,6 +194,56 @@ def write_mujoco(ex: Export, out: Path) -> Written:
         )
         return Written((str(path),), notes)
     return Written((str(path),), DIFFERENCES)
+
+
+def _repr(values: Any) -> str:
+    """Floats as Python writes them back exactly (shortest round-trip), space separated."""
+    return " ".join(repr(float(v)) for v in np.atleast_1d(values))
+
+
+def full_precision(xml: str, ex: Export) -> str:
+    """The MJCF with every number hound-id computed written at full precision (MuJoCo's writer keeps 6 digits: R'
+    0.114881 instead of 0.11488123..., a tendon coefficient of the hollow shaft likewise), and the voltage input left
+    as the default, which MuJoCo 3.x reads (it does not know ``input="voltage"``).
+
+    Rewritten: each motor tendon's joint coefficients (the row of A^-1), armature, frictionloss and damping; each
+    actuator's forcerange, ctrlrange and its dcmotor gainprm (R', K; Vmax for the feed-forward input)."""
+    import xml.etree.ElementTree as ET
+
+    root = ET.fromstring(xml)
+    A_inv = np.linalg.inv(ex.A)
+    tendons = {t.get("name"): t for t in root.iter("fixed")}
+    actuators = {a.get("name"): a for tag in ("general", "motor") for a in root.iter(tag)}
+    for k, m in enumerate(ex.bundle.motors):
+        tendon = tendons.get(f"{m.name}_tendon")
+        if tendon is not None:
+            coefs = [A_inv[k, j] for j in range(len(ex.bundle.joints)) if A_inv[k, j] != 0.0]
+            for child, coef in zip(tendon.findall("joint"), coefs, strict=True):
+                child.set("coef", _repr(coef))
+            for key, value in (
+                ("armature", m.rotor_inertia or 0.0),
+                ("frictionloss", m.friction["coulomb"]),
+                ("damping", m.friction["viscous"]),
+            ):
+                if tendon.get(key) is not None:
+                    tendon.set(key, _repr(value))
+        act = actuators.get(m.name)
+        if act is None:
+            continue
+        if act.get("forcerange") is not None:
+            act.set("forcerange", _repr([-m.torque_limit, m.torque_limit]))
+        if act.get("gaintype") == "dcmotor":
+            gain = act.get("gainprm", "").split()
+            ke = 1.0 / float(m.kv)
+            gain[:2] = [_repr(float(m.resistance) * ke / float(m.kt)), _repr(ke)]
+            if len(gain) >= 8:
+                gain[7] = _repr(m.bus_voltage)
+            act.set("gainprm", " ".join(gain))
+            if act.get("input") == "voltage":
+                del act.attrib["input"]  # the default; MuJoCo 3.x refuses the keyword
+        if act.get("ctrlrange") is not None:
+            act.set("ctrlrange", _repr([-m.bus_voltage, m.bus_voltage]))
+    return ET.tostring(root, encoding="unicode")
 
 
 def _curve_gaps(ex: Export) -> dict[str, float]:
@@ -200,6 +276,7 @@ def rollout_check(xml: Path, bundle: Path, seconds: float = 1.0) -> dict[str, fl
     joints = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j) for j in sat.joints]
     actuators = [mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_ACTUATOR, m) for m in sat.motors]
     qadr, vadr = model.jnt_qposadr[joints], model.jnt_dofadr[joints]
+    voltage = bool(np.all(model.actuator_ctrllimited[actuators]))
     q0 = data.qpos[qadr].copy()
     steps = int(round(seconds / model.opt.timestep))
     clipped, worst, outside = 0, 0.0, 0.0
@@ -207,7 +284,8 @@ def rollout_check(xml: Path, bundle: Path, seconds: float = 1.0) -> dict[str, fl
         q, qd = data.qpos[qadr].copy(), data.qvel[vadr].copy()
         target = q0 + 0.6 * np.sin(2 * np.pi * 3 * step * model.opt.timestep)
         tau_cmd = 2000.0 * (target - q) - 5.0 * qd
-        data.ctrl[actuators] = sat.motor_torque(tau_cmd)
+        # voltage input (ctrl limited to the bus): the voltage of the saturated torques; feed-forward: the torque
+        data.ctrl[actuators] = sat.voltage(tau_cmd, qd) if voltage else sat.motor_torque(tau_cmd)
         mujoco.mj_forward(model, data)
         realised = data.actuator_force[actuators]
         expected = sat.motor_torque(sat.saturate(tau_cmd, qd))

@@ -52,6 +52,11 @@ def formats_from(text: str) -> list[str]:
     return names
 
 
+#: MuJoCo actuators of the export: the voltage-input dcmotor (MuJoCo 3.x and 4.x), the torque feed-forward dcmotor
+#: (MuJoCo >= 4.0) and plain motors saturated by the runtime.
+MUJOCO_ACTUATORS = ("dcmotor", "dcmotor-ff", "motor")
+
+
 def prepare(
     robot_path: Path,
     fits: Sequence[Path] = (),
@@ -63,8 +68,8 @@ def prepare(
     from hound_id.mor.robot import load_robot
     from hound_id.mor.spec import load_motor_spec
 
-    if mujoco_actuator not in ("dcmotor", "motor"):
-        raise SpecError(f"--mujoco-actuator: found {mujoco_actuator!r}, expected dcmotor or motor")
+    if mujoco_actuator not in MUJOCO_ACTUATORS:
+        raise SpecError(f"--mujoco-actuator: found {mujoco_actuator!r}, expected one of {', '.join(MUJOCO_ACTUATORS)}")
     robot = load_robot(robot_path)
     robot = apply_fits(robot, [load_motor_spec(f) for f in fits])
     if urdf is not None:

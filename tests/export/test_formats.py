@@ -48,17 +48,28 @@ def drive(model, sat, seconds, on_step):
     return data
 
 
-def test_mujoco_dcmotor_realises_the_operating_region(exported):
+@pytest.mark.parametrize("actuator", ["dcmotor", "dcmotor-ff"])
+def test_mujoco_dcmotor_realises_the_operating_region(exported, tmp_path, actuator):
+    """The fitted motor's curve is linear: the dcmotor's straight lines are the region's. Voltage input (the
+    default): ctrl = runtime.voltage, exact to rounding (full-precision numbers); feed-forward (MuJoCo >= 4.0):
+    ctrl = the commanded motor torque, which the dcmotor's own controller clips."""
+    from dataclasses import replace
+
     import mujoco
 
-    _, report, out = exported
-    model = mujoco.MjModel.from_xml_path(str(out / "hound_like.xml"))
+    ex, report, out = exported
+    if actuator != "dcmotor":
+        export_robot(replace(ex, mujoco_actuator=actuator), ["mujoco"], tmp_path)
+    xml = (out if actuator == "dcmotor" else tmp_path) / "hound_like.xml"
+    assert ('input="ff"' in xml.read_text()) == (actuator == "dcmotor-ff")
+    assert 'input="voltage"' not in xml.read_text()  # the default: MuJoCo 3.x refuses the keyword
+    model = mujoco.MjModel.from_xml_path(str(xml))
     sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
     assert model.nu == 12 and model.ntendon == 12 and model.nkey == 1
     stats = {"steps": 0, "clipped": 0, "worst": 0.0, "outside": 0.0}
 
     def on_step(data, aid, tau_cmd, qd):
-        data.ctrl[aid] = sat.motor_torque(tau_cmd)
+        data.ctrl[aid] = sat.voltage(tau_cmd, qd) if actuator == "dcmotor" else sat.motor_torque(tau_cmd)
         mujoco.mj_forward(model, data)
         realised = data.actuator_force[aid]
         expected = sat.motor_torque(sat.saturate(tau_cmd, qd))
@@ -72,7 +83,8 @@ def test_mujoco_dcmotor_realises_the_operating_region(exported):
     assert np.all(np.isfinite(data.qpos))
     assert stats["steps"] == 1500 and stats["clipped"] > stats["steps"] / 2  # the commands violate the region
     assert stats["outside"] <= 1e-9  # realised motor torques inside the region
-    assert stats["worst"] < 1e-5  # and equal to the runtime's saturation [N m]
+    # and equal to the runtime's saturation [N m]: full-precision parameters (MuJoCo's own 6 digits gave 2.4e-6)
+    assert stats["worst"] < 1e-9
     # the tendons carry the transmission: motor speed = A^-1 qd, rotor inertia as armature
     assert model.tendon_armature == pytest.approx([1.7e-4] * 12)
     assert model.tendon_frictionloss == pytest.approx([0.08] * 12)  # every motor is the fitted ILM85
@@ -197,3 +209,37 @@ def test_a_failing_format_leaves_the_output_folder_as_it_was(exported, tmp_path)
     with pytest.raises(SpecError):
         export_robot(replace(ex, robot=replace(ex.robot, urdf=str(broken))), ["bundle", "urdf"], tmp_path / "new")
     assert not (tmp_path / "new").exists()
+
+
+def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp_path):
+    """The sample sheet's quadratic bends the region's edges; MuJoCo's dcmotor lines are straight. With the runtime's
+    voltage the realised torques equal the runtime's where the voltage is inside the bus, and differ by at most the
+    straight-line gap the export states, over random states across +-overspeed."""
+    import mujoco
+
+    from hound_id.mor.region import operating_region, straight_gap
+
+    ex = prepare(ROBOT, [])
+    export_robot(ex, formats_from("bundle,mujoco"), tmp_path)
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "hound_like.xml"))
+    data = mujoco.MjData(model)
+    sat = hound_id.runtime.load(tmp_path / "hound_like_bundle.yaml")
+    region = operating_region(ex.robot.motor_specs["FL_HAA_motor"])
+    gap = straight_gap(region)
+    aid = _ids(model, mujoco.mjtObj.mjOBJ_ACTUATOR, sat.motors)
+    vadr = model.jnt_dofadr[_ids(model, mujoco.mjtObj.mjOBJ_JOINT, sat.joints)]
+    rng = np.random.default_rng(7)
+    worst_inside, worst = 0.0, 0.0
+    for _ in range(300):
+        omega = rng.uniform(-1, 1, 12) * region.overspeed * 0.999
+        qd = omega @ sat.clip.A.T  # joint speeds giving these motor speeds
+        tau = rng.uniform(-1, 1, 12) * 150.0
+        data.qvel[vadr] = qd
+        data.ctrl[aid] = v = sat.voltage(tau[None], qd[None])[0]
+        mujoco.mj_forward(model, data)
+        diff = np.abs(data.actuator_force[aid] - sat.motor_torque(sat.saturate(tau[None], qd[None]))[0])
+        inside = np.abs(v) < 0.999 * sat.bus_voltage  # the bus clamp does not bind
+        worst_inside = max(worst_inside, float(np.max(diff[inside], initial=0.0)))
+        worst = max(worst, float(np.max(diff)))
+    assert worst_inside < 1e-9
+    assert worst <= max(gap) + 1e-9 and worst > 0.01  # the curve shows, within the stated gap
