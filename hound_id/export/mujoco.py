@@ -79,6 +79,12 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
 
     if actuator not in ("dcmotor", "dcmotor-ff", "motor"):
         raise SpecError(f"--mujoco-actuator: found {actuator!r}, expected dcmotor, dcmotor-ff or motor")
+    if actuator == "dcmotor-ff" and not hasattr(mujoco, "mjtCtrlInput"):
+        raise SpecError(
+            "--mujoco-actuator dcmotor-ff: the dcmotor's torque input needs MuJoCo >= 4.0, this is "
+            f"{mujoco.__version__}; use --mujoco-actuator dcmotor (voltage input, with hound_id.runtime's voltage) or "
+            "upgrade mujoco"
+        )
     try:
         spec = mujoco.MjSpec.from_string(_foot_urdf(ex))
     except ValueError as err:

@@ -1,6 +1,8 @@
 """The MuJoCo export in MuJoCo 3.x: a separate virtual environment with mujoco 3.11 (what mjlab 1.6 and Newton 1.8
 pin), created once under ``.venv-trainers/`` (reused by later runs), loads the default voltage-input MJCF and applies
-the runtime's voltages. A MuJoCo that cannot be installed fails the test with the reason: it is not skipped."""
+the runtime's voltages; hound-id's export writer runs there too, with MuJoCo 3.11 and the few libraries it imports
+(what ``pip install hound-id`` beside a trainer leaves). A MuJoCo that cannot be installed fails the test with the
+reason: it is not skipped."""
 
 import json
 import subprocess
@@ -15,7 +17,9 @@ from tests.conftest import ROBOT, ROOT
 from tests.export.conftest import fitted_motor
 
 MUJOCO_3 = "3.11.0"
-VENV = ROOT / ".venv-trainers" / f"mujoco-{MUJOCO_3}"
+#: What the export writer imports besides numpy and mujoco.
+WRITER = ("scipy", "pyyaml", "pint", "typer", "rich")
+VENV = ROOT / ".venv-trainers" / f"mujoco-{MUJOCO_3}-writer"
 
 SCRIPT = """
 import json, sys
@@ -45,7 +49,7 @@ def mujoco3() -> str:
     if not python.exists():
         steps = (
             [sys.executable, "-m", "venv", str(VENV)],
-            [str(python), "-m", "pip", "install", "-q", f"mujoco=={MUJOCO_3}"],
+            [str(python), "-m", "pip", "install", "-q", f"mujoco=={MUJOCO_3}", *WRITER],
         )
         for cmd in steps:
             proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
@@ -74,3 +78,36 @@ def test_the_voltage_dcmotor_export_loads_steps_and_matches_the_runtime_in_mujoc
     assert result["version"] == MUJOCO_3 and result["finite"]
     expected = sat.motor_torque(sat.saturate(tau, qd))
     assert np.max(np.abs(np.array(result["forces"]) - expected)) < 1e-9
+
+
+WRITE = """
+import sys
+from pathlib import Path
+from hound_id.errors import SpecError
+from hound_id.export.run import ExportOptions, run_export
+robot, out, fit = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
+run_export(robot, out, ExportOptions("bundle,mujoco", (fit,)))
+try:
+    run_export(robot, out / "ff", ExportOptions("mujoco", mujoco_actuator="dcmotor-ff"))
+except SpecError as err:
+    print(err)
+"""
+
+
+def test_the_export_writer_runs_with_mujoco_3(mujoco3, tmp_path):
+    """hound-id's writer under MuJoCo 3.11 writes the voltage MJCF, which MuJoCo 4.0 (here) realises like the runtime;
+    the torque-input variant is refused with the version named."""
+    import mujoco
+
+    from hound_id.export.mujoco import rollout_check
+
+    env = {"PYTHONPATH": str(ROOT), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run(
+        [mujoco3, "-c", WRITE, str(ROBOT), str(tmp_path / "out"), str(fitted_motor(tmp_path))],
+        capture_output=True, text=True, timeout=300, env=env,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    assert "dcmotor-ff: the dcmotor's torque input needs MuJoCo >= 4.0, this is 3.11.0" in proc.stdout
+    assert not (tmp_path / "out" / "ff").exists()
+    stats = rollout_check(tmp_path / "out" / "hound_like.xml", tmp_path / "out" / "hound_like_bundle.yaml", 0.5)
+    assert mujoco.__version__.startswith("4.") and stats["max_difference"] < 1e-9 and stats["clipped_fraction"] > 0.5
