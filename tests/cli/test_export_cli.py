@@ -15,11 +15,12 @@ def test_export_everything_from_the_command_line(tmp_path):
                    "--fit", fit, "--foot", foot_json, "--json")  # fmt: skip
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/export/1" and list(data["formats"]) == ["bundle", "isaaclab", "mujoco", "urdf"]
+    assert data["schema"] == "hound-id/export/1"
+    assert list(data["formats"]) == ["bundle", "isaaclab", "mujoco", "urdf", "urdf-open"]
     assert data["fitted_motors"] == ["hound_ilm85"] and data["foot"]
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
-    assert names == ["hound_like.xml", "hound_like_bundle.json", "hound_like_bundle.yaml", "hound_like_isaaclab.yaml",
-                     "hound_like_limits.urdf"]  # fmt: skip
+    assert names == ["hound_like.xml", "hound_like_armature.yaml", "hound_like_bundle.json", "hound_like_bundle.yaml",
+                     "hound_like_isaaclab.yaml", "hound_like_limits.urdf", "hound_like_open_limits.urdf"]  # fmt: skip
     bundle = json.loads((tmp_path / "out" / "hound_like_bundle.json").read_text())
     assert bundle["foot"]["mass"] < 0.05 and bundle["motors"][0]["friction"]["coulomb"] == 0.08
     # the optimised foot is on every leg, in the URDF (Pinocchio) and in the MJCF (mujoco)
@@ -41,7 +42,7 @@ def test_export_everything_from_the_command_line(tmp_path):
 @pytest.mark.parametrize(
     ("args", "fragments"),
     [
-        (["--format", "mjcf"], ["--format: found 'mjcf'", "bundle, isaaclab, mujoco, urdf"]),
+        (["--format", "mjcf"], ["--format: found 'mjcf'", "bundle, isaaclab, mujoco, urdf, urdf-open"]),
         (["--fit", str(SAMPLES / "motors" / "hound_ilm85.yaml")], ["has no 'fit:' block"]),
         (["--foot", str(ROBOT)], ["--foot", "not JSON"]),
         (["--mujoco-actuator", "servo"], ["--mujoco-actuator: found 'servo'"]),

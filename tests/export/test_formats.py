@@ -243,3 +243,40 @@ def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp
         worst = max(worst, float(np.max(diff)))
     assert worst_inside < 1e-9
     assert worst <= max(gap) + 1e-9 and worst > 0.01  # the curve shows, within the stated gap
+
+
+def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tmp_path):
+    """For simulators that enforce URDF effort limits (Genesis): the open limits hold every torque the runtime returns
+    for motor speeds up to twice the overspeed, huge commands included; Pinocchio loads the file; the armature sidecar
+    is the bundle's reflected inertia."""
+    import xml.etree.ElementTree as ET
+
+    import pinocchio
+    import yaml
+
+    from hound_id.export.formats import OPEN_REACH
+    from hound_id.mor.region import operating_region
+
+    ex = prepare(ROBOT, [])
+    report = export_robot(ex, formats_from("bundle,urdf-open"), tmp_path)
+    assert any("open" in n for n in report["formats"]["urdf-open"]["notes"])
+    urdf = tmp_path / "hound_like_open_limits.urdf"
+    assert "never fight hound_id.runtime" in urdf.read_text()
+    pinocchio.buildModelFromUrdf(str(urdf))
+    limits = {j.get("name"): j.find("limit") for j in ET.parse(urdf).getroot().iter("joint")}
+    sat = hound_id.runtime.load(tmp_path / "hound_like_bundle.yaml")
+    effort = np.array([float(limits[j].get("effort")) for j in sat.joints])
+    velocity = np.array([float(limits[j].get("velocity")) for j in sat.joints])
+    overspeed = np.array([operating_region(ex.robot.motor_specs[m]).overspeed for m in sat.motors])
+    rng = np.random.default_rng(11)
+    omega = rng.uniform(-1, 1, (20000, 12)) * overspeed * OPEN_REACH
+    qd = omega @ sat.clip.A.T
+    tau = rng.choice([-1e6, 1e6], (20000, 12)) * rng.uniform(0, 1, (20000, 12))
+    out = sat.saturate(tau, qd)
+    assert np.all(np.abs(out) <= effort * (1 + 1e-9)) and np.all(np.abs(qd) <= velocity * (1 + 1e-9))
+    assert np.max(np.abs(out), axis=0) == pytest.approx(effort, rel=0.05)  # and not much wider than needed
+    side = yaml.safe_load((tmp_path / "hound_like_armature.yaml").read_text())
+    M = np.asarray(ex.bundle.reflected_inertia)
+    assert side["schema"] == "hound-id/armature/1" and side["armature"]["FL_KFE"] == pytest.approx(M[2, 2])
+    assert [g["joints"] for g in side["groups"]][0] == ["FL_HFE", "FL_KFE"]
+    assert side["groups"][0]["dropped_off_diagonal"] == pytest.approx(1.275e-3)
