@@ -7,7 +7,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from hound_id.mor.joint_space import RobotRegions
-from hound_id.mor.region import OperatingRegion
+from hound_id.mor.region import OperatingRegion, torque_interval
 from hound_id.mor.saturation import LogSaturation
 
 if TYPE_CHECKING:  # pragma: no cover
@@ -53,6 +53,10 @@ def _box(ax, effort: float, velocity: float, **kw) -> None:  # type: ignore[no-u
     xs = [-effort, effort, effort, -effort, -effort]
     ys = [-velocity, -velocity, velocity, velocity, -velocity]
     ax.plot(xs, ys, **kw)
+
+
+#: How far past overspeed the region plot draws the forced braking torque (a multiple of the overspeed).
+PAST_OVERSPEED = 1.2
 
 
 def plot_region(
@@ -103,6 +107,13 @@ def plot_region(
     )
     tl = max(region.torque_limit, linear.torque_limit if linear is not None else 0.0)
     w = max(region.overspeed, w_box, linear.overspeed if linear is not None else 0.0)
+    # past overspeed the interval collapses onto the braking torque the back-EMF forces (region.torque_interval)
+    past = np.linspace(region.overspeed, PAST_OVERSPEED * region.overspeed, 60)
+    forced = torque_interval(past, region)[1]
+    ax.plot(forced, past, color="tab:red", lw=1.6, ls=":", label="past overspeed: the braking the back-EMF forces")
+    ax.plot(-forced, -past, color="tab:red", lw=1.6, ls=":")
+    tl = max(tl, float(np.max(np.abs(forced))) / 1.3)
+    w = max(w, PAST_OVERSPEED * region.overspeed / 1.1)
     ax.axhline(0, color="0.4", lw=0.8)
     ax.axvline(0, color="0.4", lw=0.8)
     for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
