@@ -98,6 +98,7 @@ def plot_foot(report: FootReport) -> Any:
     bars.bar_label(b2, labels=[f"{v:.3f}" if math.isfinite(v) else "n/a" for v in paper], fontsize=8)
     bars.axhline(1.0, color="k", lw=0.8)
     bars.set_xticks(pos, names, fontsize=7.5)
+    bars.set_xlim(-0.7, len(names) - 0.3)  # room for the last group's label
     bars.set_ylabel("new / original")
     bars.set_ylim(0, 1.15)
     bars.set_title("Ratios, new / original (Pinocchio)")
