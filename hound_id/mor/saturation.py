@@ -99,11 +99,21 @@ def _np_curve(x: Any, c: Any, tmp: Any) -> None:
     x -= tmp
 
 
-def _torch_curve(x: Any, c: Any) -> Any:
-    """:func:`_np_curve` in torch (a new tensor; ``x`` within the curve's top)."""
+def _torch_bounds(c: Any, u: Any) -> tuple[Any, Any]:
+    """:func:`_np_bounds` in torch, as fresh tensors (autograd may flow through ``u``): (lower, upper)."""
     import torch
 
-    return x - c.curve_q * x * torch.abs(x)
+    hi_x, lo_x = c.stall - u, c.neg_stall - u
+    if c.has_curve:
+        hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
+    hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)  # past overspeed both collapse onto one end
+    lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
+    if c.has_curve:
+        hi, lo = hi - c.curve_q * hi * torch.abs(hi), lo - c.curve_q * lo * torch.abs(lo)
+    if c.has_cap:
+        hi = torch.minimum(torch.maximum(hi, c.neg_top_torque), c.top_torque)
+        lo = torch.minimum(torch.maximum(lo, c.neg_top_torque), c.top_torque)
+    return lo, hi
 
 
 def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
@@ -419,16 +429,7 @@ class Saturation:
         if _is_torch(qd):
             import torch
 
-            hi_x, lo_x = c.stall - u, c.neg_stall - u
-            if c.has_curve:
-                hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
-            hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)
-            lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
-            if c.has_curve:
-                hi, lo = _torch_curve(hi, c), _torch_curve(lo, c)
-            if c.has_cap:
-                hi = torch.minimum(torch.maximum(hi, c.neg_top_torque), c.top_torque)
-                lo = torch.minimum(torch.maximum(lo, c.neg_top_torque), c.top_torque)
+            lo, hi = _torch_bounds(c, u)
             if c.has_max_speed:
                 omega = qd @ c.A_inv.T
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
@@ -564,26 +565,13 @@ class Saturation:
         import torch
 
         c = consts
-        u, v, tau_m, tau_in, qd_in, w = self._workspace(tau)
+        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
         torch.clamp(qd, -c.qd_cap, c.qd_cap, out=qd_in)
         torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
         torch.matmul(qd_in, c.speed_map, out=u)
         torch.matmul(tau_in, c.A, out=tau_m)
-        torch.sub(c.stall, u, out=w)  # upper voltage line, x_hi
-        torch.sub(c.neg_stall, u, out=v)  # lower, x_lo
-        if c.has_curve:  # the ends that can pass the curve's top are held there (see _np_bounds)
-            torch.maximum(w, c.neg_curve_top, out=w)
-            torch.minimum(v, c.curve_top, out=v)
-        torch.minimum(w, c.limit_x, out=u)
-        torch.maximum(u, v, out=u)  # upper end of the window (past overspeed: x_lo's side collapses onto it)
-        torch.maximum(v, c.neg_limit_x, out=v)
-        torch.minimum(v, w, out=v)  # lower end
-        if c.has_curve:
-            u, v = _torch_curve(u, c), _torch_curve(v, c)
-        if c.has_cap:
-            u = torch.minimum(torch.maximum(u, c.neg_top_torque), c.top_torque)
-            v = torch.minimum(torch.maximum(v, c.neg_top_torque), c.top_torque)
-        torch.clamp(tau_m, v, u, out=v)
+        lo, hi = _torch_bounds(c, u)
+        torch.clamp(tau_m, lo, hi, out=v)
         if c.has_max_speed:
             omega = qd_in @ c.A_inv.T
             torch.where(omega > c.wmax, torch.clamp(v, max=0.0), v, out=v)
@@ -597,7 +585,7 @@ class Saturation:
         return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
 
     def _workspace(self, like: Any) -> tuple[Any, ...]:
-        """Scratch arrays shaped like ``like``, private to the calling thread: six in torch; in numpy four, a boolean
+        """Scratch arrays shaped like ``like``, private to the calling thread: five in torch; in numpy four, a boolean
         one and a fifth float one."""
         key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
         hit = self._cache.get(key)
@@ -605,7 +593,7 @@ class Saturation:
             if _is_torch(like):
                 import torch
 
-                hit = tuple(torch.empty_like(like) for _ in range(6))
+                hit = tuple(torch.empty_like(like) for _ in range(5))
             else:
                 hit = (*(np.empty_like(like) for _ in range(4)), np.empty(like.shape, dtype=bool), np.empty_like(like))
             self._remember(key, hit)
