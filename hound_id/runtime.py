@@ -34,7 +34,7 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError, SpecError
 from hound_id.mor.clip_turn import ANGLE_FLOOR, ClipTurn, clip_turn
-from hound_id.mor.current_curve import CurrentCurve
+from hound_id.mor.current_curve import CurrentCurve, polynomial
 from hound_id.mor.saturation import (
     PER_JOINT_REFERENCE,
     Saturation,
@@ -244,7 +244,7 @@ class Runtime:
             curve = self.curves[m] if self.curves else None
             if comp is not None and (method == "polynomial" or curve is None):
                 powers, coefficients = comp
-                out[..., m] = sum(c * t**p for p, c in zip(powers, coefficients, strict=True))
+                out[..., m] = polynomial(powers, coefficients, t)
             elif curve is not None:
                 out[..., m] = _inverse(curve, t)
             else:

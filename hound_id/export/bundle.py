@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.errors import SpecError
+from hound_id.mor.current_curve import polynomial
 from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import Robot
 from hound_id.mor.saturation import Saturation
@@ -230,8 +231,7 @@ POLYNOMIAL_CHECK_POINTS = 2001
 def _polynomial_error(spec: MotorSpec, powers: tuple[int, ...], coefficients: tuple[float, ...]) -> float:
     """Largest |polynomial(tau) - exact inverse(tau)| [A] over 0..the torque limit."""
     tau = np.linspace(0.0, spec.torque_limit, POLYNOMIAL_CHECK_POINTS)
-    poly = sum(c * tau**p for p, c in zip(powers, coefficients, strict=True))
-    return float(np.max(np.abs(poly - spec.current_curve.current(tau))))
+    return float(np.max(np.abs(polynomial(powers, coefficients, tau) - spec.current_curve.current(tau))))
 
 
 def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict[str, Any] | None = None) -> Bundle:

@@ -227,6 +227,11 @@ def table_of(f: Any, kt: float, top: float, points: int = 257, source: str = "")
     return CurrentCurve(kt=kt, currents=frozen(i), torques=frozen(t), table_error=error, source=source)
 
 
+def polynomial(powers: tuple[int, ...], coefficients: tuple[float, ...], torque: Any) -> Any:
+    """A compensation polynomial's current, sum_k c_k tau^k [A], at torques [N m] (numpy arrays or torch tensors)."""
+    return sum(c * torque**p for p, c in zip(powers, coefficients, strict=True))
+
+
 def polynomial_curve(
     kt: float, powers: tuple[int, ...], coefficients: tuple[float, ...], torque_range: float, points: int = 257
 ) -> CurrentCurve:
@@ -237,7 +242,7 @@ def polynomial_curve(
     taus[-1] = torque_range
 
     def current(t: Array) -> Array:
-        return np.asarray(sum(c * t**p for p, c in zip(powers, coefficients, strict=True)), dtype=float)
+        return np.asarray(polynomial(powers, coefficients, t), dtype=float)
 
     i = current(taus)
     falling = np.flatnonzero(np.diff(i) <= 0)

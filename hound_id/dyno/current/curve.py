@@ -24,7 +24,7 @@ from numpy.typing import ArrayLike
 
 from hound_id.dyno.current.effects import Signals, get
 from hound_id.dyno.current.fit import Array, FitResult
-from hound_id.mor.current_curve import PEAK_DEVIATION, CurrentCurve, table_of
+from hound_id.mor.current_curve import PEAK_DEVIATION, CurrentCurve, polynomial, table_of
 
 __all__ = [
     "EXTRAPOLATION_LIMIT", "PEAK_DEVIATION", "TABLE_POINTS", "Compensation", "PeakTorque", "compensation",
@@ -169,7 +169,7 @@ class Compensation:
     def current(self, torque: Array) -> Array:
         """Current [A] the driver should command for a torque [N m]."""
         tau = np.asarray(torque, float)
-        return sum(c * tau**p for p, c in zip(self.powers, self.coefficients, strict=True))  # type: ignore[return-value]
+        return np.asarray(polynomial(self.powers, self.coefficients, tau), dtype=float)
 
     def to_dict(self) -> dict[str, Any]:
         return {
