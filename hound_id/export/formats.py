@@ -103,7 +103,7 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                         "qd) for the measured edge"
                     )
                 else:
-                    gap = _dcmotor_gap(ex, m)
+                    gap = ex.straight_gap(m.name)
                     entry["dcmotor_error"] = {
                         "over": gap[0] * gear,
                         "under": gap[1] * gear,
@@ -145,14 +145,6 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
 
 #: A DCMotor whose clip passes hound-id's by less than this share of the torque limit reproduces it (rounding).
 DCMOTOR_EXACT = 1e-9
-
-
-def _dcmotor_gap(ex: Export, motor: BundleMotor) -> tuple[float, float]:
-    """(over, under) [N m, motor side]: the most Isaac Lab's DCMotor clip with the exported fields passes or falls
-    short of hound-id's interval within +-overspeed (:func:`hound_id.mor.region.straight_gap`)."""
-    from hound_id.mor.region import operating_region, straight_gap
-
-    return straight_gap(operating_region(ex.robot.motor_specs[motor.name]))
 
 
 def _group_inertia(M: np.ndarray, joints: list[str]) -> dict[str, Any]:

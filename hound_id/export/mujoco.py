@@ -254,14 +254,11 @@ def full_precision(xml: str, ex: Export) -> str:
 
 def _curve_gaps(ex: Export) -> dict[str, float]:
     """Per motor whose curve saturates (no measured envelope): the most a straight dcmotor passes its region [N m]."""
-    from hound_id.mor.region import operating_region, straight_gap
-
-    out = {}
-    for m in ex.bundle.motors:
-        spec = ex.robot.motor_specs[m.name]
-        if not m.envelope and spec.current_curve.form != "linear":
-            out[m.name] = straight_gap(operating_region(spec))[0]
-    return out
+    return {
+        m.name: ex.straight_gap(m.name)[0]
+        for m in ex.bundle.motors
+        if not m.envelope and ex.robot.motor_specs[m.name].current_curve.form != "linear"
+    }
 
 
 def rollout_check(xml: Path, bundle: Path, seconds: float = 1.0) -> dict[str, float]:

@@ -29,7 +29,8 @@ class Export:
     bundle: Bundle
     """Its ``hound-id/bundle/2`` bundle."""
     mujoco_actuator: str = "dcmotor"
-    """``dcmotor`` (the region in MuJoCo) or ``motor`` (plain torque, saturate with the runtime)."""
+    """``dcmotor`` (voltage input), ``dcmotor-ff`` (torque input, MuJoCo >= 4.0) or ``motor`` (plain torque, saturate
+    with the runtime)."""
 
     @property
     def A(self) -> np.ndarray:
@@ -44,6 +45,14 @@ class Export:
         coulomb = np.abs(A_inv.T) @ fc
         viscous = np.diag(A_inv.T @ np.diag(b) @ A_inv)
         return coulomb, viscous
+
+    def straight_gap(self, motor: str) -> tuple[float, float]:
+        """(over, under) [N m, motor side]: how far a straight-line DC-motor clip (Isaac Lab's DCMotor, MuJoCo's
+        dcmotor) passes or falls short of the motor's region within +-overspeed
+        (:func:`hound_id.mor.region.straight_gap`; 0 for a linear curve)."""
+        from hound_id.mor.region import operating_region, straight_gap
+
+        return straight_gap(operating_region(self.robot.motor_specs[motor]))
 
     def urdf(self) -> Path:
         """The robot's URDF, or SpecError saying how to give one."""
