@@ -133,12 +133,16 @@ class OperatingRegion:
         }
 
 
-def motor_report(spec: MotorSpec, region: OperatingRegion | None = None) -> dict[str, Any]:
+def motor_report(
+    spec: MotorSpec, region: OperatingRegion | None = None, sheet: OperatingRegion | None = None
+) -> dict[str, Any]:
     """The ``hound-id/mor/2`` content for a motor: its region, its spec (SI), the spec's warnings, which limit binds
-    where (of the spec sheet's region), and what the linear-Kt region over-promises."""
+    where (of the spec sheet's region, ``sheet``: built here unless given or ``region`` is it), and what the
+    linear-Kt region over-promises."""
     from hound_id.mor.spec import spec_warnings
 
-    sheet = operating_region(spec)
+    if sheet is None:
+        sheet = region if region is not None and region.source == "spec sheet" else operating_region(spec)
     data = (region or sheet).to_dict()
     data.update(
         spec=spec.to_dict(),

@@ -59,7 +59,7 @@ class MotorRegions:
         """The ``hound-id/mor/2`` JSON, with ``spec_sheet`` (None unless measured)."""
         from hound_id.mor.region import motor_report
 
-        data = motor_report(self.spec, self.region)
+        data = motor_report(self.spec, self.region, self.sheet)
         data["spec_sheet"] = self.sheet.to_dict() if self.measured else None
         return data
 
