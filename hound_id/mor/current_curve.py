@@ -216,15 +216,24 @@ def table_of(f: Any, kt: float, top: float, points: int = 257, source: str = "")
     [0, top] (denser towards the top), with the largest error
     of its interpolated inverse at the midpoints (:attr:`CurrentCurve.table_error`). Points where f stops rising are
     dropped (the table ends at the last rising point)."""
-    i = top * np.sin(np.linspace(0.0, 0.5 * np.pi, points))  # denser towards the top, where the inverse is steep
-    i[-1] = top
-    t = np.asarray(f(i), dtype=float)
-    rising = np.flatnonzero(np.diff(t) <= 0)
-    if rising.size:
-        i, t = i[: rising[0] + 1], t[: rising[0] + 1]
+    i = _towards_top(top, points)  # where the inverse is steep
+    i, t = _rising(i, np.asarray(f(i), dtype=float))
     mid = 0.5 * (i[:-1] + i[1:])
     error = float(np.max(np.abs(np.interp(np.asarray(f(mid), dtype=float), t, i) - mid))) if mid.size else 0.0
     return CurrentCurve(kt=kt, currents=frozen(i), torques=frozen(t), table_error=error, source=source)
+
+
+def _towards_top(top: float, points: int) -> Array:
+    """``points`` values from 0 to ``top``, denser towards the top (sine spacing; the last exactly ``top``)."""
+    x = top * np.sin(np.linspace(0.0, 0.5 * np.pi, points))
+    x[-1] = top
+    return x
+
+
+def _rising(x: Array, y: Array) -> tuple[Array, Array]:
+    """(x, y) up to the last point before y stops rising."""
+    stop = np.flatnonzero(np.diff(y) <= 0)
+    return (x[: stop[0] + 1], y[: stop[0] + 1]) if stop.size else (x, y)
 
 
 def polynomial(powers: tuple[int, ...], coefficients: tuple[float, ...], torque: Any) -> Any:
@@ -238,16 +247,12 @@ def polynomial_curve(
     """The table curve of a compensation polynomial, current [A] = sum c_k tau^k, over 0..``torque_range`` [N m] (a
     hound-id/fit/2 record whose curve its parameters do not define; a test's hand-made curve). The polynomial must
     rise over the range; the table ends where it stops."""
-    taus = torque_range * np.sin(np.linspace(0.0, 0.5 * np.pi, points))
-    taus[-1] = torque_range
 
     def current(t: Array) -> Array:
         return np.asarray(polynomial(powers, coefficients, t), dtype=float)
 
-    i = current(taus)
-    falling = np.flatnonzero(np.diff(i) <= 0)
-    if falling.size:
-        i, taus = i[: falling[0] + 1], taus[: falling[0] + 1]
+    taus = _towards_top(torque_range, points)
+    taus, i = _rising(taus, current(taus))
     mid = 0.5 * (taus[:-1] + taus[1:])
     error = float(np.max(np.abs(np.interp(mid, taus, i) - current(mid)))) if mid.size else 0.0
     return CurrentCurve(
