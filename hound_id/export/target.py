@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import xml.etree.ElementTree as ET
 from collections.abc import Mapping
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -31,6 +31,7 @@ class Export:
     mujoco_actuator: str = "dcmotor"
     """``dcmotor`` (voltage input), ``dcmotor-ff`` (torque input, MuJoCo >= 4.0) or ``motor`` (plain torque, saturate
     with the runtime)."""
+    _gaps: dict[int, tuple[float, float]] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     @property
     def A(self) -> np.ndarray:
@@ -52,7 +53,10 @@ class Export:
         (:func:`hound_id.mor.region.straight_gap`; 0 for a linear curve)."""
         from hound_id.mor.region import operating_region, straight_gap
 
-        return straight_gap(operating_region(self.robot.motor_specs[motor]))
+        spec = self.robot.motor_specs[motor]
+        if id(spec) not in self._gaps:  # motors sharing a spec share its gap
+            self._gaps[id(spec)] = straight_gap(operating_region(spec))
+        return self._gaps[id(spec)]
 
     def urdf(self) -> Path:
         """The robot's URDF, or SpecError saying how to give one."""

@@ -242,7 +242,12 @@ class Saturation:
     @classmethod
     def from_robot(cls, robot: Robot) -> Saturation:
         """Collect the robot's transmissions and motor regions into arrays."""
-        regions = [operating_region(robot.motor_specs[m]) for m in robot.motors]
+        by_spec: dict[int, OperatingRegion] = {}  # motors sharing a spec share its region (each costs ~0.1 s)
+        for m in robot.motors:
+            spec = robot.motor_specs[m]
+            if id(spec) not in by_spec:
+                by_spec[id(spec)] = operating_region(spec)
+        regions = [by_spec[id(robot.motor_specs[m])] for m in robot.motors]
         A = robot.velocity_map()
         polylines = tuple(
             polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r)
