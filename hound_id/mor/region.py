@@ -274,7 +274,7 @@ def curved_edges(
     binding; the no-load speeds; the rated speeds) are points of the polyline."""
     d, stall, X = region.back_emf_damping, region.stall_torque, region.limit_x
     top = region.overspeed if reach is None else reach
-    marks = [(stall - X) / d, stall / d, (stall + X) / d, (X - stall) / d, -stall / d]
+    marks = [(stall - X) / d, stall / d, (stall + X) / d]  # mirrored below
     if region.max_speed is not None:
         marks += [region.max_speed, region.max_speed * (1 + 2 * SPEED_TOLERANCE)]
     marks = [m for m in marks if abs(m) < top]
