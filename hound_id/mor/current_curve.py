@@ -131,10 +131,6 @@ class CurrentCurve:
         out = np.where(mag > self.top_torque, np.inf, out)
         return np.asarray(np.sign(tau) * out, dtype=float)
 
-    def linear_equivalent(self, torque: ArrayLike) -> Array:
-        """Kt times the current for each torque [N m]: the torque a linear-Kt model credits that current with."""
-        return np.asarray(self.kt * self.current(torque), dtype=float)
-
     def compensation(self) -> dict[str, Any]:
         """The ``compensation`` block of a fit report and a bundle: how the exact inverse is computed and its
         error [A] (0 for the closed form: rounding only)."""
