@@ -10,10 +10,11 @@ def brute_interval(spec, omega, currents=200001):
         (-spec.bus_voltage - omega / spec.kv) / spec.resistance,
         (spec.bus_voltage - omega / spec.kv) / spec.resistance,
     )
-    cap = spec.max_current if spec.max_current is not None else np.inf
-    i = np.linspace(max(lo_i, -cap), min(hi_i, cap), currents)
-    if i.size == 0 or max(lo_i, -cap) > min(hi_i, cap):
+    # past the top the torque is held at kt^2/(4k) = 1.5625 tau_peak, beyond the peak torque: the scan stops there
+    cap = min(spec.max_current if spec.max_current is not None else np.inf, top)
+    if max(lo_i, -cap) > min(hi_i, cap):
         return None
+    i = np.linspace(max(lo_i, -cap), min(hi_i, cap), currents)
     m = np.minimum(np.abs(i), top)
     tau = np.sign(i) * (spec.kt * m - k * m * m)
     tau = tau[np.abs(tau) <= spec.peak_torque]
