@@ -25,6 +25,7 @@ import numpy as np
 from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import BundleMotor
+from hound_id.export.mjlab import write_mjlab
 from hound_id.export.mujoco import write_mujoco
 from hound_id.export.target import Export, Written, put_feet
 
@@ -345,6 +346,7 @@ def write_urdf_open(ex: Export, out: Path) -> Written:
 FORMATS: dict[str, Callable[[Export, Path], Written]] = {
     "bundle": write_bundle,
     "isaaclab": write_isaaclab,
+    "mjlab": write_mjlab,  # imports mujoco when it runs
     "mujoco": write_mujoco,  # imports mujoco when it runs
     "urdf": write_urdf,
     "urdf-open": write_urdf_open,

@@ -73,11 +73,13 @@ def _foot_urdf(ex: Export) -> str:
     return ET.tostring(root, encoding="unicode")
 
 
-def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
-    """The MjSpec of the robot with tendons and actuators (see the module docstring)."""
+def mujoco_spec(ex: Export, actuator: str = "dcmotor", scene: bool = True) -> Any:
+    """The MjSpec of the robot with tendons and actuators (see the module docstring); ``actuator="none"``: the
+    tendons without actuators (a trainer adds its own, as mjlab does); ``scene=False``: no floor and no keyframe
+    (a trainer's scene has its own)."""
     import mujoco
 
-    if actuator not in ("dcmotor", "dcmotor-ff", "motor"):
+    if actuator not in ("dcmotor", "dcmotor-ff", "motor", "none"):
         raise SpecError(f"--mujoco-actuator: found {actuator!r}, expected dcmotor, dcmotor-ff or motor")
     if actuator == "dcmotor-ff" and not hasattr(mujoco, "mjtCtrlInput"):
         raise SpecError(
@@ -98,7 +100,8 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
         joint.actfrclimited = mujoco.mjtLimited.mjLIMITED_FALSE
     base = spec.worldbody.first_body()
     base.add_freejoint(name="floating_base")
-    spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
+    if scene:
+        spec.worldbody.add_geom(name="floor", type=mujoco.mjtGeom.mjGEOM_PLANE, size=[0, 0, 0.05])
     A_inv = np.linalg.inv(ex.A)
     for k, m in enumerate(ex.bundle.motors):
         tendon = spec.add_tendon(name=f"{m.name}_tendon")
@@ -108,6 +111,8 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
         tendon.armature = float(m.rotor_inertia or 0.0)
         tendon.frictionloss = float(m.friction["coulomb"])
         tendon.damping = [float(m.friction["viscous"]), 0.0, 0.0]  # linear: f = -a v
+        if actuator == "none":
+            continue
         act = spec.add_actuator(name=m.name, target=tendon.name, trntype=mujoco.mjtTrn.mjTRN_TENDON)
         if actuator == "dcmotor-ff":
             ke = 1.0 / float(m.kv)
@@ -134,7 +139,8 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor") -> Any:
             act.set_to_motor()
             act.forcelimited = True
             act.forcerange = [-float(m.torque_limit), float(m.torque_limit)]
-    _stand_key(spec)
+    if scene:
+        _stand_key(spec)
     return spec
 
 

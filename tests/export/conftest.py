@@ -1,6 +1,33 @@
+import subprocess
+import sys
 from pathlib import Path
 
-from tests.conftest import SAMPLES
+import pytest
+
+from tests.conftest import ROOT, SAMPLES
+
+#: Where the trainers' virtual environments live (gitignored; reused by later runs, delete to rebuild).
+TRAINER_VENVS = ROOT / ".venv-trainers"
+
+
+def trainer_python(name: str, packages: tuple[str, ...], timeout: float = 1500) -> str:
+    """The Python of a separate virtual environment ``.venv-trainers/<name>`` with ``packages`` installed (created
+    once). A trainer that cannot be installed fails the calling test with pip's last line: it is never skipped."""
+    venv = TRAINER_VENVS / name
+    python = venv / "bin" / "python"
+    done = venv / ".installed"
+    if not done.exists():
+        steps = (
+            [sys.executable, "-m", "venv", "--clear", str(venv)],
+            [str(python), "-m", "pip", "install", "-q", *packages],
+        )
+        for cmd in steps:
+            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=timeout)
+            if proc.returncode != 0:
+                lines = [x for x in proc.stderr.strip().splitlines() if "pypi-more" not in x] or ["no output"]
+                pytest.fail(f"could not install {' '.join(packages)} in {venv}: {lines[-1]}")
+        done.write_text(" ".join(packages) + "\n")
+    return str(python)
 
 
 def fitted_motor(folder: Path, base: str = "hound_ilm85.yaml") -> Path:

@@ -6,7 +6,6 @@ reason: it is not skipped."""
 
 import json
 import subprocess
-import sys
 
 import numpy as np
 import pytest
@@ -14,12 +13,11 @@ import pytest
 import hound_id.runtime
 from hound_id.export.run import export_robot, formats_from, prepare
 from tests.conftest import ROBOT, ROOT
-from tests.export.conftest import fitted_motor
+from tests.export.conftest import fitted_motor, trainer_python
 
 MUJOCO_3 = "3.11.0"
 #: What the export writer imports besides numpy and mujoco.
 WRITER = ("scipy", "pyyaml", "pint", "typer", "rich")
-VENV = ROOT / ".venv-trainers" / f"mujoco-{MUJOCO_3}-writer"
 
 SCRIPT = """
 import json, sys
@@ -45,18 +43,7 @@ print(json.dumps({"version": mujoco.__version__, "forces": out, "finite": bool(n
 
 @pytest.fixture(scope="module")
 def mujoco3() -> str:
-    python = VENV / "bin" / "python"
-    if not python.exists():
-        steps = (
-            [sys.executable, "-m", "venv", str(VENV)],
-            [str(python), "-m", "pip", "install", "-q", f"mujoco=={MUJOCO_3}", *WRITER],
-        )
-        for cmd in steps:
-            proc = subprocess.run(cmd, capture_output=True, text=True, timeout=900)
-            if proc.returncode != 0:
-                tail = (proc.stderr.strip().splitlines() or ["no output"])[-1]
-                pytest.fail(f"could not install MuJoCo {MUJOCO_3} in {VENV} ({' '.join(cmd[-2:])}): {tail}")
-    return str(python)
+    return trainer_python(f"mujoco-{MUJOCO_3}-writer", (f"mujoco=={MUJOCO_3}", *WRITER))
 
 
 def test_the_voltage_dcmotor_export_loads_steps_and_matches_the_runtime_in_mujoco_3(mujoco3, tmp_path):
