@@ -27,6 +27,7 @@ from hound_id.errors import SpecError
 from hound_id.export.bundle import BundleMotor
 from hound_id.export.mjlab import write_mjlab
 from hound_id.export.mujoco import write_mujoco
+from hound_id.export.newton import write_newton
 from hound_id.export.target import Export, Written, put_feet
 
 ISAACLAB_SCHEMA = "hound-id/isaaclab/1"
@@ -246,9 +247,10 @@ def open_limits(ex: Export) -> tuple[np.ndarray, np.ndarray]:
     return np.abs(A_inv.T) @ np.array(tops), np.abs(ex.A) @ np.array(speeds)
 
 
-def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner") -> str:
+def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner", friction: bool = True) -> str:
     """The robot's URDF with inner-box limits (``limits="open"``: :func:`open_limits`, which never fight the
-    runtime's clip), fitted friction and the optimised foot (XML text)."""
+    runtime's clip), fitted friction (``friction=False``: none, for a simulator whose motor tendons carry it) and the
+    optimised foot (XML text)."""
     from hound_id.foot.urdf import parse_urdf, rebase_meshes
 
     path = ex.urdf()
@@ -273,6 +275,10 @@ def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner") -> str
             limit.set("effort", _fmt(box["effort"]))
             limit.set("velocity", _fmt(box["velocity"]))
         dynamics = joint.find("dynamics")
+        if not friction:
+            if dynamics is not None:
+                joint.remove(dynamics)
+            continue
         if dynamics is None:
             dynamics = ET.SubElement(joint, "dynamics")
         dynamics.set("damping", _fmt(float(viscous[i])))
@@ -348,6 +354,7 @@ FORMATS: dict[str, Callable[[Export, Path], Written]] = {
     "isaaclab": write_isaaclab,
     "mjlab": write_mjlab,  # imports mujoco when it runs
     "mujoco": write_mujoco,  # imports mujoco when it runs
+    "newton": write_newton,
     "urdf": write_urdf,
     "urdf-open": write_urdf_open,
 }

@@ -66,3 +66,30 @@ def test_mjlab_misses_the_curved_sample_by_at_most_the_stated_gap(mjlab, tmp_pat
     assert 0.1 * gap < r["max_difference_voltage"] <= gap + FLOAT32
     gear = 9.0  # HAA: the only uncoupled joints
     assert r["max_difference_dcmotor"] <= gap * gear + FLOAT32 * gear
+
+
+NEWTON = ("newton[sim]==1.8.0",)
+
+
+@pytest.fixture(scope="module")
+def newton() -> str:
+    return trainer_python("newton-1.8.0", NEWTON)
+
+
+@pytest.mark.parametrize("engine", ["warp", "cpu"])
+def test_newton_reproduces_the_runtime_for_a_linear_motor(newton, tmp_path, engine):
+    """The generated add_actuators on the exported open URDF, in SolverMuJoCo (MuJoCo-Warp and MuJoCo's CPU engine):
+    realised motor torques equal the runtime's to float32 rounding of the voltage."""
+    _, out, speed = exported(tmp_path, [fitted_motor(tmp_path)], "newton")
+    r = run_in(newton, "newton_check.py", out, speed, engine)
+    assert r["newton"] == "1.8.0" and r["actuators"] == 12 and r["finite"] and r["clipped"] > 0.5
+    assert r["max_difference"] < FLOAT32 and r["max_difference_law"] < FLOAT32
+
+
+def test_newton_misses_the_curved_sample_by_at_most_the_stated_gap(newton, tmp_path):
+    ex, out, speed = exported(tmp_path, [], "newton")
+    gap = ex.straight_gap(ex.bundle.motors[0].name)[0]
+    assert f"{gap:.4g} N m" in (out / "hound_like_newton.py").read_text()
+    r = run_in(newton, "newton_check.py", out, speed, "warp")
+    assert r["finite"] and r["max_difference_law"] < FLOAT32
+    assert 0.1 * gap < r["max_difference"] <= gap + FLOAT32
