@@ -13,7 +13,7 @@ from hound_id.cli._render import console, print_json
 def export(
     robot: Path = typer.Option(..., "--robot", help="Robot YAML (its 'urdf:' names the robot's URDF)."),
     fmt: str = typer.Option(
-        "bundle", "--format", help="bundle, isaaclab, mujoco, urdf, urdf-open (comma-separated) or all."
+        "bundle", "--format", help="bundle, isaaclab, mjlab, mujoco, newton, urdf, urdf-open (comma-separated) or all."
     ),
     out: Path = typer.Option(..., "--out", help="Folder for the exported files (created if missing)."),
     fit: Optional[list[Path]] = typer.Option(

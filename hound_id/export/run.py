@@ -94,7 +94,7 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
     """
     if out.exists() and not out.is_dir():
         raise SpecError(f"--out {out}: is a file; give a folder")
-    if any(f in ("mujoco", "urdf") for f in formats):
+    if any(f in ("mjlab", "mujoco", "newton", "urdf", "urdf-open") for f in formats):
         ex.urdf()  # fail before writing anything
     with io.staged_folder(out) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}

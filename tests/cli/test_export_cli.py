@@ -16,22 +16,25 @@ def test_export_everything_from_the_command_line(tmp_path):
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
     assert data["schema"] == "hound-id/export/1"
-    assert list(data["formats"]) == ["bundle", "isaaclab", "mujoco", "urdf", "urdf-open"]
+    assert list(data["formats"]) == ["bundle", "isaaclab", "mjlab", "mujoco", "newton", "urdf", "urdf-open"]
     assert data["fitted_motors"] == ["hound_ilm85"] and data["foot"]
     names = sorted(p.name for p in (tmp_path / "out").iterdir())
     assert names == ["hound_like.xml", "hound_like_armature.yaml", "hound_like_bundle.json", "hound_like_bundle.yaml",
-                     "hound_like_isaaclab.yaml", "hound_like_limits.urdf", "hound_like_open_limits.urdf"]  # fmt: skip
+                     "hound_like_isaaclab.yaml", "hound_like_limits.urdf", "hound_like_mjlab.py",
+                     "hound_like_mjlab.xml", "hound_like_newton.py", "hound_like_newton.urdf",
+                     "hound_like_open_limits.urdf"]  # fmt: skip
     bundle = json.loads((tmp_path / "out" / "hound_like_bundle.json").read_text())
     assert bundle["foot"]["mass"] < 0.05 and bundle["motors"][0]["friction"]["coulomb"] == 0.08
     # the optimised foot is on every leg, in the URDF (Pinocchio) and in the MJCF (mujoco)
     import mujoco
     import pinocchio as pin
 
-    model = pin.buildModelFromUrdf(str(tmp_path / "out" / "hound_like_limits.urdf"))
-    data = model.createData()
-    pin.computeSubtreeMasses(model, data)
-    for leg in ("FL", "FR", "RL", "RR"):
-        assert data.mass[model.getJointId(f"{leg}_KFE")] == pytest.approx(0.25 + bundle["foot"]["mass"], rel=1e-8)
+    for urdf in ("hound_like_limits.urdf", "hound_like_newton.urdf"):
+        model = pin.buildModelFromUrdf(str(tmp_path / "out" / urdf))
+        data = model.createData()
+        pin.computeSubtreeMasses(model, data)
+        for leg in ("FL", "FR", "RL", "RR"):
+            assert data.mass[model.getJointId(f"{leg}_KFE")] == pytest.approx(0.25 + bundle["foot"]["mass"], rel=1e-8)
     mj = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "hound_like.xml"))
     foot_id = mujoco.mj_name2id(mj, mujoco.mjtObj.mjOBJ_BODY, "FL_foot")
     assert mj.body_mass[foot_id] == pytest.approx(bundle["foot"]["mass"], rel=1e-5)  # MJCF prints 6 digits
@@ -42,7 +45,7 @@ def test_export_everything_from_the_command_line(tmp_path):
 @pytest.mark.parametrize(
     ("args", "fragments"),
     [
-        (["--format", "mjcf"], ["--format: found 'mjcf'", "bundle, isaaclab, mujoco, urdf, urdf-open"]),
+        (["--format", "mjcf"], ["--format: found 'mjcf'", "bundle, isaaclab, mjlab, mujoco, newton, urdf, urdf-open"]),
         (["--fit", str(SAMPLES / "motors" / "hound_ilm85.yaml")], ["has no 'fit:' block"]),
         (["--foot", str(ROBOT)], ["--foot", "not JSON"]),
         (["--mujoco-actuator", "servo"], ["--mujoco-actuator: found 'servo'"]),
