@@ -30,7 +30,7 @@ from hound_id.export.mujoco import write_mujoco
 from hound_id.export.newton import write_newton
 from hound_id.export.target import Export, Written, put_feet
 
-ISAACLAB_SCHEMA = "hound-id/isaaclab/1"
+ISAACLAB_SCHEMA = "hound-id/isaaclab/2"
 ARMATURE_SCHEMA = "hound-id/armature/1"
 
 
@@ -89,12 +89,20 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
             else:
                 gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
                 entry["gear_ratio"] = gear
-                entry["dcmotor"] = {
+                entry["dcmotor"] = {  # Isaac Lab 3.0's names (ActuatorBaseCfg)
                     "saturation_effort": m.stall_torque * gear,
+                    "actuator_effort_limit": m.torque_limit * gear,
+                    "actuator_velocity_limit": m.no_load_speed / gear,
+                    "armature": (m.rotor_inertia or 0.0) * gear**2,
+                    # static friction: Coulomb + the Stribeck excess at rest; kinetic: Coulomb; viscous: G^2 b
+                    "friction": float(coulomb[i]) + float(m.friction.get("stribeck", 0.0)) * gear,
+                    "dynamic_friction": float(coulomb[i]),
+                    "viscous_friction": float(viscous[i]),
+                }
+                entry["dcmotor_isaaclab2"] = {  # Isaac Lab 2.x's names (deprecated in 3.0)
+                    **{k: v for k, v in entry["dcmotor"].items() if not k.startswith("actuator_")},
                     "effort_limit": m.torque_limit * gear,
                     "velocity_limit": m.no_load_speed / gear,
-                    "armature": (m.rotor_inertia or 0.0) * gear**2,
-                    "friction": float(coulomb[i]),
                 }
                 if m.envelope:  # DCMotor holds straight lines; the measured edge is a polyline
                     entry["use"] = "hound_id.runtime"
@@ -127,20 +135,26 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
         "schema": ISAACLAB_SCHEMA,
         "robot": b.robot,
         "units": "SI, joint side: N m, rad/s, kg m^2, N m s/rad",
-        "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']))",
+        "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']) in "
+        "Isaac Lab 3.0, **joints[name]['dcmotor_isaaclab2'] in 2.x)",
         "joints": joints,
         "notes": [
-            "saturation_effort = stall torque Kt V/R x G, velocity_limit = no-load speed / G, effort_limit = the "
-            "torque limit x G (the current-torque curve's torque at the driver's limit, or the peak torque). "
+            "dcmotor holds Isaac Lab 3.0's field names (actuator_effort_limit, actuator_velocity_limit, friction = "
+            "static, dynamic_friction = kinetic, viscous_friction), as its ActuatorBaseCfg defines them; "
+            "dcmotor_isaaclab2 the names of 2.x (effort_limit, velocity_limit; deprecated in 3.0). "
+            "saturation_effort = stall torque Kt V/R x G, (actuator_)velocity_limit "
+            "= no-load speed / G, (actuator_)effort_limit = the torque limit x G (the current-torque curve's torque at "
+            "the driver's limit, or the peak torque). "
             "DCMotor's torque-speed line is straight: for a motor whose curve saturates, hound-id's voltage edges "
             "bend inwards and dcmotor_error says by how much DCMotor passes them; for a linear curve (kt_curve: "
             "linear, or a fit without saturation) DCMotor's clip equals hound-id's within +-overspeed in releases "
             "that first clamp the joint speed to the speed at the effort limit (vel_at_effort_lim, as mjlab's "
             "DcMotorActuator does). Past overspeed DCMotor returns the torque limit; hound-id the braking torque the "
             "back-EMF forces (larger)",
-            "friction is in N m, joint side; viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's "
-            "actuator 'damping' is a PD gain: do not put viscous friction there. Check your release's friction "
-            "convention (older PhysX releases used a unitless coefficient)",
+            "friction (static: Coulomb plus the fitted Stribeck excess at rest) and dynamic_friction (kinetic: "
+            "Coulomb) are in N m, joint side, as Isaac Sim >= 5.0 takes them (Isaac Sim 4.5 took unitless "
+            "coefficients); viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's actuator 'damping' "
+            "is a PD gain: do not put viscous friction there",
         ],
     }
 

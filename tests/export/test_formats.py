@@ -10,6 +10,7 @@ from hound_id.errors import SpecError
 from hound_id.export.run import export_robot, formats_from, prepare
 from hound_id.mor.saturation import dc_motor_clip
 from tests.conftest import ROBOT
+from tests.export.conftest import fitted_motor
 
 
 @pytest.fixture(scope="module")
@@ -137,7 +138,7 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported, tmp_pa
         out = tmp_path / "out"
         export_robot(ex, formats_from("bundle,isaaclab"), out)
     fields = yaml.safe_load((out / "hound_like_isaaclab.yaml").read_text())
-    assert fields["schema"] == "hound-id/isaaclab/1"
+    assert fields["schema"] == "hound-id/isaaclab/2"
     sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
     rng = np.random.default_rng(4)
     for i, joint in enumerate(sat.joints):
@@ -145,7 +146,13 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported, tmp_pa
         if f["coupled"]:
             assert f["use"] == "hound_id.runtime" and "per-joint DCMotor" in f["reason"]
             continue
-        d = f["dcmotor"]
+        d = f["dcmotor_isaaclab2"]
+        new = f["dcmotor"]  # Isaac Lab 3.0's names for the same numbers, and the friction split
+        assert (
+            new["actuator_effort_limit"] == d["effort_limit"] and new["actuator_velocity_limit"] == d["velocity_limit"]
+        )
+        assert all(new[k] == d[k] for k in ("friction", "dynamic_friction", "armature", "saturation_effort"))
+        assert new["viscous_friction"] == pytest.approx(f["viscous_friction"])
         tau = rng.uniform(-300, 300, 2000)
         overspeed = d["velocity_limit"] * (1 + d["effort_limit"] / d["saturation_effort"])  # of the straight line
         qd = rng.uniform(-1.0, 1.0, 2000) * overspeed * 0.999
@@ -165,7 +172,10 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported, tmp_pa
         assert np.max(ours - isaac) <= max(gap["over"], gap["under"]) * (1 + 1e-6) + 1e-9
         assert gap["over"] > 0.05 * d["effort_limit"]  # about 0.94 N m at the motor, 8.4 N m at the joint
         assert d["armature"] == pytest.approx(1.7e-4 * 81) and d["friction"] == pytest.approx(0.72 if fitted else 0.0)
-        assert set(d) == {"saturation_effort", "effort_limit", "velocity_limit", "armature", "friction"}
+        assert set(d) == {"saturation_effort", "effort_limit", "velocity_limit", "armature", "friction",
+                          "dynamic_friction", "viscous_friction"}  # fmt: skip
+        assert set(new) == {"saturation_effort", "actuator_effort_limit", "actuator_velocity_limit", "armature",
+                            "friction", "dynamic_friction", "viscous_friction"}  # fmt: skip
     assert sum(not f["coupled"] for f in fields["joints"].values()) == 4
     # coupled joints still get their reflected inertia (diagonal of A^-T diag(J) A^-1) and friction
     hfe = fields["joints"]["FL_HFE"]
@@ -280,3 +290,26 @@ def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tm
     assert side["schema"] == "hound-id/armature/1" and side["armature"]["FL_KFE"] == pytest.approx(M[2, 2])
     assert [g["joints"] for g in side["groups"]][0] == ["FL_HFE", "FL_KFE"]
     assert side["groups"][0]["dropped_off_diagonal"] == pytest.approx(1.275e-3)
+
+
+def test_isaaclab_friction_split_static_kinetic_viscous_and_mjlab_names_what_it_drops(tmp_path):
+    """A fit with Stribeck friction: Isaac Lab's static friction is G (f_c + f_s), its dynamic friction G f_c, its
+    viscous friction G^2 b (joint side, HAA gear 9); mjlab, which has Coulomb frictionloss only, says what it drops."""
+    import yaml
+
+    text = fitted_motor(tmp_path).read_text()
+    text = text.replace("model: [linear, coulomb, viscous]", "model: [linear, coulomb, viscous, stribeck]")
+    text = text.replace(
+        "  compensation:",
+        "    stribeck: {value: 0.03, stderr: 1.0e-4, unit: N m}\n"
+        "    stribeck_speed: {value: 0.5, stderr: 1.0e-3, unit: rad/s}\n  compensation:",
+    )
+    (tmp_path / "stribeck.yaml").write_text(text)
+    ex = prepare(ROBOT, [tmp_path / "stribeck.yaml"])
+    export_robot(ex, formats_from("isaaclab,mjlab"), tmp_path / "out")
+    haa = yaml.safe_load((tmp_path / "out" / "hound_like_isaaclab.yaml").read_text())["joints"]["FL_HAA"]
+    assert haa["dcmotor"]["friction"] == pytest.approx(9 * (0.08 + 0.03))
+    assert haa["dcmotor"]["dynamic_friction"] == pytest.approx(9 * 0.08)
+    assert haa["dcmotor"]["viscous_friction"] == pytest.approx(81 * 2.0e-4)
+    module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
+    assert "Stribeck friction: up to 0.03 N m extra static friction" in module
