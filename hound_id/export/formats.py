@@ -1,4 +1,5 @@
-"""Export formats: the bundle, Isaac Lab actuator fields, a URDF with limits, a MuJoCo model.
+"""Export formats: the registry (:data:`FORMATS`), the bundle and the Isaac Lab actuator fields; the URDF, MuJoCo,
+mjlab and Newton writers live in their own modules.
 
 Every writer takes an :class:`~hound_id.export.target.Export` (the robot with its fits, its bundle
 and its URDF) and a folder, writes its files atomically and returns what it wrote with a short
@@ -15,7 +16,6 @@ runtime and the MuJoCo tendons.
 
 from __future__ import annotations
 
-import xml.etree.ElementTree as ET
 from collections.abc import Callable, Mapping
 from pathlib import Path
 from typing import Any
@@ -23,15 +23,14 @@ from typing import Any
 import numpy as np
 
 from hound_id import io
-from hound_id.errors import SpecError
 from hound_id.export.bundle import BundleMotor
 from hound_id.export.mjlab import write_mjlab
 from hound_id.export.mujoco import write_mujoco
 from hound_id.export.newton import write_newton
-from hound_id.export.target import Export, Written, put_feet
+from hound_id.export.target import Export, Written, group_inertia
+from hound_id.export.urdf import write_urdf, write_urdf_open
 
 ISAACLAB_SCHEMA = "hound-id/isaaclab/2"
-ARMATURE_SCHEMA = "hound-id/armature/1"
 
 
 def _stem(ex: Export) -> str:
@@ -85,7 +84,7 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                 )
                 if reflected is not None:
                     idx = [index[j] for j in tx["joints"]]
-                    entry["reflected_inertia_group"] = _group_inertia(reflected[np.ix_(idx, idx)], list(tx["joints"]))
+                    entry["reflected_inertia_group"] = group_inertia(reflected[np.ix_(idx, idx)], list(tx["joints"]))
             else:
                 gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
                 entry["gear_ratio"] = gear
@@ -163,29 +162,6 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
 DCMOTOR_EXACT = 1e-9
 
 
-def _group_inertia(M: np.ndarray, joints: list[str]) -> dict[str, Any]:
-    """A coupled group's reflected rotor inertia, what Isaac Lab's per-joint armature keeps (the diagonal) and what
-    it drops: the off-diagonal terms, and the most the rotors' kinetic energy then errs, max |q'(D - M)q| / q'Mq
-    (the extreme generalised eigenvalues of D - M against M)."""
-    from scipy.linalg import eigh
-
-    D = np.diag(np.diag(M))
-    lam = eigh(D - M, M, eigvals_only=True)
-    off = M[~np.eye(len(M), dtype=bool)]
-    scale = np.sqrt(np.outer(np.diag(M), np.diag(M)))[~np.eye(len(M), dtype=bool)]
-    return {
-        "joints": joints,
-        "matrix": M.tolist(),
-        "dropped_off_diagonal": float(np.max(np.abs(off))) if off.size else 0.0,
-        "dropped_relative": float(np.max(np.abs(off) / scale)) if off.size else 0.0,
-        "kinetic_energy_error": float(np.max(np.abs(lam))),
-        "units": "kg m^2, joint side; dropped_relative = |M_ij| / sqrt(M_ii M_jj); kinetic_energy_error: the largest "
-        "relative error of the rotors' kinetic energy with the diagonal armature only (any joint velocities)",
-        "note": "Isaac Lab's armature is per joint: the off-diagonal terms cannot be set there; the MuJoCo export "
-        "(tendon armature) and hound_id.runtime keep them",
-    }
-
-
 def _over_promise(motor: BundleMotor) -> float:
     """The most the spec sheet's straight edges pass a motor's measured polyline edges [N m, motor side]."""
     env: Mapping[str, Any] = motor.envelope or {}
@@ -231,135 +207,6 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
             f"kinetic energy then errs by up to {g['kinetic_energy_error']:.1%} (reflected_inertia_group)",
         )
     return Written((str(path),), notes)
-
-
-def _fmt(v: float) -> str:
-    return f"{v:.9g}"
-
-
-#: The open URDF's limits hold every state whose motor speeds are within this multiple of each motor's overspeed.
-OPEN_REACH = 2.0
-#: Motor speeds at which a motor's largest torque is searched (across +-OPEN_REACH x overspeed).
-OPEN_POINTS = 4001
-
-
-def open_limits(ex: Export) -> tuple[np.ndarray, np.ndarray]:
-    """(effort [N m], velocity [rad/s]) per joint that never bind on what the runtime returns for motor speeds up to
-    :data:`OPEN_REACH` x overspeed: effort_j = sum_m |(A^-T)_jm| T_m with T_m the largest |torque| of motor m's
-    interval there (the curve's top, or the back-EMF braking of a linear motor at that speed), velocity_j =
-    sum_m |A_jm| OPEN_REACH overspeed_m."""
-    from hound_id.mor.region import operating_region, torque_interval
-
-    tops, speeds = [], []
-    for m in ex.bundle.motors:
-        region = operating_region(ex.robot.motor_specs[m.name])
-        w = np.linspace(-OPEN_REACH, OPEN_REACH, OPEN_POINTS) * region.overspeed
-        lo, hi = torque_interval(w, region)
-        tops.append(float(max(np.max(np.abs(lo)), np.max(np.abs(hi)))))
-        speeds.append(OPEN_REACH * region.overspeed)
-    A_inv = np.linalg.inv(ex.A)
-    return np.abs(A_inv.T) @ np.array(tops), np.abs(ex.A) @ np.array(speeds)
-
-
-def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner", friction: bool = True) -> str:
-    """The robot's URDF with inner-box limits (``limits="open"``: :func:`open_limits`, which never fight the
-    runtime's clip), fitted friction (``friction=False``: none, for a simulator whose motor tendons carry it) and the
-    optimised foot (XML text)."""
-    from hound_id.foot.urdf import parse_urdf, rebase_meshes
-
-    path = ex.urdf()
-    root = parse_urdf(path)
-    rebase_meshes(root, path, out_dir)
-    joints = {j.get("name"): j for j in root.iter("joint")}
-    missing = [j for j in ex.bundle.joints if j not in joints]
-    if missing:
-        raise SpecError(f"{path}: joints {', '.join(missing)} of robot {ex.robot.name} are not in the URDF")
-    coulomb, viscous = ex.joint_friction()
-    effort, velocity = open_limits(ex) if limits == "open" else (None, None)
-    for i, name in enumerate(ex.bundle.joints):
-        joint = joints[name]
-        box = ex.bundle.joint_boxes[name]["inner"]
-        limit = joint.find("limit")
-        if limit is None:
-            limit = ET.SubElement(joint, "limit", lower="-3.14159265", upper="3.14159265")
-        if effort is not None and velocity is not None:
-            limit.set("effort", _fmt(float(effort[i])))
-            limit.set("velocity", _fmt(float(velocity[i])))
-        else:
-            limit.set("effort", _fmt(box["effort"]))
-            limit.set("velocity", _fmt(box["velocity"]))
-        dynamics = joint.find("dynamics")
-        if not friction:
-            if dynamics is not None:
-                joint.remove(dynamics)
-            continue
-        if dynamics is None:
-            dynamics = ET.SubElement(joint, "dynamics")
-        dynamics.set("damping", _fmt(float(viscous[i])))
-        dynamics.set("friction", _fmt(float(coulomb[i])))
-    foot = ex.bundle.foot
-    if foot:
-        put_feet(root, foot, path)
-    if limits == "open":
-        root.insert(0, ET.Comment(OPEN_REASON.format(schema=ex.bundle.schema, reach=OPEN_REACH)))
-    else:
-        root.insert(0, ET.Comment(f" limits from hound-id ({ex.bundle.schema}): inner boxes of the operating regions "))
-    ET.indent(root, space="  ")
-    return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
-
-
-def write_urdf(ex: Export, out: Path) -> Written:
-    """``<robot>_limits.urdf``: :func:`limited_urdf`."""
-    path = out / f"{_stem(ex)}_limits.urdf"
-    io.write_text(path, limited_urdf(ex, out))
-    notes = ["effort/velocity limits are the inner boxes (always feasible); coupled joints get the group's box"]
-    return Written((str(path),), tuple(notes))
-
-
-#: Why the open URDF's limits are what they are (its first comment).
-OPEN_REASON = (
-    " hound-id ({schema}), for simulators that enforce URDF effort limits (Genesis and the like): the limits are "
-    "open, the largest torque and speed the runtime's clip returns for motor speeds up to {reach:g} x overspeed, so "
-    "they never fight hound_id.runtime's saturation (apply it every step: it holds the operating regions, which "
-    "these limits do not). Armature is not a URDF field: see the armature sidecar "
-)
-
-
-def write_urdf_open(ex: Export, out: Path) -> Written:
-    """``<robot>_open_limits.urdf`` (:func:`limited_urdf` with open limits) and ``<robot>_armature.yaml``: per joint
-    the reflected rotor inertia, with each coupled group's full matrix and what a per-joint armature drops."""
-    import yaml
-
-    urdf = out / f"{_stem(ex)}_open_limits.urdf"
-    io.write_text(urdf, limited_urdf(ex, out, limits="open"))
-    reflected = ex.bundle.reflected_inertia
-    sidecar: dict[str, Any] = {
-        "schema": ARMATURE_SCHEMA,
-        "robot": ex.bundle.robot,
-        "units": "kg m^2, joint side",
-        "reason": "URDF has no armature field; set each joint's armature in your simulator from 'armature' (the "
-        "diagonal of A^-T diag(J) A^-1); coupled groups list the off-diagonal terms a per-joint armature drops",
-        "armature": None,
-        "groups": [],
-    }
-    if reflected is not None:
-        M = np.asarray(reflected, dtype=float)
-        sidecar["armature"] = {j: float(M[i, i]) for i, j in enumerate(ex.bundle.joints)}
-        index = {j: i for i, j in enumerate(ex.bundle.joints)}
-        for tx in ex.bundle.transmissions:
-            if len(tx["joints"]) > 1:
-                idx = [index[j] for j in tx["joints"]]
-                sidecar["groups"].append(_group_inertia(M[np.ix_(idx, idx)], list(tx["joints"])))
-    else:
-        sidecar["reason"] += "; a motor's rotor inertia is unknown, so none is given"
-    side = out / f"{_stem(ex)}_armature.yaml"
-    io.write_text(side, yaml.safe_dump(sidecar, sort_keys=False))
-    notes = (
-        f"effort/velocity limits are open (what the runtime returns up to {OPEN_REACH:g} x overspeed): apply "
-        "hound_id.runtime's saturation each step",
-        "armature (reflected rotor inertia) in the sidecar; URDF has no field for it",
-    )
-    return Written((str(urdf), str(side)), notes)
 
 
 #: Every format, by name (sorted).

@@ -5,7 +5,7 @@ on it, for ``SolverMuJoCo``.
 
 The dcmotor is the MuJoCo export's (K = 1/Kv, R' = R Ke/Kt, torque limit as ``saturation``, ``ctrlrange`` the
 bus): the trainer sends ``hound_id.runtime``'s ``voltage(tau, qd)`` as ``control.mujoco.ctrl``. The URDF's joint
-limits are :func:`hound_id.export.formats.open_limits` (Newton's SolverMuJoCo clamps the actuator force reaching a
+limits are :func:`hound_id.export.urdf.open_limits` (Newton's SolverMuJoCo clamps the actuator force reaching a
 joint to the URDF effort, which would otherwise fight the coupled tendons) and its joints carry no friction (the
 tendons do). What Newton cannot hold is in the module's ``NOT_HELD``.
 """
@@ -19,6 +19,7 @@ import numpy as np
 from hound_id import __version__, io
 from hound_id.export.mjlab import not_held
 from hound_id.export.target import Export, Written
+from hound_id.export.urdf import limited_urdf
 
 #: Newton release the generated module is written for and tested with.
 NEWTON_VERSION = "1.8.0"
@@ -136,8 +137,6 @@ def newton_module(ex: Export, urdf_name: str, bundle_name: str) -> str:
 def write_newton(ex: Export, out: Path) -> Written:
     """``<robot>_newton.urdf`` (open limits, no joint friction, the optimised foot), ``<robot>_newton.py`` (the
     tendons and dcmotors) and ``<robot>_bundle.json`` (for ``hound_id.runtime``)."""
-    from hound_id.export.formats import limited_urdf  # formats registers this writer: imported when it runs
-
     stem = io.file_stem(ex.robot.name, "robot field name")
     urdf, module, bundle = out / f"{stem}_newton.urdf", out / f"{stem}_newton.py", out / f"{stem}_bundle.json"
     io.write_text(urdf, limited_urdf(ex, out, limits="open", friction=False))

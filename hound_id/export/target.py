@@ -2,7 +2,9 @@
 helpers more than one format uses (:func:`put_feet`).
 
 A format is one module with a writer ``write_x(ex: Export, out: Path) -> Written`` that imports this
-module (never another format), plus one line in :data:`hound_id.export.formats.FORMATS`.
+module, plus one line in :data:`hound_id.export.formats.FORMATS`. Formats built on another's model import it
+(mjlab builds on :mod:`hound_id.export.mujoco`'s MJCF, Newton on :mod:`hound_id.export.urdf`'s open URDF); the
+registry imports every format, so no format imports the registry.
 """
 
 from __future__ import annotations
@@ -101,3 +103,26 @@ def put_feet(root: ET.Element, foot: Mapping[str, Any], path: Path) -> None:
             [tuple(float(v) for v in s) for s in spheres],
             f"optimised foot from {foot.get('source', 'hound-id foot')}",
         )
+
+
+def group_inertia(M: np.ndarray, joints: list[str]) -> dict[str, Any]:
+    """A coupled group's reflected rotor inertia, what Isaac Lab's per-joint armature keeps (the diagonal) and what
+    it drops: the off-diagonal terms, and the most the rotors' kinetic energy then errs, max |q'(D - M)q| / q'Mq
+    (the extreme generalised eigenvalues of D - M against M)."""
+    from scipy.linalg import eigh
+
+    D = np.diag(np.diag(M))
+    lam = eigh(D - M, M, eigvals_only=True)
+    off = M[~np.eye(len(M), dtype=bool)]
+    scale = np.sqrt(np.outer(np.diag(M), np.diag(M)))[~np.eye(len(M), dtype=bool)]
+    return {
+        "joints": joints,
+        "matrix": M.tolist(),
+        "dropped_off_diagonal": float(np.max(np.abs(off))) if off.size else 0.0,
+        "dropped_relative": float(np.max(np.abs(off) / scale)) if off.size else 0.0,
+        "kinetic_energy_error": float(np.max(np.abs(lam))),
+        "units": "kg m^2, joint side; dropped_relative = |M_ij| / sqrt(M_ii M_jj); kinetic_energy_error: the largest "
+        "relative error of the rotors' kinetic energy with the diagonal armature only (any joint velocities)",
+        "note": "Isaac Lab's armature is per joint: the off-diagonal terms cannot be set there; the MuJoCo export "
+        "(tendon armature) and hound_id.runtime keep them",
+    }

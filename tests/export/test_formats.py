@@ -264,7 +264,7 @@ def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tm
     import pinocchio
     import yaml
 
-    from hound_id.export.formats import OPEN_REACH
+    from hound_id.export.urdf import OPEN_REACH
     from hound_id.mor.region import operating_region
 
     ex = prepare(ROBOT, [])

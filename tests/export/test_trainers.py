@@ -26,8 +26,8 @@ def mjlab() -> str:
     return trainer_python("mjlab-1.6.0", MJLAB)
 
 
-def run_in(python: str, script: str, *args: object) -> dict:
-    env = dict(os.environ, PYTHONPATH=str(ROOT))
+def run_in(python: str, script: str, *args: object, path: tuple[str, ...] = ()) -> dict:
+    env = dict(os.environ, PYTHONPATH=os.pathsep.join((str(ROOT), *path)))
     proc = subprocess.run(
         [python, str(SCRIPTS / script), *map(str, args)], capture_output=True, text=True, timeout=900, env=env
     )
@@ -93,3 +93,36 @@ def test_newton_misses_the_curved_sample_by_at_most_the_stated_gap(newton, tmp_p
     r = run_in(newton, "newton_check.py", out, speed, "warp")
     assert r["finite"] and r["max_difference_law"] < FLOAT32
     assert 0.1 * gap < r["max_difference"] <= gap + FLOAT32
+
+
+ISAACLAB = ("isaaclab==2.3.2.post1", "torch==2.13.0", "usd-core")
+
+
+@pytest.fixture(scope="module")
+def isaaclab() -> tuple[str, str]:
+    """Isaac Lab 2.3.2 (the newest on the package index; 3.0 is not there) without Isaac Sim: the wheel's source
+    folder goes on PYTHONPATH (its top-level package bootstraps Isaac Sim), usd-core gives the pxr it imports."""
+    python = trainer_python("isaaclab-2.3.2", ISAACLAB)
+    proc = subprocess.run(
+        [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture_output=True, text=True
+    )
+    source = Path(proc.stdout.strip()) / "isaaclab" / "source" / "isaaclab"
+    assert (source / "isaaclab" / "actuators" / "actuator_pd.py").is_file(), f"no Isaac Lab source in {source}"
+    return python, str(source)
+
+
+@pytest.mark.parametrize("fitted", [True, False], ids=["linear_fit", "sheet_curve"])
+def test_isaaclab_dcmotor_fields_and_the_hound_id_actuator_in_isaac_lab(isaaclab, tmp_path, fitted):
+    """Isaac Lab's own DCMotor with the exported 2.x fields on the uncoupled joints: the runtime's torques to float32
+    rounding for a linear motor, within the stated dcmotor_error for the curved sample; HoundIdActuator (Isaac Lab's
+    IdealPDActuator with the runtime's clip) on all joints in Isaac Lab's order: its PD torque clipped exactly as
+    the runtime clips it."""
+    python, source = isaaclab
+    _, out, speed = exported(tmp_path, [fitted_motor(tmp_path)] if fitted else [], "bundle,isaaclab")
+    r = run_in(python, "isaaclab_check.py", out, speed, path=(source,))
+    assert r["isaaclab"] == "0.54.2" and r["dcmotor_joints"] == ["FL_HAA", "FR_HAA", "RL_HAA", "RR_HAA"]
+    if fitted:
+        assert r["dcmotor_stated_gap"] == 0.0 and r["dcmotor_max_difference"] < FLOAT32
+    else:
+        assert 0.5 * r["dcmotor_stated_gap"] < r["dcmotor_max_difference"] <= r["dcmotor_stated_gap"] + FLOAT32
+    assert r["hound_max_difference"] == 0.0 and r["hound_clipped"] > 0.5

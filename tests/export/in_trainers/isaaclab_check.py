@@ -1,0 +1,86 @@
+"""Run inside an Isaac Lab virtual environment (tests/export/test_trainers.py): Isaac Lab 2.3.2's own actuator classes
+(DCMotor, IdealPDActuator) with hound-id's fields, and hound_id's HoundIdActuator, fed random commands at random
+joint speeds; prints the applied torques' differences from hound_id.runtime (JSON on stdout). Arguments: the export
+folder, the largest motor speed drawn [rad/s].
+
+The pip wheel of Isaac Lab 2.3.2 holds its source; its ``isaaclab.actuators`` package __init__ imports the actuator
+network's asset reader, which needs Isaac Sim's Omniverse client. The actuator modules themselves need torch and
+isaaclab.utils only, so they are imported here as the package's submodules without running that __init__ (nothing
+of Isaac Lab is replaced)."""
+
+import json
+import sys
+import types
+from pathlib import Path
+
+import isaaclab
+import torch
+import yaml
+
+pkg = types.ModuleType("isaaclab.actuators")
+pkg.__path__ = [str(Path(isaaclab.__path__[0]) / "actuators")]
+sys.modules["isaaclab.actuators"] = pkg
+from isaaclab.actuators import actuator_pd, actuator_pd_cfg  # noqa: E402
+from isaaclab.utils.types import ArticulationActions  # noqa: E402
+
+pkg.IdealPDActuator, pkg.IdealPDActuatorCfg = actuator_pd.IdealPDActuator, actuator_pd_cfg.IdealPDActuatorCfg
+
+import hound_id.runtime  # noqa: E402
+from hound_id.export.isaaclab_actuator import HoundIdActuatorCfg  # noqa: E402
+
+folder, speed = Path(sys.argv[1]), float(sys.argv[2])
+bundle = folder / "hound_like_bundle.json"
+fields = yaml.safe_load((folder / "hound_like_isaaclab.yaml").read_text())["joints"]
+sat = hound_id.runtime.load(bundle)
+ENVS = 4096
+gen = torch.Generator().manual_seed(11)
+omega = (torch.rand(ENVS, len(sat.motors), generator=gen, dtype=torch.float64) * 2 - 1) * speed
+qd = omega @ torch.tensor(sat.clip.A).T
+tau = (torch.rand(ENVS, len(sat.joints), generator=gen, dtype=torch.float64) * 2 - 1) * 150.0
+want = sat.saturate(tau, qd)
+zeros = torch.zeros_like(tau)
+
+# Isaac Lab's DCMotor on each uncoupled joint, with the exported 2.x fields
+dc_worst, dc_gap, dc_joints = 0.0, 0.0, []
+for j, name in enumerate(sat.joints):
+    f = fields[name]
+    if f["coupled"]:
+        continue
+    cfg = actuator_pd_cfg.DCMotorCfg(joint_names_expr=[name], stiffness=0.0, damping=0.0, **f["dcmotor_isaaclab2"])
+    act = actuator_pd.DCMotor(cfg, joint_names=[name], joint_ids=[j], num_envs=ENVS, device="cpu")
+    out = act.compute(
+        ArticulationActions(joint_positions=zeros[:, [j]], joint_velocities=qd[:, [j]], joint_efforts=tau[:, [j]]),
+        zeros[:, [j]],
+        qd[:, [j]],
+    )
+    dc_worst = max(dc_worst, float(torch.max(torch.abs(out.joint_efforts[:, 0] - want[:, j]))))
+    dc_gap = max(dc_gap, float(f.get("dcmotor_error", {}).get("over", 0.0)))
+    dc_joints.append(name)
+
+# HoundIdActuator on every joint, in a breadth-first order (not the bundle's), with PD gains
+order = sorted(sat.joints, key=lambda n: (n.split("_")[1], n))  # all HAA, then HFE, then KFE
+idx = [sat.joints.index(n) for n in order]
+cfg = HoundIdActuatorCfg(joint_names_expr=order, bundle=str(bundle), stiffness=40.0, damping=1.5)
+act = cfg.class_type(cfg, joint_names=order, joint_ids=list(range(len(order))), num_envs=ENVS, device="cpu")
+q = torch.rand(ENVS, len(order), generator=gen, dtype=torch.float64) * 2 - 1
+q_star = torch.rand(ENVS, len(order), generator=gen, dtype=torch.float64) * 2 - 1
+out = act.compute(
+    ArticulationActions(joint_positions=q_star, joint_velocities=torch.zeros_like(q), joint_efforts=tau[:, idx]),
+    q,
+    qd[:, idx],
+)
+pd = 40.0 * (q_star - q) + 1.5 * (0.0 - qd[:, idx]) + tau[:, idx]
+reference = hound_id.runtime.load(bundle, joint_names=order).saturate(pd, qd[:, idx])
+print(
+    json.dumps(
+        {
+            "isaaclab": isaaclab.__version__,
+            "dcmotor_joints": dc_joints,
+            "dcmotor_max_difference": dc_worst,
+            "dcmotor_stated_gap": dc_gap,
+            "hound_max_difference": float(torch.max(torch.abs(out.joint_efforts - reference))),
+            "hound_clipped": float(torch.mean((torch.abs(reference - pd) > 1e-9).any(dim=1).double())),
+            "hound_dtype": str(out.joint_efforts.dtype),
+        }
+    )
+)
