@@ -126,3 +126,20 @@ def test_isaaclab_dcmotor_fields_and_the_hound_id_actuator_in_isaac_lab(isaaclab
     else:
         assert 0.5 * r["dcmotor_stated_gap"] < r["dcmotor_max_difference"] <= r["dcmotor_stated_gap"] + FLOAT32
     assert r["hound_max_difference"] == 0.0 and r["hound_clipped"] > 0.5
+    assert r["warnings"] == []  # no deprecation (or other) warning while Isaac Lab builds the actuators
+
+
+@pytest.mark.parametrize("trainer", ["mjlab", "newton"])
+def test_installing_hound_id_beside_a_trainer_leaves_its_mujoco_alone(request, tmp_path, trainer):
+    """pip's own plan for installing hound-id into the trainer's environment: MuJoCo, MuJoCo-Warp, Warp and torch
+    stay as the trainer has them (hound-id needs mujoco >= 3.11, which every trainer here already has)."""
+    python = request.getfixturevalue(trainer)
+    report = tmp_path / "report.json"
+    proc = subprocess.run(
+        [python, "-m", "pip", "install", "--dry-run", "--quiet", "--report", str(report), str(ROOT)],
+        capture_output=True, text=True, timeout=900,
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr[-2000:]
+    planned = {i["metadata"]["name"].lower() for i in json.loads(report.read_text())["install"]}
+    assert "hound-id" in planned
+    assert not planned & {"mujoco", "mujoco-warp", "warp-lang", "torch", "numpy"}, sorted(planned)

@@ -9,8 +9,10 @@ isaaclab.utils only, so they are imported here as the package's submodules witho
 of Isaac Lab is replaced)."""
 
 import json
+import logging
 import sys
 import types
+import warnings
 from pathlib import Path
 
 import isaaclab
@@ -29,6 +31,19 @@ import hound_id.runtime  # noqa: E402
 from hound_id.export.isaaclab_actuator import HoundIdActuatorCfg  # noqa: E402
 
 folder, speed = Path(sys.argv[1]), float(sys.argv[2])
+# every warning Isaac Lab raises or logs while the configs and actuators are built (deprecations among them)
+warnings.simplefilter("always")
+caught: list[str] = []
+warnings.showwarning = lambda message, category, *args, **kwargs: caught.append(f"{category.__name__}: {message}")
+
+
+class _Collect(logging.Handler):
+    def emit(self, record: logging.LogRecord) -> None:
+        if record.levelno >= logging.WARNING:
+            caught.append(f"log {record.levelname}: {record.getMessage()}")
+
+
+logging.getLogger().addHandler(_Collect())
 bundle = folder / "hound_like_bundle.json"
 fields = yaml.safe_load((folder / "hound_like_isaaclab.yaml").read_text())["joints"]
 sat = hound_id.runtime.load(bundle)
@@ -81,6 +96,7 @@ print(
             "hound_max_difference": float(torch.max(torch.abs(out.joint_efforts - reference))),
             "hound_clipped": float(torch.mean((torch.abs(reference - pd) > 1e-9).any(dim=1).double())),
             "hound_dtype": str(out.joint_efforts.dtype),
+            "warnings": caught,
         }
     )
 )
