@@ -143,3 +143,22 @@ def test_installing_hound_id_beside_a_trainer_leaves_its_mujoco_alone(request, t
     planned = {i["metadata"]["name"].lower() for i in json.loads(report.read_text())["install"]}
     assert "hound-id" in planned
     assert not planned & {"mujoco", "mujoco-warp", "warp-lang", "torch", "numpy"}, sorted(planned)
+
+
+GENESIS = ("genesis-world==1.4.5", "torch==2.13.0")
+
+
+@pytest.fixture(scope="module")
+def genesis() -> str:
+    return trainer_python("genesis-1.4.5", GENESIS)
+
+
+def test_genesis_applies_the_runtime_torques_from_the_open_urdf_and_fights_the_inner_one(genesis, tmp_path):
+    """Genesis enforces URDF effort limits: with urdf-open's limits and the armature sidecar it applies the runtime's
+    saturated torques to float32 rounding; with the inner boxes (format urdf) it clips them, as the review saw."""
+    _, out, speed = exported(tmp_path, [], "bundle,urdf,urdf-open")
+    r = run_in(genesis, "genesis_check.py", out, "hound_like_open_limits.urdf", speed)
+    assert r["genesis"] == "1.4.5" and r["max_difference"] < FLOAT32
+    assert r["armature"] == pytest.approx(r["expected_armature"], rel=1e-6)
+    inner = run_in(genesis, "genesis_check.py", out, "hound_like_limits.urdf", speed)
+    assert inner["max_difference"] > 1.0
