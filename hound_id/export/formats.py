@@ -121,12 +121,18 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                     }
                     if gap[0] > DCMOTOR_EXACT * m.torque_limit:
                         entry["use"] = "hound_id.runtime"
+                        spec = ex.robot.motor_specs[m.name]
+                        bends = (
+                            ["its current-torque curve bends its voltage edges"]
+                            if spec.current_curve.form != "linear"
+                            else []
+                        ) + (["its rated speed cuts them (braking only above max_speed)"] if spec.max_speed else [])
                         entry["reason"] = (
-                            f"motor {m.name}'s current-torque curve bends its voltage edges (and its torque limit "
-                            f"is the curve's, {m.torque_limit * gear:.4g} N m at the joint): DCMotor's straight "
-                            f"line passes them by up to {gap[0] * gear:.4g} N m at the joint between the corner "
-                            "and the overspeed, and past overspeed DCMotor returns the torque limit where the "
-                            "back-EMF forces more braking. The dcmotor fields are the closest straight model; apply "
+                            f"motor {m.name}: {' and '.join(bends)} (torque limit {m.torque_limit * gear:.4g} N m "
+                            f"at the joint): DCMotor's straight line passes hound-id's edges by up to "
+                            f"{gap[0] * gear:.4g} N m at the joint within the overspeed, and past overspeed DCMotor "
+                            "returns the torque limit where the back-EMF forces more braking. The dcmotor fields are "
+                            "the closest straight model; use HoundIdActuator (hound_id.export.isaaclab_actuator) or "
                             "hound_id.runtime.load(bundle, joint_names).saturate(tau, qd) for the exact clip"
                         )
             joints[joint] = entry

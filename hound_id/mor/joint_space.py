@@ -176,9 +176,11 @@ def _inner_boxes(tx: Transmission, regions: list[OperatingRegion]) -> list[Box]:
     measured envelope the rows are a convex cut inside it). An uncoupled joint takes its motor's box."""
     k = len(tx.joints)
     P, Q = np.abs(tx.A.T), np.abs(tx.A_inv)
-    if not tx.coupled:  # one motor: its own box through the gear (exact for a measured, non-convex envelope too)
-        T, W = regions[0].inner_box
-        return [Box(effort=float(T / P[0, 0]), velocity=float(W / Q[0, 0]))]
+    if not tx.coupled:  # each joint its own motor's box through its gear (exact for a measured envelope too)
+        return [
+            Box(effort=float(r.inner_box[0] / P[i, i]), velocity=float(r.inner_box[1] / Q[i, i]))
+            for i, r in enumerate(regions)
+        ]
     rows, rhs = [], []
     for m, r in enumerate(regions):
         for a_tau, a_omega in _box_rows(r):

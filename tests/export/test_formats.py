@@ -9,7 +9,7 @@ import hound_id.runtime
 from hound_id.errors import SpecError
 from hound_id.export.run import export_robot, formats_from, prepare
 from hound_id.mor.saturation import dc_motor_clip
-from tests.conftest import ROBOT
+from tests.conftest import MOTOR, ROBOT
 from tests.export.conftest import fitted_motor
 
 
@@ -313,3 +313,22 @@ def test_isaaclab_friction_split_static_kinetic_viscous_and_mjlab_names_what_it_
     assert haa["dcmotor"]["viscous_friction"] == pytest.approx(81 * 2.0e-4)
     module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
     assert "Stribeck friction: up to 0.03 N m extra static friction" in module
+
+
+def test_a_rated_speed_is_named_as_a_cause_of_the_straight_line_gap(tmp_path):
+    """HAA on the small motor (max_speed 2000 rpm): the straight-line gap is mostly the rated-speed cut-off, and the
+    Isaac Lab reason and mjlab's NOT_HELD say so, besides the curve (the review found the curve blamed for all)."""
+    import yaml
+
+    from tests.conftest import SAMPLES, SMALL_MOTOR
+
+    text = (SAMPLES / "robots" / "hound_like.yaml").read_text()
+    text = text.replace("  ilm85: ../motors/hound_ilm85.yaml", f"  ilm85: {MOTOR}\n  qdd: {SMALL_MOTOR}")
+    text = text.replace("motor_spec: ilm85, ratios: [9.0]", "motor_spec: qdd, ratios: [9.0]")
+    text = text.replace("urdf: hound_like.urdf", f"urdf: {SAMPLES / 'robots' / 'hound_like.urdf'}")
+    (tmp_path / "mixed.yaml").write_text(text)
+    export_robot(prepare(tmp_path / "mixed.yaml", []), formats_from("isaaclab,mjlab"), tmp_path / "out")
+    haa = yaml.safe_load((tmp_path / "out" / "hound_like_isaaclab.yaml").read_text())["joints"]["FL_HAA"]
+    assert "rated speed cuts them" in haa["reason"] and "current-torque curve" in haa["reason"]
+    module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
+    assert "a rated-speed cut-off, braking only above max_speed (motors FL_HAA_motor" in module

@@ -51,7 +51,7 @@ def test_mjlab_reproduces_the_runtime_for_a_linear_motor(mjlab, tmp_path, uncoup
     assert r["mujoco"] == "3.11.0" and r["finite"] and r["clipped"] > 0.5
     assert r["voltage_columns"] == (12 if uncoupled == "voltage" else 8)
     assert r["max_difference_voltage"] < FLOAT32 and r["max_difference_law"] < FLOAT32
-    assert r["max_difference_dcmotor"] < FLOAT32
+    assert r["max_difference_dcmotor"] < FLOAT32 and r["max_difference_rollout"] < FLOAT32
 
 
 @pytest.mark.parametrize("uncoupled", ["dcmotor", "voltage"])
@@ -66,6 +66,7 @@ def test_mjlab_misses_the_curved_sample_by_at_most_the_stated_gap(mjlab, tmp_pat
     assert 0.1 * gap < r["max_difference_voltage"] <= gap + FLOAT32
     gear = 9.0  # HAA: the only uncoupled joints
     assert r["max_difference_dcmotor"] <= gap * gear + FLOAT32 * gear
+    assert r["max_difference_rollout"] < FLOAT32  # a PD rollout stays where the bus does not clamp
 
 
 NEWTON = ("newton[sim]==1.8.0",)
@@ -84,6 +85,7 @@ def test_newton_reproduces_the_runtime_for_a_linear_motor(newton, tmp_path, engi
     r = run_in(newton, "newton_check.py", out, speed, engine)
     assert r["newton"] == "1.8.0" and r["actuators"] == 12 and r["finite"] and r["clipped"] > 0.5
     assert r["max_difference"] < FLOAT32 and r["max_difference_law"] < FLOAT32
+    assert r["max_difference_rollout"] < FLOAT32 and r["finite"]
 
 
 def test_newton_misses_the_curved_sample_by_at_most_the_stated_gap(newton, tmp_path):
@@ -93,6 +95,7 @@ def test_newton_misses_the_curved_sample_by_at_most_the_stated_gap(newton, tmp_p
     r = run_in(newton, "newton_check.py", out, speed, "warp")
     assert r["finite"] and r["max_difference_law"] < FLOAT32
     assert 0.1 * gap < r["max_difference"] <= gap + FLOAT32
+    assert r["max_difference_rollout"] < FLOAT32 and r["finite"]
 
 
 ISAACLAB = ("isaaclab==2.3.2.post1", "torch==2.13.0", "usd-core")
@@ -126,6 +129,7 @@ def test_isaaclab_dcmotor_fields_and_the_hound_id_actuator_in_isaac_lab(isaaclab
     else:
         assert 0.5 * r["dcmotor_stated_gap"] < r["dcmotor_max_difference"] <= r["dcmotor_stated_gap"] + FLOAT32
     assert r["hound_max_difference"] == 0.0 and r["hound_clipped"] > 0.5
+    assert r["hound_float32_dtype"] == "torch.float32" and r["hound_max_difference_float32"] < FLOAT32
     assert r["warnings"] == []  # no deprecation (or other) warning while Isaac Lab builds the actuators
 
 

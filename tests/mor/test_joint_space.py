@@ -135,6 +135,27 @@ transmissions:
     assert (jr.inner_box.effort, jr.inner_box.velocity) == pytest.approx(region.inner_box, rel=1e-6)
 
 
+def test_an_uncoupled_transmission_of_several_joints_gives_each_joint_its_own_motor_box(write_yaml):
+    """A ``ratio`` with two joints (two motors of different specs) and a diagonal ``matrix``: each joint gets its own
+    motor's box through its own gear (the review found one box for the whole transmission, then a crash)."""
+    from tests.conftest import MOTOR
+
+    text = f"""
+name: two
+motor_specs: {{s: {SMALL_MOTOR}, big: {MOTOR}}}
+joints: [a, b, c, d]
+transmissions:
+  - {{type: ratio, joints: [a, b], motors: [ma, mb], motor_spec: s, ratios: [6.0, -7.5]}}
+  - {{type: matrix, joints: [c, d], motors: [mc, md], motor_spec: big, matrix: [[0.1, 0.0], [0.0, 0.125]]}}
+"""
+    robot = load_robot(write_yaml("two.yaml", text))
+    joints = robot_regions(robot).joints
+    for joint, motor, gear in (("a", "ma", 6.0), ("b", "mb", 7.5), ("c", "mc", 10.0), ("d", "md", 8.0)):
+        box = joints[robot.joints.index(joint)].inner_box
+        T, W = operating_region(robot.motor_specs[motor]).inner_box
+        assert (box.effort, box.velocity) == pytest.approx((T * gear, W / gear), rel=1e-9)
+
+
 def test_extreme_gear_ratios_do_not_break_the_geometry_and_beyond_real_gearboxes_are_refused(write_yaml):
     def robot(a: str, b: str) -> str:
         return f"""

@@ -86,6 +86,16 @@ out = act.compute(
 )
 pd = 40.0 * (q_star - q) + 1.5 * (0.0 - qd[:, idx]) + tau[:, idx]
 reference = hound_id.runtime.load(bundle, joint_names=order).saturate(pd, qd[:, idx])
+# the same in float32, as Isaac Lab's buffers are, against the runtime in float64 on the same float32 inputs
+act32 = cfg.class_type(cfg, joint_names=order, joint_ids=list(range(len(order))), num_envs=ENVS, device="cpu")
+f32 = [x.float() for x in (q_star, q, tau[:, idx], qd[:, idx])]
+out32 = act32.compute(
+    ArticulationActions(joint_positions=f32[0], joint_velocities=torch.zeros_like(f32[1]), joint_efforts=f32[2]),
+    f32[1],
+    f32[3],
+)
+pd32 = 40.0 * (f32[0].double() - f32[1].double()) - 1.5 * f32[3].double() + f32[2].double()
+ref32 = hound_id.runtime.load(bundle, joint_names=order).saturate(pd32, f32[3].double())
 print(
     json.dumps(
         {
@@ -96,6 +106,8 @@ print(
             "hound_max_difference": float(torch.max(torch.abs(out.joint_efforts - reference))),
             "hound_clipped": float(torch.mean((torch.abs(reference - pd) > 1e-9).any(dim=1).double())),
             "hound_dtype": str(out.joint_efforts.dtype),
+            "hound_float32_dtype": str(out32.joint_efforts.dtype),
+            "hound_max_difference_float32": float(torch.max(torch.abs(out32.joint_efforts.double() - ref32))),
             "warnings": caught,
         }
     )

@@ -1,8 +1,8 @@
-"""Run inside a Newton virtual environment (tests/export/test_trainers.py): build hound-id's Newton export as a user
-would (add_urdf, then the generated add_actuators), drive SolverMuJoCo at random states across the operating regions
-with hound_id.runtime's voltages, and print the realised motor torques' differences from the runtime (JSON on
-stdout). Arguments: the export folder, the largest motor speed drawn [rad/s], whether to use MuJoCo-Warp (warp) or
-MuJoCo's CPU engine (cpu)."""
+"""Run inside a Newton virtual environment (tests/export/test_trainers.py): build hound-id's Newton export as the
+README snippet does (add_urdf, then the generated add_actuators and joint_dofs), drive SolverMuJoCo at random states
+across the operating regions and then through a PD-controlled rollout with hound_id.runtime's voltages, and print
+the realised motor torques' differences from the runtime (JSON on stdout). Arguments: the export folder, the largest
+motor speed drawn [rad/s], MuJoCo-Warp (warp) or MuJoCo's CPU engine (cpu)."""
 
 import json
 import sys
@@ -22,6 +22,7 @@ builder = newton.ModelBuilder()
 newton.solvers.SolverMuJoCo.register_custom_attributes(builder)
 builder.add_urdf(str(gen.URDF), floating=True)
 rows = gen.add_actuators(builder)
+dofs = gen.joint_dofs(builder)
 model = builder.finalize(device="cpu")
 solver = newton.solvers.SolverMuJoCo(model, use_mujoco_cpu=engine == "cpu")
 mjm = solver.mj_model
@@ -29,36 +30,50 @@ tendons = [mujoco.mj_id2name(mjm, mujoco.mjtObj.mjOBJ_TENDON, i) for i in range(
 on_tendons = [a for a in range(mjm.nu) if mjm.actuator_trntype[a] == mujoco.mjtTrn.mjTRN_TENDON]
 ours = {tendons[mjm.actuator_trnid[a, 0]]: a for a in on_tendons}
 actuators = [ours[m + "_tendon"] for m in gen.MOTORS]
-sat = hound_id.runtime.load(gen.BUNDLE, joint_names=gen.JOINTS)
-labels = {label.rsplit("/", 1)[-1]: i for i, label in enumerate(builder.joint_label)}
-dofs = [int(model.joint_qd_start.numpy()[labels[j]]) for j in gen.JOINTS]
+sat = hound_id.runtime.load(gen.BUNDLE)
 state0, state1, control = model.state(), model.state(), model.control()
-rng = np.random.default_rng(7)
-worst = worst_law = 0.0
-clipped = 0
-n = 100
-for _ in range(n):
-    omega = rng.uniform(-1, 1, len(gen.MOTORS)) * speed
-    qd = sat.clip.A @ omega
-    tau = rng.uniform(-1, 1, len(gen.JOINTS)) * 150.0
+DT = 1e-4
+
+
+def step(tau: np.ndarray, qd: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Send the runtime's voltages, step, and return (realised, runtime, dcmotor law) motor torques."""
+    global state0, state1
     volts = sat.voltage(tau, qd)
-    jqd = np.zeros(model.joint_dof_count, dtype=np.float32)
-    jqd[dofs] = qd
-    state0.joint_qd.assign(jqd)
     control.mujoco.ctrl.assign(volts.astype(np.float32))
-    solver.step(state0, state1, control, None, 1e-4)
+    solver.step(state0, state1, control, None, DT)
+    state0, state1 = state1, state0
     if engine == "cpu":
         force = np.array(solver.mj_data.actuator_force)[actuators]
     else:
         force = solver.mjw_data.actuator_force.numpy()[0][actuators]
-    out = sat.saturate(tau, qd)
-    clipped += bool(np.any(np.abs(out - tau) > 1e-9))
-    worst = max(worst, float(np.max(np.abs(force - sat.motor_torque(out)))))
+    omega = sat.motor_velocity(qd)
     law = np.clip(sat.kt * (volts - omega / sat.kv) / sat.resistance, -sat.clip.torque_limit, sat.clip.torque_limit)
+    return force, sat.motor_torque(sat.saturate(tau, qd)), law
+
+
+rng = np.random.default_rng(7)
+worst = worst_law = worst_roll = 0.0
+clipped, n = 0, 100
+for _ in range(n):
+    qd = sat.clip.A @ (rng.uniform(-1, 1, len(gen.MOTORS)) * speed)
+    tau = rng.uniform(-1, 1, len(gen.JOINTS)) * 150.0
+    jqd = np.zeros(model.joint_dof_count, dtype=np.float32)
+    jqd[dofs] = qd
+    state0.joint_qd.assign(jqd)
+    qd = state0.joint_qd.numpy()[dofs].astype(float)  # the float32 speeds the simulator holds
+    force, want, law = step(tau, qd)
+    clipped += bool(np.any(np.abs(sat.saturate(tau, qd) - tau) > 1e-9))
+    worst = max(worst, float(np.max(np.abs(force - want))))
     worst_law = max(worst_law, float(np.max(np.abs(force - law))))
-for _ in range(200):  # a short rollout from rest with the last voltages: the state stays finite
-    solver.step(state0, state1, control, None, 1e-4)
-    state0, state1 = state1, state0
+# a PD-controlled rollout from rest (falling freely), every step compared
+state0.joint_qd.assign(np.zeros(model.joint_dof_count, dtype=np.float32))
+start_q = [int(builder.joint_q_start[gen._joint_index(builder, j)]) for j in gen.JOINTS]
+q0 = state0.joint_q.numpy()[start_q].astype(float)
+for k in range(500):
+    q, qd = state0.joint_q.numpy()[start_q].astype(float), state0.joint_qd.numpy()[dofs].astype(float)
+    target = q0 + 0.6 * np.sin(2 * np.pi * 3 * k * DT)
+    force, want, _ = step(400.0 * (target - q) - 8.0 * qd, qd)
+    worst_roll = max(worst_roll, float(np.max(np.abs(force - want))))
 print(
     json.dumps(
         {
@@ -67,6 +82,7 @@ print(
             "actuators": len(rows),
             "max_difference": worst,
             "max_difference_law": worst_law,
+            "max_difference_rollout": worst_roll,
             "clipped": clipped / n,
             "finite": bool(np.all(np.isfinite(state0.joint_q.numpy()))),
         }
