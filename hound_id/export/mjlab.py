@@ -119,8 +119,8 @@ def _r(v: float) -> str:
     return repr(float(v))
 
 
-def mjlab_module(ex: Export, xml_name: str, bundle_name: str) -> str:
-    """The text of ``<robot>_mjlab.py``."""
+def mjlab_module(ex: Export, xml_name: str, bundle_name: str, stand: tuple[dict[str, float], float]) -> str:
+    """The text of ``<robot>_mjlab.py``; ``stand``: the joint positions and base height of :func:`stand_pose`."""
     b = ex.bundle
     coupled = coupled_motors(ex)
     A_inv = np.linalg.inv(ex.A)
@@ -185,6 +185,9 @@ def mjlab_module(ex: Export, xml_name: str, bundle_name: str) -> str:
         f"MOTORS = {[m.name for m in b.motors]!r}",
         f"COUPLED = {[m.name for k, m in enumerate(b.motors) if coupled[k]]!r}",
         f"NOT_HELD = {not_held(ex, 'dcmotor')!r}",
+        "#: A standing start: every joint at 0 clamped into its range, the base just above the ground [rad, m].",
+        f"STAND_JOINTS = {stand[0]!r}",
+        f"STAND_HEIGHT = {stand[1]!r}",
         "",
         "",
         "def _mode(uncoupled: str) -> str:",
@@ -250,14 +253,29 @@ def mjlab_module(ex: Export, xml_name: str, bundle_name: str) -> str:
         "",
         "",
         "def entity_cfg(stiffness: float = 0.0, damping: float = 0.0, *, uncoupled: str) -> EntityCfg:",
-        '    """The robot as an mjlab entity with its actuators (``dataclasses.replace`` it for an ``init_state``)."""',
+        '    """The robot as an mjlab entity with its actuators, starting from the STAND pose (``dataclasses.replace``',
+        '    it for another ``init_state``)."""',
         "    return EntityCfg(",
+        "        init_state=EntityCfg.InitialStateCfg(pos=(0.0, 0.0, STAND_HEIGHT), joint_pos=dict(STAND_JOINTS)),",
         "        spec_fn=spec,",
         "        articulation=EntityArticulationInfoCfg(actuators=actuators(stiffness, damping, uncoupled=uncoupled)),",
         "    )",
         "",
     ]
     return "\n".join(lines)
+
+
+def stand_pose(ex: Export) -> tuple[dict[str, float], float]:
+    """The MuJoCo export's ``stand`` keyframe as (joint positions by name, base height)."""
+    import mujoco
+
+    model = mujoco_spec(ex, "none", scene=True).compile()
+    qpos = model.key_qpos[0]
+    joints = {
+        j: float(qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]])
+        for j in ex.bundle.joints
+    }
+    return joints, float(qpos[2])
 
 
 def write_mjlab(ex: Export, out: Path) -> Written:
@@ -272,7 +290,7 @@ def write_mjlab(ex: Export, out: Path) -> Written:
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
     xml_path, module, bundle = out / f"{stem}_mjlab.xml", out / f"{stem}_mjlab.py", out / f"{stem}_bundle.json"
     io.write_text(xml_path, xml)
-    text = mjlab_module(ex, xml_path.name, bundle.name)
+    text = mjlab_module(ex, xml_path.name, bundle.name, stand_pose(ex))
     compile(text, str(module), "exec")  # what is written parses
     io.write_text(module, text)
     io.write_json(bundle, ex.bundle.to_dict())

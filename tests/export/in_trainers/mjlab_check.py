@@ -74,7 +74,9 @@ for _ in range(STATES):
     worst_law = max(worst_law, float(torch.max(torch.abs(got[:, :nv] - law)))) if nv else 0.0
     worst_dc = max(worst_dc, float(torch.max(torch.abs(got - want)[:, nv:]))) if dc_joints else 0.0
 # a PD-controlled rollout from rest (falling freely: no terrain), every step compared
-robot.write_joint_state_to_sim(torch.zeros_like(robot.data.joint_pos), torch.zeros_like(robot.data.joint_vel))
+robot.write_joint_state_to_sim(robot.data.default_joint_pos, torch.zeros_like(robot.data.joint_vel))
+stand = torch.tensor([gen.STAND_JOINTS[j] for j in names], dtype=torch.float64)
+assert torch.allclose(robot.data.default_joint_pos[0].double(), stand)  # entity_cfg starts from the stand pose
 q0 = robot.data.joint_pos.double().clone()
 for step in range(STEPS):
     q, qd = robot.data.joint_pos.double(), robot.data.joint_vel.double()
