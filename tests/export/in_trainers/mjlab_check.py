@@ -29,7 +29,7 @@ sat = hound_id.runtime.load(gen.BUNDLE, joint_names=robot.joint_names)
 tendons, motors = gen.voltage_motors(uncoupled=uncoupled)
 tendon_ids = robot.find_tendons(tendons, preserve_order=True)[0]
 names = list(robot.joint_names)
-dc_joints = [j for j in names if uncoupled == "dcmotor" and sat.motors[names.index(j)] not in gen.COUPLED]
+dc_joints = [j for j in names if uncoupled == "dcmotor" and gen.MOTORS[gen.JOINTS.index(j)] not in gen.COUPLED]
 dc_index = [names.index(j) for j in dc_joints]
 act = {n: mujoco.mj_name2id(sim.mj_model, mujoco.mjtObj.mjOBJ_ACTUATOR, f"robot/{n}") for n in tendons + dc_joints}
 assert min(act.values()) >= 0, act
