@@ -12,7 +12,13 @@ Single processes on this 2-core VM swing by up to +-40 % with memory layout and
 neighbours, so the script runs --processes fresh processes and reports the median
 ratio and the range.
 
+Besides the ratio to the per-joint clip it prints the ratio to the memory floor: one pass that
+reads both inputs and writes one output (``add(tau, qd, out=buf)``), the least traffic any clip
+needs. ``--envs 256,4096,65536`` (or ``--scaling``: 256 to 65,536) runs several batch sizes. With
+a CUDA device, torch is timed there too (synchronised around each call).
+
 Run: .venv/bin/python benchmarks/saturation.py [--envs 4096] [--processes 5] [--json]
+     .venv/bin/python benchmarks/saturation.py --scaling --json    # 256 ... 65,536 environments
      .venv/bin/python benchmarks/saturation.py --feasibility   # worst excess past the region, per dtype
 """
 
@@ -56,7 +62,8 @@ def pin_allocator() -> bool:
 
 def main() -> None:
     parser = argparse.ArgumentParser(description=__doc__.splitlines()[0])
-    parser.add_argument("--envs", type=int, default=4096)
+    parser.add_argument("--envs", default="4096", help="environments, or a comma-separated list of them")
+    parser.add_argument("--scaling", action="store_true", help="--envs 256,1024,4096,16384,65536")
     parser.add_argument("--repeats", type=int, default=1000)
     parser.add_argument("--json", action="store_true", help="print the figures as JSON")
     parser.add_argument("--raw-malloc", action="store_true", help="leave glibc's malloc thresholds alone")
@@ -73,6 +80,7 @@ def main() -> None:
     if not args.worker:
         return report(args)
     pinned = False if args.raw_malloc else pin_allocator()
+    envs = int(args.envs)
 
     robot = load_robot(ROBOT)
     sat = saturation_for(robot)
@@ -84,8 +92,8 @@ def main() -> None:
     eff_limit = np.array([r.torque_limit for r in regions]) * gear
 
     rng = np.random.default_rng(0)
-    tau = (rng.uniform(-1.3, 1.3, (args.envs, sat.n)) * eff_limit).astype(np.float32)
-    qd = (rng.uniform(-1.2, 1.2, (args.envs, sat.n)) * vel_limit).astype(np.float32)
+    tau = (rng.uniform(-1.3, 1.3, (envs, sat.n)) * eff_limit).astype(np.float32)
+    qd = (rng.uniform(-1.2, 1.2, (envs, sat.n)) * vel_limit).astype(np.float32)
     # The baseline holds its limits as full (envs, joints) arrays, as Isaac Lab does, with the
     # corner speed precomputed at start-up.
     vel_at_limit = vel_limit * (1.0 + eff_limit / sat_effort)
@@ -94,17 +102,33 @@ def main() -> None:
         for a in (sat_effort, vel_limit, eff_limit, vel_at_limit)
     ]
 
-    def timed(base, ours) -> tuple[float, float]:  # type: ignore[no-untyped-def]
-        """Best time per call of each, measured in alternating rounds so drift hits both alike."""
-        base(), ours()  # warm-up (caches, allocations)
-        best = [float("inf"), float("inf")]
-        for _ in range(max(3, args.repeats // 10)):
-            for i, fn in enumerate((base, ours)):
-                best[i] = min(best[i], timeit.timeit(fn, number=10) / 10)
-        return best[0], best[1]
+    # fewer rounds for big batches: each call is longer, and the total stays about the same
+    rounds = max(3, int(args.repeats * 4096 / max(envs, 4096)) // 10)
+
+    def timed(*fns, sync=None) -> list[float]:  # type: ignore[no-untyped-def]
+        """Best time per call of each, measured in alternating rounds so drift hits all alike."""
+        for fn in fns:  # warm-up (caches, allocations)
+            fn()
+        best = [float("inf")] * len(fns)
+
+        def call(fn):  # type: ignore[no-untyped-def]
+            def run() -> None:
+                fn()
+                if sync is not None:
+                    sync()
+
+            return run
+
+        for _ in range(rounds):
+            for i, fn in enumerate(fns):
+                best[i] = min(best[i], timeit.timeit(call(fn), number=10) / 10)
+        return best
 
     results = {}
-    results["numpy"] = timed(lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd))
+    buf = np.empty_like(tau)
+    results["numpy"] = timed(
+        lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd), lambda: np.add(tau, qd, out=buf)
+    )
 
     import importlib.util
 
@@ -112,13 +136,28 @@ def main() -> None:
         import torch
 
         torch.set_num_threads(1)
-        tt, tq = torch.from_numpy(tau), torch.from_numpy(qd)
-        tc = [torch.from_numpy(c) for c in consts32]
-        results["torch-cpu"] = timed(lambda: dc_motor_clip(tt, tq, *tc), lambda: sat(tt, tq))
+        devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
+        for device in devices:
+            tt, tq = torch.from_numpy(tau).to(device), torch.from_numpy(qd).to(device)
+            tc = [torch.from_numpy(c).to(device) for c in consts32]
+            tb = torch.empty_like(tt)
+            results[f"torch-{device}"] = timed(
+                lambda: dc_motor_clip(tt, tq, *tc),  # noqa: B023 (timed here, in this iteration)
+                lambda: sat(tt, tq),  # noqa: B023
+                lambda: torch.add(tt, tq, out=tb),  # noqa: B023
+                sync=torch.cuda.synchronize if device == "cuda" else None,
+            )
 
     figures = {
-        k: {"per_joint_clip_us": b * 1e6, "coupled_mor_clip_us": o * 1e6, "ratio": o / b}
-        for k, (b, o) in results.items()
+        k: {
+            "per_joint_clip_us": b * 1e6,
+            "coupled_mor_clip_us": o * 1e6,
+            "memory_floor_us": f * 1e6,
+            "ratio": o / b,
+            "ratio_to_floor": o / f,
+            "per_joint_ratio_to_floor": b / f,
+        }
+        for k, (b, o, f) in results.items()
     }
     print(json.dumps({"allocator_pinned": pinned, "joints": sat.n, "results": figures}))
 
@@ -167,52 +206,65 @@ def feasibility(args: argparse.Namespace) -> None:
         print(f"  {key:28s} {r['worst_excess_over_limit']:.2e}  finite: {r['finite']}")
 
 
+#: ``--scaling``: the batch sizes, 256 to 65,536 environments.
+SCALING = (256, 1024, 4096, 16384, 65536)
+#: The issue's target for the ratio to the per-joint clip.
+TARGET_RATIO = 1.0
+
+
 def report(args: argparse.Namespace) -> None:
-    """Run the workers and print the median ratio per backend."""
-    cmd = [sys.executable, __file__, "--worker", "--envs", str(args.envs), "--repeats", str(args.repeats)]
-    if args.raw_malloc:
-        cmd.append("--raw-malloc")
-    runs = [
-        json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
-        for _ in range(args.processes)
-    ]
-    summary = {}
-    for backend in runs[0]["results"]:
-        rows = [r["results"][backend] for r in runs]
-        ratios = [r["ratio"] for r in rows]
-        summary[backend] = {
-            "ratio_median": statistics.median(ratios),
-            "ratio_min": min(ratios),
-            "ratio_max": max(ratios),
-            "per_joint_clip_us_median": statistics.median(r["per_joint_clip_us"] for r in rows),
-            "coupled_mor_clip_us_median": statistics.median(r["coupled_mor_clip_us"] for r in rows),
-        }
+    """Run the workers for each batch size and print the median ratios per backend (JSON with --json)."""
+    sizes = SCALING if args.scaling else tuple(int(e) for e in str(args.envs).split(","))
+    table = []
+    for envs in sizes:
+        cmd = [sys.executable, __file__, "--worker", "--envs", str(envs), "--repeats", str(args.repeats)]
+        if args.raw_malloc:
+            cmd.append("--raw-malloc")
+        runs = [
+            json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
+            for _ in range(args.processes)
+        ]
+        summary = {}
+        for backend in runs[0]["results"]:
+            rows = [r["results"][backend] for r in runs]
+            ratios = [r["ratio"] for r in rows]
+            summary[backend] = {
+                "ratio_median": statistics.median(ratios),
+                "ratio_min": min(ratios),
+                "ratio_max": max(ratios),
+                "ratio_to_floor_median": statistics.median(r["ratio_to_floor"] for r in rows),
+                "per_joint_ratio_to_floor_median": statistics.median(r["per_joint_ratio_to_floor"] for r in rows),
+                "per_joint_clip_us_median": statistics.median(r["per_joint_clip_us"] for r in rows),
+                "coupled_mor_clip_us_median": statistics.median(r["coupled_mor_clip_us"] for r in rows),
+                "memory_floor_us_median": statistics.median(r["memory_floor_us"] for r in rows),
+            }
+        table.append({"envs": envs, "results": summary, "allocator_pinned": runs[0]["allocator_pinned"]})
     if args.json:
         print(
             json.dumps(
                 {
-                    "schema": "hound-id/bench-saturation/1",
-                    "envs": args.envs,
-                    "joints": runs[0]["joints"],
+                    "schema": "hound-id/bench-saturation/2",
+                    "joints": 12,
                     "processes": args.processes,
-                    "allocator_pinned": runs[0]["allocator_pinned"],
-                    "target_ratio": 1.5,
-                    "results": summary,
+                    "target_ratio": TARGET_RATIO,
+                    "sizes": table,
                 },
                 indent=2,
             )
         )
         return
     print(
-        f"saturation of {args.envs} envs x {runs[0]['joints']} joints, median of {args.processes} processes "
-        f"(target ratio <= 1.5); malloc thresholds {'pinned' if runs[0]['allocator_pinned'] else 'default'}"
+        f"saturation of envs x 12 joints, median of {args.processes} processes (target ratio <= {TARGET_RATIO}); "
+        f"malloc thresholds {'pinned' if table[0]['allocator_pinned'] else 'default'}; floor = one add(tau, qd)"
     )
-    for backend, f in summary.items():
-        print(
-            f"  {backend:10s} per-joint DC clip {f['per_joint_clip_us_median']:7.1f} us   coupled MOR clip "
-            f"{f['coupled_mor_clip_us_median']:7.1f} us   ratio {f['ratio_median']:.2f} "
-            f"(range {f['ratio_min']:.2f}-{f['ratio_max']:.2f})"
-        )
+    for row in table:
+        for backend, f in row["results"].items():
+            print(
+                f"  {row['envs']:6d} {backend:11s} per-joint {f['per_joint_clip_us_median']:8.1f} us  coupled "
+                f"{f['coupled_mor_clip_us_median']:8.1f} us  floor {f['memory_floor_us_median']:7.1f} us  ratio "
+                f"{f['ratio_median']:.2f} ({f['ratio_min']:.2f}-{f['ratio_max']:.2f})  to floor: coupled "
+                f"{f['ratio_to_floor_median']:.1f}, per-joint {f['per_joint_ratio_to_floor_median']:.1f}"
+            )
 
 
 if __name__ == "__main__":
