@@ -52,6 +52,9 @@ def formats_from(text: str) -> list[str]:
     return names
 
 
+#: Formats built from the robot's URDF.
+URDF_FORMATS = ("mjlab", "mujoco", "newton", "urdf", "urdf-open")
+
 #: MuJoCo actuators of the export: the voltage-input dcmotor (MuJoCo 3.x and 4.x), the torque feed-forward dcmotor
 #: (MuJoCo >= 4.0) and plain motors saturated by the runtime.
 MUJOCO_ACTUATORS = ("dcmotor", "dcmotor-ff", "motor")
@@ -94,10 +97,18 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
     """
     if out.exists() and not out.is_dir():
         raise SpecError(f"--out {out}: is a file; give a folder")
-    if any(f in ("mjlab", "mujoco", "newton", "urdf", "urdf-open") for f in formats):
+    if any(f in URDF_FORMATS for f in formats):
         ex.urdf()  # fail before writing anything
     with io.staged_folder(out) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}
+    unlisted = ex.unlisted_joints() if any(f in URDF_FORMATS for f in formats) else []
+    if unlisted:  # the robot file covers part of the URDF: say what the rest gets
+        note = (
+            f"the URDF's joints {', '.join(unlisted)} are not in robot {ex.robot.name}'s file: they keep the URDF's "
+            "own limits and get no armature, friction or actuator from hound-id; add their transmissions to the "
+            "robot file to export them"
+        )
+        written = {n: (replace(w, notes=(*w.notes, note)) if n in URDF_FORMATS else w) for n, w in written.items()}
     fitted = sorted({m.spec for m in ex.bundle.motors if m.fitted})
 
     def final(path: str) -> str:

@@ -60,6 +60,19 @@ class Export:
             self._gaps[id(spec)] = straight_gap(operating_region(spec))
         return self._gaps[id(spec)]
 
+    def unlisted_joints(self) -> list[str]:
+        """The URDF's movable joints (revolute, continuous, prismatic) that the robot file does not list: a simulator
+        loads them with the URDF's own limits and no armature or actuator from hound-id."""
+        from hound_id.foot.urdf import parse_urdf
+
+        listed = set(self.bundle.joints)
+        movable = ("revolute", "continuous", "prismatic")
+        return [
+            str(j.get("name"))
+            for j in parse_urdf(self.urdf()).iter("joint")
+            if j.get("type") in movable and j.get("name") not in listed
+        ]
+
     def urdf(self) -> Path:
         """The robot's URDF, or SpecError saying how to give one."""
         if self.robot.urdf is None:

@@ -332,3 +332,25 @@ def test_a_rated_speed_is_named_as_a_cause_of_the_straight_line_gap(tmp_path):
     assert "rated speed cuts them" in haa["reason"] and "current-torque curve" in haa["reason"]
     module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
     assert "a rated-speed cut-off, braking only above max_speed (motors FL_HAA_motor" in module
+
+
+def test_a_robot_file_covering_part_of_the_urdf_says_what_the_other_joints_get(tmp_path):
+    """One leg of the sample URDF in the robot file: the URDF-based formats say the other nine joints keep the URDF's
+    limits and get nothing from hound-id; the bundle, which does not use the URDF, says nothing (the review's case)."""
+    from tests.conftest import SAMPLES
+
+    text = (SAMPLES / "robots" / "hound_like.yaml").read_text()
+    text = text.replace("../motors/hound_ilm85.yaml", str(MOTOR))
+    text = text.replace("urdf: hound_like.urdf", f"urdf: {SAMPLES / 'robots' / 'hound_like.urdf'}")
+    keep = [line for line in text.splitlines() if not any(f"[{leg}_" in line for leg in ("FR", "RL", "RR"))]
+    text = "\n".join(keep).replace(
+        "joints: [FL_HAA, FL_HFE, FL_KFE, FR_HAA, FR_HFE, FR_KFE, RL_HAA, RL_HFE, RL_KFE, RR_HAA, RR_HFE, RR_KFE]",
+        "joints: [FL_HAA, FL_HFE, FL_KFE]",
+    )
+    (tmp_path / "oneleg.yaml").write_text(text)
+    report = export_robot(prepare(tmp_path / "oneleg.yaml", []), formats_from("bundle,mjlab,urdf"), tmp_path / "out")
+    for name in ("mjlab", "urdf"):
+        notes = " ".join(report["formats"][name]["notes"])
+        assert "the URDF's joints FR_HAA, FR_HFE, FR_KFE, RL_HAA" in notes and "keep the URDF's own limits" in notes
+    assert not any("URDF's joints" in n for n in report["formats"]["bundle"]["notes"])
+    assert report["joints"] == ["FL_HAA", "FL_HFE", "FL_KFE"]
