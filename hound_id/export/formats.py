@@ -33,15 +33,11 @@ from hound_id.export.urdf import write_urdf, write_urdf_open
 ISAACLAB_SCHEMA = "hound-id/isaaclab/2"
 
 
-def _stem(ex: Export) -> str:
-    return io.file_stem(ex.robot.name, "robot field 'name'")  # a Robot built in code is checked here too
-
-
 def write_bundle(ex: Export, out: Path) -> Written:
     """``<robot>_bundle.yaml`` and the same content as ``<robot>_bundle.json``."""
     import yaml
 
-    y, j = out / f"{_stem(ex)}_bundle.yaml", out / f"{_stem(ex)}_bundle.json"
+    y, j = out / f"{ex.stem}_bundle.yaml", out / f"{ex.stem}_bundle.json"
     content = ex.bundle.to_dict()
     io.write_text(y, yaml.safe_dump(content, sort_keys=False))
     io.write_json(j, content)
@@ -190,7 +186,7 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
     import yaml
 
     data = isaaclab_fields(ex)
-    path = out / f"{_stem(ex)}_isaaclab.yaml"
+    path = out / f"{ex.stem}_isaaclab.yaml"
     io.write_text(path, yaml.safe_dump(data, sort_keys=False))
     coupled = [j for j, v in data["joints"].items() if v["coupled"]]
     straight = [j for j, v in data["joints"].items() if not v["coupled"] and v.get("use")]

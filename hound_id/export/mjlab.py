@@ -283,7 +283,7 @@ def write_mjlab(ex: Export, out: Path) -> Written:
     ``<robot>_bundle.json`` (for ``hound_id.runtime``)."""
     import mujoco
 
-    stem = io.file_stem(ex.robot.name, "robot field name")
+    stem = ex.stem
     spec = mujoco_spec(ex, "none", scene=False)
     spec.compile()
     xml = full_precision(spec.to_xml(), ex)

@@ -172,7 +172,7 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     spec.compile()
     xml = full_precision(spec.to_xml(), ex)
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
-    path = out / f"{io.file_stem(ex.robot.name, 'robot field name')}.xml"
+    path = out / f"{ex.stem}.xml"
     io.write_text(path, xml)
     curved = [m.name for m in ex.bundle.motors if m.envelope]
     notes: tuple[str, ...] = ()

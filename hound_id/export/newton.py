@@ -144,7 +144,7 @@ def newton_module(ex: Export, urdf_name: str, bundle_name: str) -> str:
 def write_newton(ex: Export, out: Path) -> Written:
     """``<robot>_newton.urdf`` (open limits, no joint friction, the optimised foot), ``<robot>_newton.py`` (the
     tendons and dcmotors) and ``<robot>_bundle.json`` (for ``hound_id.runtime``)."""
-    stem = io.file_stem(ex.robot.name, "robot field name")
+    stem = ex.stem
     urdf, module, bundle = out / f"{stem}_newton.urdf", out / f"{stem}_newton.py", out / f"{stem}_bundle.json"
     io.write_text(urdf, limited_urdf(ex, out, limits="open", friction=False))
     text = newton_module(ex, urdf.name, bundle.name)

@@ -17,6 +17,7 @@ from typing import Any
 
 import numpy as np
 
+from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import Bundle
 from hound_id.mor.robot import Robot
@@ -59,6 +60,11 @@ class Export:
         if id(spec) not in self._gaps:  # motors sharing a spec share its gap
             self._gaps[id(spec)] = straight_gap(operating_region(spec))
         return self._gaps[id(spec)]
+
+    @property
+    def stem(self) -> str:
+        """The robot's name as the stem of every file a format writes (checked: a Robot built in code too)."""
+        return io.file_stem(self.robot.name, "robot field 'name'")
 
     def unlisted_joints(self) -> list[str]:
         """The URDF's movable joints (revolute, continuous, prismatic) that the robot file does not list: a simulator

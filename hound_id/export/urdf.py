@@ -16,10 +16,6 @@ from hound_id.export.target import Export, Written, group_inertia, put_feet
 ARMATURE_SCHEMA = "hound-id/armature/1"
 
 
-def _stem(ex: Export) -> str:
-    return io.file_stem(ex.robot.name, "robot field 'name'")
-
-
 def _fmt(v: float) -> str:
     return f"{v:.9g}"
 
@@ -97,7 +93,7 @@ def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner", fricti
 
 def write_urdf(ex: Export, out: Path) -> Written:
     """``<robot>_limits.urdf``: :func:`limited_urdf`."""
-    path = out / f"{_stem(ex)}_limits.urdf"
+    path = out / f"{ex.stem}_limits.urdf"
     io.write_text(path, limited_urdf(ex, out))
     notes = ["effort/velocity limits are the inner boxes (always feasible); coupled joints get the group's box"]
     return Written((str(path),), tuple(notes))
@@ -117,7 +113,7 @@ def write_urdf_open(ex: Export, out: Path) -> Written:
     the reflected rotor inertia, with each coupled group's full matrix and what a per-joint armature drops."""
     import yaml
 
-    urdf = out / f"{_stem(ex)}_open_limits.urdf"
+    urdf = out / f"{ex.stem}_open_limits.urdf"
     io.write_text(urdf, limited_urdf(ex, out, limits="open"))
     reflected = ex.bundle.reflected_inertia
     sidecar: dict[str, Any] = {
@@ -139,7 +135,7 @@ def write_urdf_open(ex: Export, out: Path) -> Written:
                 sidecar["groups"].append(group_inertia(M[np.ix_(idx, idx)], list(tx["joints"])))
     else:
         sidecar["reason"] += "; a motor's rotor inertia is unknown, so none is given"
-    side = out / f"{_stem(ex)}_armature.yaml"
+    side = out / f"{ex.stem}_armature.yaml"
     io.write_text(side, yaml.safe_dump(sidecar, sort_keys=False))
     notes = (
         f"effort/velocity limits are open (what the runtime returns up to {OPEN_REACH:g} x overspeed): apply "
