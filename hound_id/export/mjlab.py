@@ -36,14 +36,9 @@ MJLAB_VERSION = "1.6.0"
 
 
 def coupled_motors(ex: Export) -> list[bool]:
-    """Per motor (bundle order): whether its transmission couples joints (A has off-diagonal terms)."""
-    out = {}
-    for tx in ex.bundle.transmissions:
-        A = np.asarray(tx["A"], dtype=float)
-        coupled = bool(np.any(A[~np.eye(len(A), dtype=bool)] != 0))
-        for m in tx["motors"]:
-            out[m] = coupled
-    return [out[m.name] for m in ex.bundle.motors]
+    """Per motor (bundle order): whether its transmission couples joints (:attr:`Transmission.coupled`)."""
+    coupled = {m: tx.coupled for tx in ex.robot.transmissions for m in tx.motors}
+    return [coupled[m.name] for m in ex.bundle.motors]
 
 
 def not_held(ex: Export, uncoupled: str) -> list[str]:
