@@ -28,7 +28,7 @@ from typing import Any
 import numpy as np
 
 from hound_id import __version__, io
-from hound_id.export.mujoco import full_precision, mujoco_spec
+from hound_id.export.mujoco import full_precision, mujoco_spec, stand_qpos
 from hound_id.export.target import Export, Written
 
 #: mjlab release the generated module is written for and tested with.
@@ -260,12 +260,12 @@ def mjlab_module(ex: Export, xml_name: str, bundle_name: str, stand: tuple[dict[
     return "\n".join(lines)
 
 
-def stand_pose(ex: Export) -> tuple[dict[str, float], float]:
-    """The MuJoCo export's ``stand`` keyframe as (joint positions by name, base height)."""
+def stand_pose(ex: Export, model: Any) -> tuple[dict[str, float], float]:
+    """The standing start of the compiled robot ``model`` (:func:`hound_id.export.mujoco.stand_qpos`) as (joint
+    positions by name, base height)."""
     import mujoco
 
-    model = mujoco_spec(ex, "none", scene=True).compile()
-    qpos = model.key_qpos[0]
+    qpos = stand_qpos(model)
     joints = {
         j: float(qpos[model.jnt_qposadr[mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_JOINT, j)]])
         for j in ex.bundle.joints
@@ -280,12 +280,12 @@ def write_mjlab(ex: Export, out: Path) -> Written:
 
     stem = ex.stem
     spec = mujoco_spec(ex, "none", scene=False)
-    spec.compile()
+    model = spec.compile()
     xml = full_precision(spec.to_xml(), ex)
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
     xml_path, module, bundle = out / f"{stem}_mjlab.xml", out / f"{stem}_mjlab.py", out / f"{stem}_bundle.json"
     io.write_text(xml_path, xml)
-    text = mjlab_module(ex, xml_path.name, bundle.name, stand_pose(ex))
+    text = mjlab_module(ex, xml_path.name, bundle.name, stand_pose(ex, model))
     compile(text, str(module), "exec")  # what is written parses
     io.write_text(module, text)
     io.write_json(bundle, ex.bundle.to_dict())

@@ -145,10 +145,15 @@ def mujoco_spec(ex: Export, actuator: str = "dcmotor", scene: bool = True) -> An
 
 
 def _stand_key(spec: Any) -> None:
-    """A keyframe ``stand``: joints at 0 clamped to their ranges, the base just above the floor."""
+    """A keyframe ``stand``: :func:`stand_qpos`."""
+    spec.add_key(name="stand", qpos=stand_qpos(spec.compile()).tolist())
+
+
+def stand_qpos(model: Any) -> Any:
+    """A standing start of a compiled model whose first joint is the floating base: joints at 0 clamped to their
+    ranges, the base just above the floor (the lowest geom other than ``floor`` 5 mm above z = 0)."""
     import mujoco
 
-    model = spec.compile()
     data = mujoco.MjData(model)
     qpos = model.qpos0.copy()
     qpos[2] = 1.0
@@ -161,7 +166,7 @@ def _stand_key(spec: Any) -> None:
     floor = mujoco.mj_name2id(model, mujoco.mjtObj.mjOBJ_GEOM, "floor")
     lowest = min(data.geom_xpos[g, 2] - model.geom_rbound[g] for g in range(model.ngeom) if g != floor)
     qpos[2] = 1.0 - lowest + 0.005
-    spec.add_key(name="stand", qpos=qpos.tolist())
+    return qpos
 
 
 def write_mujoco(ex: Export, out: Path) -> Written:
