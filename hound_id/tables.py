@@ -194,7 +194,10 @@ def _read_numeric_csv(path: Path) -> pd.DataFrame | None:
     numeric = all(pa.types.is_integer(t) or pa.types.is_floating(t) for t in table.schema.types)
     if not numeric or len(set(names)) != len(names) or not all(n.strip() for n in names):
         return None
-    return table.to_pandas()
+    frame = table.to_pandas(split_blocks=True, self_destruct=True)
+    del table
+    pa.default_memory_pool().release_unused()  # the reader's buffers: hand them back rather than keep them pooled
+    return frame
 
 
 def _count(n: int, word: str) -> str:
