@@ -26,6 +26,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import statistics
 import subprocess
 import sys
@@ -34,6 +35,7 @@ from pathlib import Path
 
 import numpy as np
 
+from hound_id.mor import fused
 from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import dc_motor_clip, saturation_for
@@ -126,9 +128,16 @@ def main() -> None:
 
     results = {}
     buf = np.empty_like(tau)
+    fused_on = fused.available()
     results["numpy"] = timed(
         lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd), lambda: np.add(tau, qd, out=buf)
     )
+    if fused_on:  # the same clip with numpy's steps (one pass each), as without numba
+        os.environ[fused.ENV] = "0"
+        results["numpy-steps"] = timed(
+            lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd), lambda: np.add(tau, qd, out=buf)
+        )
+        os.environ[fused.ENV] = "1"
 
     import importlib.util
 
@@ -159,7 +168,7 @@ def main() -> None:
         }
         for k, (b, o, f) in results.items()
     }
-    print(json.dumps({"allocator_pinned": pinned, "joints": sat.n, "results": figures}))
+    print(json.dumps({"allocator_pinned": pinned, "joints": sat.n, "fused": fused_on, "results": figures}))
 
 
 def feasibility(args: argparse.Namespace) -> None:
@@ -238,12 +247,13 @@ def report(args: argparse.Namespace) -> None:
                 "coupled_mor_clip_us_median": statistics.median(r["coupled_mor_clip_us"] for r in rows),
                 "memory_floor_us_median": statistics.median(r["memory_floor_us"] for r in rows),
             }
-        table.append({"envs": envs, "results": summary, "allocator_pinned": runs[0]["allocator_pinned"]})
+        flags = {k: runs[0][k] for k in ("allocator_pinned", "fused")}
+        table.append({"envs": envs, "results": summary, **flags})
     if args.json:
         print(
             json.dumps(
                 {
-                    "schema": "hound-id/bench-saturation/2",
+                    "schema": "hound-id/bench-saturation/3",
                     "joints": 12,
                     "processes": args.processes,
                     "target_ratio": TARGET_RATIO,
@@ -255,7 +265,8 @@ def report(args: argparse.Namespace) -> None:
         return
     print(
         f"saturation of envs x 12 joints, median of {args.processes} processes (target ratio <= {TARGET_RATIO}); "
-        f"malloc thresholds {'pinned' if table[0]['allocator_pinned'] else 'default'}; floor = one add(tau, qd)"
+        f"malloc thresholds {'pinned' if table[0]['allocator_pinned'] else 'default'}; floor = one add(tau, qd); "
+        + ("numpy and torch-cpu fused (numba), numpy-steps without" if table[0]["fused"] else "numba absent: no fusion")
     )
     for row in table:
         for backend, f in row["results"].items():

@@ -14,7 +14,8 @@ torch, when given tensors) are imported, besides the standard library: of hound-
 (with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs,
 :mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse :meth:`Runtime.current` gives,
 and :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
-(:meth:`Runtime.clip_turn`).
+(:meth:`Runtime.clip_turn`). With numba installed (``hound-id[fast]``) the first clip of an ordinary batch imports
+it for the fused loop of :mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
 A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
 imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
 """

@@ -24,6 +24,7 @@ RUNTIME_IMPORTS = {
     "hound_id.io",
     "hound_id.mor.clip_turn",
     "hound_id.mor.current_curve",
+    "hound_id.mor.fused",
     "hound_id.mor.saturation",
 }
 #: hound_id modules ``import hound_id.runtime`` loads (its module-level imports, followed through every module).
@@ -34,6 +35,7 @@ RUNTIME_LOADS = {
     "hound_id.mor",
     "hound_id.mor.clip_turn",
     "hound_id.mor.current_curve",
+    "hound_id.mor.fused",
     "hound_id.mor.region",
     "hound_id.mor.saturation",
     "hound_id.runtime",

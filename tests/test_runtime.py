@@ -1,5 +1,6 @@
 """hound_id.runtime: the trainer-side clip, friction and current compensation, numpy and torch."""
 
+import os
 import re
 import subprocess
 import sys
@@ -141,10 +142,26 @@ def test_runtime_imports_numpy_and_its_own_modules_only(fitted, tmp_path):
         "print(json.dumps({'libraries': sorted({m.split('.')[0] for m in new} - set(sys.stdlib_module_names)), "
         "'hound_id': sorted(m for m in new if m.split('.')[0] == 'hound_id')}))"
     )
-    out = subprocess.run([sys.executable, "-c", code, str(path)], capture_output=True, text=True, check=True).stdout
-    loaded = json.loads(out)
+
+    def run(fused: str, script: str = code) -> dict:
+        env = {**os.environ, "HOUND_ID_FUSED": fused}
+        out = subprocess.run(
+            [sys.executable, "-c", script, str(path)], capture_output=True, text=True, check=True, env=env
+        )
+        return json.loads(out.stdout)  # type: ignore[no-any-return]
+
+    loaded = run("0")
     assert loaded["libraries"] == ["hound_id", "numpy"]
     assert set(loaded["hound_id"]) == RUNTIME_LOADS
+    # with numba installed (hound-id[fast]) the clip's fused loop adds numba and what numba itself imports
+    fused = run("1")
+    numba_alone = run(
+        "1",
+        code.replace("import hound_id.runtime\n", "import numba\n").split("sat = ")[0] + code[code.index("new = ") :],
+    )
+    assert set(fused["libraries"]) == {"hound_id", "numpy"} | set(numba_alone["libraries"])
+    assert "numba" in fused["libraries"]
+    assert set(fused["hound_id"]) == RUNTIME_LOADS
 
 
 def readme_example(tag: str) -> str:

@@ -38,6 +38,9 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
 from hound_id.mor.clip_turn import CLIP_TOLERANCE, ClipTurn, TurnTally
+from hound_id.mor.fused import available as fused_available
+from hound_id.mor.fused import clip_correction
+from hound_id.mor.fused import within as fused_within
 from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_region
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
@@ -130,6 +133,18 @@ def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
         return tau.numpy(), qd.numpy()
     except (RuntimeError, TypeError):  # e.g. a tensor with its negative or conjugate bit set
         return None
+
+
+def _fusable(tau: NDArray[Any], qd: NDArray[Any]) -> bool:
+    """Whether the fused loops take this call: numba present and both inputs C-contiguous float arrays of one
+    dtype (the workspace and constants are then too)."""
+    return (
+        tau.dtype == qd.dtype
+        and tau.dtype in (np.float32, np.float64)
+        and tau.flags.c_contiguous
+        and qd.flags.c_contiguous
+        and fused_available()
+    )
 
 
 def _within(x: NDArray[Any], bound: float) -> bool:
@@ -509,11 +524,13 @@ class Saturation:
             import torch
 
             return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0])))
-        if not (_within(tau, c.ordinary) and _within(qd, c.qd_cap)):
+        fused = _fusable(tau, qd)
+        within = fused_within if fused else _within
+        if not (within(tau, c.ordinary) and within(qd, c.qd_cap)):
             return self._saturate_numpy(tau, qd, consts)
-        return self._saturate_ordinary(tau, qd, consts)
+        return self._saturate_ordinary(tau, qd, consts, fused)
 
-    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants, fused: bool = False) -> Any:
         """Clip, then add the clip's correction mapped back: tau + A^-T (clip(tau_m) - tau_m).
 
         The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
@@ -522,11 +539,17 @@ class Saturation:
 
         The interval is :func:`hound_id.mor.region.torque_interval`'s: the current window the bus allows cut to the
         driver's limit (past overspeed, the braking torque the back-EMF forces), through the current-torque curve.
+        With ``fused`` its elementwise steps run as one loop (:mod:`hound_id.mor.fused`), with the same result.
         """
         c = consts
         u, v, tau_m, _, _, w = self._workspace(tau)
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
+        if fused:
+            clip_correction(tau_m, u, qd @ c.A_inv.T if c.has_max_speed else None, c, v)
+            out = np.matmul(v, c.A_inv)
+            out += tau
+            return out
         lo, hi = _np_bounds(c, u, v, w)  # lo is v
         _np_clip(tau_m, lo, hi, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
