@@ -101,7 +101,10 @@ def bus_voltage(v0: float, r_x: Array | float, power: Array) -> Array:
     power, P < 0, raises it). Past the most the source can deliver, v0^2 / (4 r_x), no voltage is: -v0 (infeasible).
     """
     disc = v0 * v0 - 4.0 * np.asarray(r_x) * power
-    return np.asarray(np.where(disc >= 0.0, 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0))), -v0), dtype=float)
+    high = 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0)))
+    if np.all(disc >= 0.0):  # the usual case: the select below costs more than the rest
+        return np.asarray(high, dtype=float)
+    return np.asarray(np.where(disc >= 0.0, high, -v0), dtype=float)
 
 
 def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
@@ -111,26 +114,86 @@ def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
     return np.asarray(linear + scale * (inputs.curve.current(tau) - linear), dtype=float)
 
 
+@dataclass(frozen=True)
+class _Voltage:
+    """The voltage condition at each speed, V_avail - |V_req| >= 0 (module docstring), with what does not depend on
+    the torque worked out once. Per-speed values are arrays, or floats where every speed shares them."""
+
+    inputs: EnvelopeInputs
+    resistance: Array | float
+    """Winding resistance [ohm]."""
+    back_emf: Array
+    """omega / Kv [V]."""
+    quadrature: Array | None
+    """p omega L [ohm]: the quadrature voltage per ampere (None without inductance)."""
+    scale: float
+    """``kt_saturation``'s share of the current-torque curve's departure from tau / Kt [-]."""
+    sag: float
+    """R_pack [ohm] (motoring)."""
+    rise: float
+    """R_regen [ohm] (regenerating)."""
+
+    @classmethod
+    def of(cls, omega: Array, p: Mapping[str, float], inputs: EnvelopeInputs) -> _Voltage:
+        spec = inputs.spec
+        resistance: Array | float = spec.resistance
+        if "thermal_resistance" in p and inputs.temperature is not None:
+            temperature = np.broadcast_to(inputs.temperature, omega.shape)
+            resistance = spec.resistance * (1.0 + p["thermal_resistance"] * (temperature - T_SPEC))
+        inductance = p.get("inductance", 0.0)
+        quadrature = (spec.pole_pairs or 0) * omega * inductance if inductance > 0.0 else None
+        sag, rise = p.get("bus_sag", 0.0), p.get("regen_rise", 0.0)
+        return cls(inputs, resistance, omega / spec.kv, quadrature, p.get("kt_saturation", 0.0), sag, rise)
+
+    def take(self, idx: NDArray[np.int64] | NDArray[np.bool_]) -> _Voltage:
+        """The condition at the speeds ``idx`` (indices or a mask)."""
+        r = self.resistance if isinstance(self.resistance, float) else self.resistance[idx]
+        q = None if self.quadrature is None else self.quadrature[idx]
+        return _Voltage(self.inputs, r, self.back_emf[idx], q, self.scale, self.sag, self.rise)
+
+    def current(self, tau: Array) -> Array:
+        """Motor current [A] for each torque [N m]."""
+        return motor_current(tau, self.inputs, self.scale)
+
+    def margin(self, tau: Array, i: Array | None = None) -> Array:
+        """V_avail - |V_req| [V] at each speed's torque ``tau`` [N m] (current ``i`` [A] if known): feasible where
+        >= 0."""
+        i = self.current(tau) if i is None else i
+        v_q = self.resistance * i + self.back_emf
+        power = v_q * i  # the quadrature part carries no power
+        v0 = self.inputs.spec.bus_voltage
+        if self.sag == self.rise == 0.0:
+            # a stiff bus: 0 P is 0 at every finite power (an infinite current, past the current curve's top, makes
+            # the margin -inf either way), so every speed has the same voltage
+            v_avail: Array | float = float(bus_voltage(v0, 0.0, np.zeros(1))[0])
+        else:
+            r_x = self.sag if self.sag == self.rise else np.where(power > 0.0, self.sag, self.rise)
+            v_avail = bus_voltage(v0, r_x, power)
+        v_req = np.abs(v_q) if self.quadrature is None else np.hypot(v_q, self.quadrature * i)
+        return np.asarray(v_avail - v_req)
+
+
 def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: EnvelopeInputs) -> NDArray[np.bool_]:
     """Whether each (tau, omega) [N m, rad/s] satisfies every condition (module docstring)."""
-    spec = inputs.spec
     p = _checked(params, inputs)
-    i = motor_current(tau, inputs, p.get("kt_saturation", 0.0))
-    resistance = spec.resistance * np.ones_like(omega)
-    if "thermal_resistance" in p and inputs.temperature is not None:
-        resistance = resistance * (1.0 + p["thermal_resistance"] * (inputs.temperature - T_SPEC))
-    v_q = resistance * i + omega / spec.kv
-    v_req = v_q
-    if p.get("inductance", 0.0) > 0.0:
-        v_req = np.hypot(v_q, (spec.pole_pairs or 0) * omega * p["inductance"] * i)
-    power = v_q * i  # the quadrature part carries no power
-    r_x = np.where(power > 0.0, p.get("bus_sag", 0.0), p.get("regen_rise", 0.0))
-    v_avail = bus_voltage(spec.bus_voltage, r_x, power)
-    i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
-    ok = (np.abs(v_req) <= v_avail) & (np.abs(i) <= i_limit) & (np.abs(tau) <= spec.linear_torque_limit)
+    tau, omega = np.broadcast_arrays(np.asarray(tau, dtype=float), np.asarray(omega, dtype=float))
+    volts = _Voltage.of(omega, p, inputs)
+    i = volts.current(tau)
+    return _feasible(tau, i, volts.margin(tau, i), omega, _current_limit(p, inputs), inputs.spec)
+
+
+def _feasible(tau: Array, i: Array, margin: Array, omega: Array, i_limit: float, spec: MotorSpec) -> NDArray[np.bool_]:
+    """Whether each torque ``tau`` [N m], with its current ``i`` [A] and voltage margin [V], at ``omega`` [rad/s]
+    satisfies every condition."""
+    ok = (margin >= 0.0) & (np.abs(i) <= i_limit) & (np.abs(tau) <= spec.linear_torque_limit)
     if spec.max_speed is not None:  # past the rated speed only braking passes, as in the region
         ok &= ~((np.abs(omega) > spec.max_speed) & (tau * omega > 0))
     return np.asarray(ok)
+
+
+def _current_limit(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
+    """The driver's current limit [A]: the spec's, or the ``current_limit`` effect's below it."""
+    return float(min(inputs.spec.max_current or np.inf, p.get("current_limit", np.inf)))
 
 
 def envelope(omega: ArrayLike, params: Mapping[str, float], inputs: EnvelopeInputs) -> tuple[Array, Array]:
@@ -156,47 +219,64 @@ def edge(omega: ArrayLike, side: int, params: Mapping[str, float], inputs: Envel
     p = _checked(params, inputs)
     w = np.asarray(omega, dtype=float)
     cap = spec.linear_torque_limit
-    i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
+    i_limit = _current_limit(p, inputs)
     start = min(cap, 0.999 * spec.kt * i_limit)  # inside the current limit too (linear curve)
+    volts = _Voltage.of(w, p, inputs)
     tau0 = np.clip(-spec.kt * w / (spec.resistance * spec.kv), -start, start)
-    ok0 = feasible(tau0, w, p, inputs)
+    i = volts.current(tau0)
+    g0 = volts.margin(tau0, i)  # the search's feasible end starts here
+    ok0 = _feasible(tau0, i, g0, w, i_limit, spec)
+    bad = np.flatnonzero(~ok0)
     for _ in range(40):  # a curved current-torque line may need a smaller start: move towards zero torque
-        if ok0.all():
+        if not bad.size:
             break
-        tau0 = np.where(ok0, tau0, 0.8 * tau0)
-        ok0 = feasible(tau0, w, p, inputs)
+        tau0[bad] *= 0.8
+        there, t = volts.take(bad), tau0[bad]
+        i = there.current(t)
+        g0[bad] = g = there.margin(t, i)
+        ok0[bad] = good = _feasible(t, i, g, w[bad], i_limit, spec)
+        bad = bad[~good]
     reach = np.full_like(w, side * _current_reach(p, inputs))  # torque and current limits on this side
     if spec.max_speed is not None:  # past the rated speed this edge passes no motoring torque
         reach = np.where((np.abs(w) > spec.max_speed) & (side * w > 0), 0.0, reach)
-    margin = _voltage_margin(w, p, inputs)
+    g_reach = volts.margin(reach)
     out = reach.copy()
-    live = np.flatnonzero(ok0 & (margin(reach, None) < 0.0))  # the voltage line binds before the limits
+    live = np.flatnonzero(ok0 & (g_reach < 0.0))  # the voltage line binds before the limits
     if live.size:
-        a, b = tau0[live], reach[live]
-        ga, gb = margin(a, live), margin(b, live)
-        stale = np.zeros(live.size, dtype=np.int8)  # +1: a kept twice in a row, -1: b kept twice
-        for _ in range(EDGE_ITERATIONS):
-            # a (the feasible end, returned) is on the root when its bracket is tiny or its margin nil
-            if np.all((b - a) * side <= EDGE_TOLERANCE * cap) or np.all(ga <= EDGE_TOLERANCE * spec.bus_voltage):
-                break
-            c = b - gb * (b - a) / (gb - ga)
-            c = np.where(np.isfinite(c) & ((c - a) * (c - b) < 0), c, 0.5 * (a + b))
-            gc = margin(c, live)
-            inside = gc >= 0.0
-            gb = np.where(inside & (stale > 0), 0.5 * gb, gb)  # a moved twice: halve b's margin (Illinois)
-            ga = np.where(~inside & (stale < 0), 0.5 * ga, ga)
-            a, ga = np.where(inside, c, a), np.where(inside, gc, ga)
-            b, gb = np.where(inside, b, c), np.where(inside, gb, gc)
-            stale = np.where(inside, 1, -1).astype(np.int8)
-        out[live] = a
+        out[live] = _illinois(volts.take(live), tau0[live], reach[live], g0[live], g_reach[live], side, cap)
     return np.where(ok0, out, np.nan)
+
+
+def _illinois(volts: _Voltage, a: Array, b: Array, ga: Array, gb: Array, side: int, cap: float) -> Array:
+    """The root of ``volts``' margin between the feasible ``a`` and the infeasible ``b`` [N m] (margins ``ga`` and
+    ``gb`` [V]) at each speed: the feasible end once every bracket is :data:`EDGE_TOLERANCE` x ``cap`` [N m] or
+    every margin that share of the bus voltage (:func:`edge`). Works in place on its arguments."""
+    tol_tau, tol_v = EDGE_TOLERANCE * cap, EDGE_TOLERANCE * volts.inputs.spec.bus_voltage
+    moved_a = None  # whether the last step moved a (None before the first)
+    for _ in range(EDGE_ITERATIONS):
+        # a (the feasible end, returned) is on the root when its bracket is tiny or its margin nil
+        if np.all((b - a) * side <= tol_tau) or np.all(ga <= tol_v):
+            break
+        c = b - gb * (b - a) / (gb - ga)
+        c = np.where(np.isfinite(c) & ((c - a) * (c - b) < 0), c, 0.5 * (a + b))
+        gc = volts.margin(c)
+        inside = gc >= 0.0
+        if moved_a is not None:  # one end moved twice in a row: halve the stale end's margin (Illinois)
+            gb[inside & moved_a] *= 0.5
+            ga[~inside & ~moved_a] *= 0.5
+        np.copyto(a, c, where=inside)
+        np.copyto(ga, gc, where=inside)
+        np.copyto(b, c, where=~inside)
+        np.copyto(gb, gc, where=~inside)
+        moved_a = inside
+    return a
 
 
 def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
     """Largest torque magnitude [N m] within the torque limit and the current limit (the current-torque curve is
     odd and monotonic)."""
     spec = inputs.spec
-    i_limit = min(spec.max_current or np.inf, p.get("current_limit", np.inf))
+    i_limit = _current_limit(p, inputs)
     scale = p.get("kt_saturation", 0.0)
     cap = np.array([spec.linear_torque_limit])
     if abs(motor_current(cap, inputs, scale)[0]) <= i_limit:
@@ -207,30 +287,6 @@ def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
         below = abs(motor_current(mid, inputs, scale)[0]) <= i_limit
         lo, hi = (mid, hi) if below else (lo, mid)
     return float(lo[0])
-
-
-def _voltage_margin(w: Array, p: Mapping[str, float], inputs: EnvelopeInputs):  # type: ignore[no-untyped-def]
-    """g(tau, idx) = V_avail - |V_req| [V] at the speeds ``w[idx]`` (all if idx is None): feasible where >= 0."""
-    spec = inputs.spec
-    resistance = spec.resistance * np.ones_like(w)
-    if "thermal_resistance" in p and inputs.temperature is not None:
-        temperature = np.broadcast_to(inputs.temperature, w.shape)
-        resistance = resistance * (1.0 + p["thermal_resistance"] * (temperature - T_SPEC))
-    back_emf = w / spec.kv
-    quadrature = (spec.pole_pairs or 0) * w * p.get("inductance", 0.0)
-    scale, sag, rise = p.get("kt_saturation", 0.0), p.get("bus_sag", 0.0), p.get("regen_rise", 0.0)
-
-    def margin(tau: Array, idx: NDArray[np.int64] | None) -> Array:
-        parts = (resistance, back_emf, quadrature)
-        r, e, q = parts if idx is None else (x[idx] for x in parts)
-        i = motor_current(tau, inputs, scale)
-        v_q = r * i + e
-        power = v_q * i
-        v_avail = bus_voltage(spec.bus_voltage, np.where(power > 0.0, sag, rise), power)
-        v_req = np.hypot(v_q, q * i) if p.get("inductance", 0.0) > 0.0 else np.abs(v_q)
-        return np.asarray(v_avail - v_req)
-
-    return margin
 
 
 def effect_names(inputs: EnvelopeInputs) -> list[str]:
