@@ -447,11 +447,24 @@ def find_walls(
     return Walls(centres, tuple(upper), tuple(lower), method, rho, commanded)
 
 
+def _pass_bounds(idx: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Where each pass of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) starts and stops, as
+    positions into ``idx``."""
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
+    return np.concatenate(([0], breaks)), np.concatenate((breaks, [idx.size]))
+
+
 def _passes(idx: NDArray[np.int64], run: int = PASS_RUN) -> list[NDArray[np.int64]]:
     """The passes of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) of ``run`` samples or more,
     as positions into ``idx``."""
-    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
-    return [p for p in np.split(np.arange(idx.size), breaks) if p.size >= run]
+    starts, stops = _pass_bounds(idx)
+    return [np.arange(a, b) for a, b in zip(starts.tolist(), stops.tolist(), strict=True) if b - a >= run]
+
+
+def _pass_count(idx: NDArray[np.int64], run: int = PASS_RUN) -> int:
+    """How many passes of ``run`` samples or more a wall (rows ``idx``) has (:func:`_passes`)."""
+    starts, stops = _pass_bounds(idx)
+    return int(np.count_nonzero(stops - starts >= run))
 
 
 def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[NDArray[np.int64], Array]]:
@@ -622,7 +635,8 @@ def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, 
 
 def _one_pass(idx: NDArray[np.int64], share: float = ONE_PASS_SHARE) -> bool:
     """Whether ``share`` of the samples (row indices, ascending) form one pass (rows at most :data:`PASS_GAP` apart)."""
-    return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
+    starts, stops = _pass_bounds(idx)
+    return bool(np.max(stops - starts) >= share * idx.size)
 
 
 def _contiguous(
@@ -632,7 +646,7 @@ def _contiguous(
     :data:`REPEATED` passes or more (a speed hold with several pulses: repeated evidence at one speed; their levels
     were checked to agree), or that are ``vouched`` for by the walls of such passes around them."""
     has = np.array([w.size > 0 for w in walls])
-    keep = np.array([w.size > 0 and (b in vouched or len(_passes(w)) >= REPEATED) for b, w in enumerate(walls)])
+    keep = np.array([w.size > 0 and (b in vouched or _pass_count(w) >= REPEATED) for b, w in enumerate(walls)])
     start = 0
     for b in range(len(has) + 1):
         if b == len(has) or not has[b]:
