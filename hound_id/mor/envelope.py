@@ -28,8 +28,9 @@ is the peak torque and the current limit is applied through i(tau), so with no e
 min(peak torque, Kt i_max), the spec sheet's linear figure (``MotorSpec.linear_torque_limit``); a
 measured current-torque curve enters only as ``kt_saturation``, which the log must show.
 
-:func:`envelope` evaluates the boundary by bisection on the torque (the feasible set at one
-speed is an interval around the zero-voltage torque), vectorised over speeds.
+:func:`envelope` evaluates the boundary by a root search on the torque (the feasible set at one
+speed is an interval around the zero-voltage torque), vectorised over speeds, started from the
+closed-form edge of a linear current-torque line.
 """
 
 from __future__ import annotations
@@ -116,8 +117,8 @@ def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
 
 @dataclass(frozen=True)
 class _Voltage:
-    """The voltage condition at each speed, V_avail - |V_req| >= 0 (module docstring), with what does not depend on
-    the torque worked out once. Per-speed values are arrays, or floats where every speed shares them."""
+    """The voltage condition at each speed, |V_req| <= V_avail (module docstring), with what does not depend on the
+    torque worked out once. Per-speed values are arrays, or floats where every speed shares them."""
 
     inputs: EnvelopeInputs
     resistance: Array | float
@@ -156,21 +157,65 @@ class _Voltage:
         return motor_current(tau, self.inputs, self.scale)
 
     def margin(self, tau: Array, i: Array | None = None) -> Array:
-        """V_avail - |V_req| [V] at each speed's torque ``tau`` [N m] (current ``i`` [A] if known): feasible where
-        >= 0."""
+        """The voltage condition's margin [V] at each speed's torque ``tau`` [N m] (current ``i`` [A] if known),
+        >= 0 where it holds.
+
+        With the bus's discriminant D = v0^2 - 4 R_x P the condition V_avail = (v0 + sqrt(D)) / 2 >= |V_req| is
+        D >= max(2 |V_req| - v0, 0)^2 (D >= 0 included: the most power the source can deliver). The margin is
+        (D - max(2 |V_req| - v0, 0)^2) / (4 v0), which is V_avail - |V_req| to first order at the edge of a stiff
+        bus; unlike that difference it has no square-root cusp where the power limit binds, so the edge's root
+        search converges there as fast as elsewhere. A stiff bus (no sag, no rise) has V_avail = v0 exactly.
+        """
         i = self.current(tau) if i is None else i
         v_q = self.resistance * i + self.back_emf
-        power = v_q * i  # the quadrature part carries no power
         v0 = self.inputs.spec.bus_voltage
+        if self.quadrature is None:
+            v_req = np.abs(v_q)
+        else:  # |V_req| = hypot(v_q, p omega L i) to rounding, many times faster
+            q_i = self.quadrature * i
+            v_req = np.sqrt(v_q * v_q + q_i * q_i)
         if self.sag == self.rise == 0.0:
-            # a stiff bus: 0 P is 0 at every finite power (an infinite current, past the current curve's top, makes
-            # the margin -inf either way), so every speed has the same voltage
-            v_avail: Array | float = float(bus_voltage(v0, 0.0, np.zeros(1))[0])
-        else:
-            r_x = self.sag if self.sag == self.rise else np.where(power > 0.0, self.sag, self.rise)
-            v_avail = bus_voltage(v0, r_x, power)
-        v_req = np.abs(v_q) if self.quadrature is None else np.hypot(v_q, self.quadrature * i)
-        return np.asarray(v_avail - v_req)
+            return np.asarray(v0 - v_req)
+        power = v_q * i  # the quadrature part carries no power
+        r_x = self.sag if self.sag == self.rise else np.where(power > 0.0, self.sag, self.rise)
+        short = np.maximum(2.0 * v_req - v0, 0.0)  # how far |V_req| passes half the open-circuit voltage, doubled
+        return np.asarray((v0 * v0 - (4.0 * r_x) * power - short * short) / (4.0 * v0))
+
+    def guess(self, side: NDArray[np.int8]) -> Array:
+        """Where each speed's edge on ``side`` (+1 upper, -1 lower) lies for a linear current-torque line [N m]: the
+        root search's first step, exact to rounding unless ``kt_saturation`` bends the line.
+
+        On the edge the in-phase voltage is side V, and V = v0 - R_x P / V with P = side V i, so R i + e = side v0 -
+        R_x i: with the quadrature voltage, ((R + R_x) i + e)^2 + (p omega L i)^2 = v0^2, exact unless both R_x and
+        L are in; then three Newton steps on D = (2 |V_req| - v0)^2 (:meth:`margin`) make it so. R_x is R_pack where
+        the edge motors (side i > 0), else R_regen. A root on the bus's low branch (|V_req| < v0 / 2) is past the
+        most power the pack delivers, which then binds first: D = 0, 4 R_pack (R i + e) i = v0^2.
+        """
+        v0, r, e = self.inputs.spec.bus_voltage, self.resistance, self.back_emf
+        q = 0.0 if self.quadrature is None else self.quadrature
+
+        def line(r_x: float) -> Array:
+            rr, a = r + r_x, (r + r_x) ** 2 + q * q
+            return np.asarray((side * np.sqrt(np.maximum(a * v0 * v0 - q * q * e * e, 0.0)) - rr * e) / a)
+
+        i = line(self.sag)
+        if self.rise != self.sag:
+            i = np.where(side * i > 0.0, i, line(self.rise))
+        r_x = np.where(side * i > 0.0, self.sag, self.rise)
+        if self.quadrature is not None and (self.sag or self.rise):
+            with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate step (NaN) is not taken
+                for _ in range(3):
+                    v_q = r * i + e
+                    v_req = np.sqrt(v_q * v_q + q * q * i * i)
+                    short = 2.0 * v_req - v0
+                    slope = -4.0 * r_x * (r * i + v_q) - 4.0 * short * (v_q * r + q * q * i) / v_req
+                    i = i - (v0 * v0 - 4.0 * r_x * v_q * i - short * short) / slope
+        if self.sag > 0.0:
+            v_q = r * i + e
+            low = (side * i > 0.0) & (2.0 * np.sqrt(v_q * v_q + (q * i) ** 2) < v0)
+            cliff = (side * np.sqrt(e * e + r * v0 * v0 / self.sag) - e) / (2.0 * r)
+            i = np.where(low, cliff, i)
+        return np.asarray(self.inputs.spec.kt * i)
 
 
 def feasible(tau: Array, omega: Array, params: Mapping[str, float], inputs: EnvelopeInputs) -> NDArray[np.bool_]:
@@ -200,76 +245,106 @@ def envelope(omega: ArrayLike, params: Mapping[str, float], inputs: EnvelopeInpu
     """Lowest and highest feasible torque [N m] at each motor speed [rad/s] (NaN where none is).
 
     The search starts at the zero-voltage torque, tau0 = -Kt omega / (R Kv) clamped to the torque
-    and current limits, and bisects outwards on :func:`feasible`. Past the rated speed only
-    braking torque is feasible, as in :func:`hound_id.mor.region.torque_interval`.
+    and current limits, and looks outwards for the edge of :func:`feasible` (:func:`edge`). Past the
+    rated speed only braking torque is feasible, as in :func:`hound_id.mor.region.torque_interval`.
     """
     return edge(omega, -1, params, inputs), edge(omega, 1, params, inputs)
 
 
-def edge(omega: ArrayLike, side: int, params: Mapping[str, float], inputs: EnvelopeInputs) -> Array:
+def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs: EnvelopeInputs) -> Array:
     """One edge of :func:`envelope`: the highest (``side`` = +1) or lowest (-1) feasible torque [N m] at each
-    motor speed [rad/s], NaN where none is. Half the work of both when only one is needed.
+    motor speed [rad/s] (``side`` may be given per speed), NaN where none is. Half the work of both when only one
+    is needed.
 
     Between the zero-voltage torque and the torque and current limits only the voltage condition can bind, and
-    its margin V_avail - |V_req| is continuous in the torque: its root is found by the Illinois method (regula
-    falsi that halves a stale end), until the bracket is :data:`EDGE_TOLERANCE` of the torque limit or the
-    feasible end's margin that share of the bus voltage.
+    its margin (:meth:`_Voltage.margin`) is continuous in the torque: its root is found by the Illinois method
+    (regula falsi that halves a stale end), whose first step is the edge in closed form for a linear current-torque
+    line (:meth:`_Voltage.guess`; two steps end the search when it is on the root). Each speed leaves the search
+    once its own bracket is :data:`EDGE_TOLERANCE` of the torque limit or its feasible end's margin that share of
+    the bus voltage. (Earlier versions started from the bracket's ends, ran every speed until all had converged
+    and searched V_avail - |V_req|, which jumps where the pack's power limit binds; their edges agree with these
+    within that tolerance.)
     """
     spec = inputs.spec
     p = _checked(params, inputs)
     w = np.asarray(omega, dtype=float)
+    s = np.broadcast_to(np.asarray(side, dtype=np.int8), w.shape)
     cap = spec.linear_torque_limit
     i_limit = _current_limit(p, inputs)
     start = min(cap, 0.999 * spec.kt * i_limit)  # inside the current limit too (linear curve)
     volts = _Voltage.of(w, p, inputs)
-    tau0 = np.clip(-spec.kt * w / (spec.resistance * spec.kv), -start, start)
-    i = volts.current(tau0)
-    g0 = volts.margin(tau0, i)  # the search's feasible end starts here
-    ok0 = _feasible(tau0, i, g0, w, i_limit, spec)
-    bad = np.flatnonzero(~ok0)
+    tau0 = np.clip(w * (-spec.kt / (spec.resistance * spec.kv)), -start, start)
+    # the start is within the torque limit and brakes (so passes past the rated speed), and with a linear current-
+    # torque line within the current limit too: only the voltage, and a curve's current, can fail it
+    curved = volts.scale != 0.0 and inputs.curve is not None
+
+    def starts(t: Array, there: _Voltage) -> tuple[Array, NDArray[np.bool_]]:
+        i = there.current(t)
+        g = there.margin(t, i)
+        return g, (g >= 0.0) & (np.abs(i) <= i_limit) if curved else g >= 0.0
+
+    g0, ok0 = starts(tau0, volts)  # the search's feasible end starts here
+    bad = np.flatnonzero(~ok0) if not ok0.all() else np.array([], dtype=np.int64)
     for _ in range(40):  # a curved current-torque line may need a smaller start: move towards zero torque
         if not bad.size:
             break
         tau0[bad] *= 0.8
-        there, t = volts.take(bad), tau0[bad]
-        i = there.current(t)
-        g0[bad] = g = there.margin(t, i)
-        ok0[bad] = good = _feasible(t, i, g, w[bad], i_limit, spec)
+        g0[bad], good = starts(tau0[bad], volts.take(bad))
+        ok0[bad] = good
         bad = bad[~good]
-    reach = np.full_like(w, side * _current_reach(p, inputs))  # torque and current limits on this side
+    out: Array = np.asarray(s * _current_reach(p, inputs), dtype=float)  # torque and current limits on this side
     if spec.max_speed is not None:  # past the rated speed this edge passes no motoring torque
-        reach = np.where((np.abs(w) > spec.max_speed) & (side * w > 0), 0.0, reach)
-    g_reach = volts.margin(reach)
-    out = reach.copy()
-    live = np.flatnonzero(ok0 & (g_reach < 0.0))  # the voltage line binds before the limits
+        out[(np.abs(w) > spec.max_speed) & (s * w > 0)] = 0.0
+    g_reach = volts.margin(out)
+    live = np.flatnonzero(ok0 & ~(g_reach >= 0.0))  # the voltage line binds before the limits (NaN: it binds)
     if live.size:
-        out[live] = _illinois(volts.take(live), tau0[live], reach[live], g0[live], g_reach[live], side, cap)
-    return np.where(ok0, out, np.nan)
+        there, s_live = volts.take(live), s[live]
+        out[live] = _illinois(there, tau0[live], out[live], g0[live], g_reach[live], s_live, cap, there.guess(s_live))
+    if not ok0.all():
+        out[~ok0] = np.nan
+    return out
 
 
-def _illinois(volts: _Voltage, a: Array, b: Array, ga: Array, gb: Array, side: int, cap: float) -> Array:
+def _illinois(
+    volts: _Voltage, a: Array, b: Array, ga: Array, gb: Array, side: NDArray[np.int8], cap: float, guess: Array
+) -> Array:
     """The root of ``volts``' margin between the feasible ``a`` and the infeasible ``b`` [N m] (margins ``ga`` and
-    ``gb`` [V]) at each speed: the feasible end once every bracket is :data:`EDGE_TOLERANCE` x ``cap`` [N m] or
-    every margin that share of the bus voltage (:func:`edge`). Works in place on its arguments."""
+    ``gb`` [V]) at each speed: its feasible end once its bracket is :data:`EDGE_TOLERANCE` x ``cap`` [N m] or its
+    margin that share of the bus voltage (:func:`edge`). The first step is the ``guess`` [N m] where it lies between
+    them, and the second half that bracket across it: a guess on the root ends the search there."""
+    out = a.copy()
+    live = np.arange(a.size)  # positions in out of the speeds still searched
     tol_tau, tol_v = EDGE_TOLERANCE * cap, EDGE_TOLERANCE * volts.inputs.spec.bus_voltage
-    moved_a = None  # whether the last step moved a (None before the first)
-    for _ in range(EDGE_ITERATIONS):
+    moved_a = np.zeros(a.size, dtype=bool)  # the last step moved a (b): a step of the same end again is stale
+    moved_b = np.zeros(a.size, dtype=bool)
+    step: Array | None = guess  # the next step where it lies inside the bracket, instead of regula falsi's
+    for k in range(EDGE_ITERATIONS):
         # a (the feasible end, returned) is on the root when its bracket is tiny or its margin nil
-        if np.all((b - a) * side <= tol_tau) or np.all(ga <= tol_v):
-            break
+        done = ((b - a) * side <= tol_tau) | (ga <= tol_v)
+        if done.any():  # those leave: the rest iterate on smaller arrays
+            out[live[done]] = a[done]
+            more = ~done
+            if not more.any():
+                return out
+            live, a, b, ga, gb, side = live[more], a[more], b[more], ga[more], gb[more], side[more]
+            moved_a, moved_b, volts = moved_a[more], moved_b[more], volts.take(more)
+            step = None if step is None else step[more]
         c = b - gb * (b - a) / (gb - ga)
-        c = np.where(np.isfinite(c) & ((c - a) * (c - b) < 0), c, 0.5 * (a + b))
+        if step is not None:
+            given = (step - a) * (step - b) < 0.0
+            c = np.where(given, step, c)
+        c = np.where((c - a) * (c - b) < 0.0, c, 0.5 * (a + b))  # a NaN or infinite step: bisect
         gc = volts.margin(c)
-        inside = gc >= 0.0
-        if moved_a is not None:  # one end moved twice in a row: halve the stale end's margin (Illinois)
-            gb[inside & moved_a] *= 0.5
-            ga[~inside & ~moved_a] *= 0.5
-        np.copyto(a, c, where=inside)
-        np.copyto(ga, gc, where=inside)
-        np.copyto(b, c, where=~inside)
-        np.copyto(gb, gc, where=~inside)
-        moved_a = inside
-    return a
+        inside = gc >= 0.0  # NaN: outside
+        # after the guess, half a tolerance across it: the bracket closes there if the guess was on the root
+        step = np.where(given, c + np.where(inside, 0.5, -0.5) * side * tol_tau, np.nan) if k == 0 else None
+        gb = np.where(inside & moved_a, 0.5 * gb, gb)  # a moved twice: halve b's margin (Illinois)
+        ga = np.where(moved_b & ~inside, 0.5 * ga, ga)
+        a, ga = np.where(inside, c, a), np.where(inside, gc, ga)
+        b, gb = np.where(inside, b, c), np.where(inside, gb, gc)
+        moved_a, moved_b = inside, ~inside
+    out[live] = a
+    return out
 
 
 def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
