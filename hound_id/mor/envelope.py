@@ -142,7 +142,7 @@ class _Voltage:
             temperature = np.broadcast_to(inputs.temperature, omega.shape)
             resistance = spec.resistance * (1.0 + p["thermal_resistance"] * (temperature - T_SPEC))
         inductance = p.get("inductance", 0.0)
-        quadrature = (spec.pole_pairs or 0) * omega * inductance if inductance > 0.0 else None
+        quadrature = omega * ((spec.pole_pairs or 0) * inductance) if inductance > 0.0 else None
         sag, rise = p.get("bus_sag", 0.0), p.get("regen_rise", 0.0)
         return cls(inputs, resistance, omega / spec.kv, quadrature, p.get("kt_saturation", 0.0), sag, rise)
 
@@ -166,20 +166,42 @@ class _Voltage:
         bus; unlike that difference it has no square-root cusp where the power limit binds, so the edge's root
         search converges there as fast as elsewhere. A stiff bus (no sag, no rise) has V_avail = v0 exactly.
         """
+        # in place where it can: fresh arrays of a few hundred kilobytes cost more than the arithmetic on them
         i = self.current(tau) if i is None else i
-        v_q = self.resistance * i + self.back_emf
         v0 = self.inputs.spec.bus_voltage
+        v_q = self.resistance * i
+        v_q += self.back_emf
         if self.quadrature is None:
             v_req = np.abs(v_q)
         else:  # |V_req| = hypot(v_q, p omega L i) to rounding, many times faster
-            q_i = self.quadrature * i
-            v_req = np.sqrt(v_q * v_q + q_i * q_i)
+            v_req = self.quadrature * i
+            v_req *= v_req
+            v_req += v_q * v_q
+            np.sqrt(v_req, out=v_req)
         if self.sag == self.rise == 0.0:
-            return np.asarray(v0 - v_req)
-        power = v_q * i  # the quadrature part carries no power
-        r_x = self.sag if self.sag == self.rise else np.where(power > 0.0, self.sag, self.rise)
-        short = np.maximum(2.0 * v_req - v0, 0.0)  # how far |V_req| passes half the open-circuit voltage, doubled
-        return np.asarray((v0 * v0 - (4.0 * r_x) * power - short * short) / (4.0 * v0))
+            return np.asarray(np.subtract(v0, v_req, out=v_req))
+        power = v_q
+        power *= i  # the quadrature part carries no power; R_x P below
+        if self.sag == self.rise:
+            power *= self.sag
+        elif self.rise == 0.0:
+            np.maximum(power, 0.0, out=power)
+            power *= self.sag
+        elif self.sag == 0.0:
+            np.minimum(power, 0.0, out=power)
+            power *= self.rise
+        else:
+            power *= np.where(power > 0.0, self.sag, self.rise)
+        short = v_req  # how far |V_req| passes half the open-circuit voltage, doubled, squared
+        short *= 2.0
+        short -= v0
+        np.maximum(short, 0.0, out=short)
+        short *= short
+        power *= -4.0
+        power += v0 * v0
+        power -= short
+        power *= 1.0 / (4.0 * v0)
+        return np.asarray(power)
 
     def guess(self, side: NDArray[np.int8]) -> Array:
         """Where each speed's edge on ``side`` (+1 upper, -1 lower) lies for a linear current-torque line [N m]: the
@@ -187,9 +209,9 @@ class _Voltage:
 
         On the edge the in-phase voltage is side V, and V = v0 - R_x P / V with P = side V i, so R i + e = side v0 -
         R_x i: with the quadrature voltage, ((R + R_x) i + e)^2 + (p omega L i)^2 = v0^2, exact unless both R_x and
-        L are in; then three Newton steps on D = (2 |V_req| - v0)^2 (:meth:`margin`) make it so. R_x is R_pack where
-        the edge motors (side i > 0), else R_regen. A root on the bus's low branch (|V_req| < v0 / 2) is past the
-        most power the pack delivers, which then binds first: D = 0, 4 R_pack (R i + e) i = v0^2.
+        L are in; then Newton steps on D = (2 |V_req| - v0)^2 (:meth:`margin`, up to three) make it so. R_x is
+        R_pack where the edge motors (side i > 0), else R_regen. A root on the bus's low branch (|V_req| < v0 / 2) is
+        past the most power the pack delivers, which then binds first: D = 0, 4 R_pack (R i + e) i = v0^2.
         """
         v0, r, e = self.inputs.spec.bus_voltage, self.resistance, self.back_emf
         q = 0.0 if self.quadrature is None else self.quadrature
@@ -209,7 +231,10 @@ class _Voltage:
                     v_req = np.sqrt(v_q * v_q + q * q * i * i)
                     short = 2.0 * v_req - v0
                     slope = -4.0 * r_x * (r * i + v_q) - 4.0 * short * (v_q * r + q * q * i) / v_req
-                    i = i - (v0 * v0 - 4.0 * r_x * v_q * i - short * short) / slope
+                    step = (v0 * v0 - 4.0 * r_x * v_q * i - short * short) / slope
+                    i = i - step
+                    if not np.any(np.abs(step) > 1e-13 * np.abs(i)):  # converged to rounding (NaN: not taken)
+                        break
         if self.sag > 0.0:
             v_q = r * i + e
             low = (side * i > 0.0) & (2.0 * np.sqrt(v_q * v_q + (q * i) ** 2) < v0)
@@ -258,12 +283,12 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
 
     Between the zero-voltage torque and the torque and current limits only the voltage condition can bind, and
     its margin (:meth:`_Voltage.margin`) is continuous in the torque: its root is found by the Illinois method
-    (regula falsi that halves a stale end), whose first step is the edge in closed form for a linear current-torque
-    line (:meth:`_Voltage.guess`; two steps end the search when it is on the root). Each speed leaves the search
-    once its own bracket is :data:`EDGE_TOLERANCE` of the torque limit or its feasible end's margin that share of
-    the bus voltage. (Earlier versions started from the bracket's ends, ran every speed until all had converged
-    and searched V_avail - |V_req|, which jumps where the pack's power limit binds; their edges agree with these
-    within that tolerance.)
+    (regula falsi that halves a stale end), whose first steps bracket the edge in closed form for a linear
+    current-torque line (:meth:`_Voltage.guess`; they end the search when it is on the root). Each speed leaves
+    the search once its own bracket is :data:`EDGE_TOLERANCE` of the torque limit or its feasible end's margin
+    that share of the bus voltage. (Earlier versions started from the bracket's ends, ran every speed until all had
+    converged and searched V_avail - |V_req|, which jumps where the pack's power limit binds; their edges agree
+    with these within that tolerance.)
     """
     spec = inputs.spec
     p = _checked(params, inputs)
@@ -273,7 +298,8 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
     i_limit = _current_limit(p, inputs)
     start = min(cap, 0.999 * spec.kt * i_limit)  # inside the current limit too (linear curve)
     volts = _Voltage.of(w, p, inputs)
-    tau0 = np.clip(w * (-spec.kt / (spec.resistance * spec.kv)), -start, start)
+    tau0 = w * (-spec.kt / (spec.resistance * spec.kv))
+    np.clip(tau0, -start, start, out=tau0)
     # the start is within the torque limit and brakes (so passes past the rated speed), and with a linear current-
     # torque line within the current limit too: only the voltage, and a curve's current, can fail it
     curved = volts.scale != 0.0 and inputs.curve is not None
@@ -310,15 +336,20 @@ def _illinois(
 ) -> Array:
     """The root of ``volts``' margin between the feasible ``a`` and the infeasible ``b`` [N m] (margins ``ga`` and
     ``gb`` [V]) at each speed: its feasible end once its bracket is :data:`EDGE_TOLERANCE` x ``cap`` [N m] or its
-    margin that share of the bus voltage (:func:`edge`). The first step is the ``guess`` [N m] where it lies between
-    them, and the second half that bracket across it: a guess on the root ends the search there."""
+    margin that share of the bus voltage (:func:`edge`). The first steps are a quarter of that bracket either side of
+    the ``guess`` [N m], where they lie between a and b: a guess on the root closes the bracket there."""
+    tol_tau, tol_v = EDGE_TOLERANCE * cap, EDGE_TOLERANCE * volts.inputs.spec.bus_voltage
+    for probe in (guess - 0.25 * tol_tau * side, guess + 0.25 * tol_tau * side):  # the nearer one first
+        g = volts.margin(probe)
+        inner = (probe - a) * (probe - b) < 0.0  # NaN: not inside
+        moves_a, moves_b = inner & (g >= 0.0), inner & ~(g >= 0.0)
+        a, ga = np.where(moves_a, probe, a), np.where(moves_a, g, ga)
+        b, gb = np.where(moves_b, probe, b), np.where(moves_b, g, gb)
     out = a.copy()
     live = np.arange(a.size)  # positions in out of the speeds still searched
-    tol_tau, tol_v = EDGE_TOLERANCE * cap, EDGE_TOLERANCE * volts.inputs.spec.bus_voltage
     moved_a = np.zeros(a.size, dtype=bool)  # the last step moved a (b): a step of the same end again is stale
     moved_b = np.zeros(a.size, dtype=bool)
-    step: Array | None = guess  # the next step where it lies inside the bracket, instead of regula falsi's
-    for k in range(EDGE_ITERATIONS):
+    for _ in range(EDGE_ITERATIONS):
         # a (the feasible end, returned) is on the root when its bracket is tiny or its margin nil
         done = ((b - a) * side <= tol_tau) | (ga <= tol_v)
         if done.any():  # those leave: the rest iterate on smaller arrays
@@ -328,16 +359,10 @@ def _illinois(
                 return out
             live, a, b, ga, gb, side = live[more], a[more], b[more], ga[more], gb[more], side[more]
             moved_a, moved_b, volts = moved_a[more], moved_b[more], volts.take(more)
-            step = None if step is None else step[more]
         c = b - gb * (b - a) / (gb - ga)
-        if step is not None:
-            given = (step - a) * (step - b) < 0.0
-            c = np.where(given, step, c)
         c = np.where((c - a) * (c - b) < 0.0, c, 0.5 * (a + b))  # a NaN or infinite step: bisect
         gc = volts.margin(c)
         inside = gc >= 0.0  # NaN: outside
-        # after the guess, half a tolerance across it: the bracket closes there if the guess was on the root
-        step = np.where(given, c + np.where(inside, 0.5, -0.5) * side * tol_tau, np.nan) if k == 0 else None
         gb = np.where(inside & moved_a, 0.5 * gb, gb)  # a moved twice: halve b's margin (Illinois)
         ga = np.where(moved_b & ~inside, 0.5 * ga, ga)
         a, ga = np.where(inside, c, a), np.where(inside, gc, ga)
@@ -356,6 +381,9 @@ def _current_reach(p: Mapping[str, float], inputs: EnvelopeInputs) -> float:
     cap = np.array([spec.linear_torque_limit])
     if abs(motor_current(cap, inputs, scale)[0]) <= i_limit:
         return spec.linear_torque_limit
+    if scale == 0.0 or inputs.curve is None:  # a linear line: Kt I_lim, a rounding below it if need be
+        reach = spec.kt * i_limit
+        return reach if reach / spec.kt <= i_limit else float(np.nextafter(reach, 0.0))
     lo, hi = np.array([0.0]), cap
     for _ in range(BISECTION_STEPS):
         mid = 0.5 * (lo + hi)

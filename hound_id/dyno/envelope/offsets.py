@@ -108,7 +108,8 @@ class AtLimit:
         if not self.sizes.size:
             return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
         # each sample against its own edge: positive margins lie past the model's
-        m = self.sample_side * (self.torque - edge(self.velocity, self.sample_side, model, self.inputs))
+        m = self.torque - edge(self.velocity, self.sample_side, model, self.inputs)
+        m *= self.sample_side
         sizes, starts = self.sizes, self.starts
         finite = np.isfinite(m)
         if finite.all():  # the usual case: no bin without an edge
@@ -118,7 +119,10 @@ class AtLimit:
             m = np.where(finite, m, 0.0)
         # each wall's samples are consecutive: sums by wall are sums over those runs
         mean = np.add.reduceat(m, starts) / sizes
-        spread = np.sqrt(np.maximum(np.add.reduceat((m - np.repeat(mean, sizes)) ** 2, starts) / sizes, 0.0))
+        about = np.repeat(mean, sizes)
+        np.subtract(m, about, out=about)
+        about *= about
+        spread = np.sqrt(np.maximum(np.add.reduceat(about, starts) / sizes, 0.0))
         off = np.where(bad, -self.spec_limit, mean)
         # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
         se = spread / np.sqrt(sizes) * math.sqrt((1 + self.walls.rho) / (1 - self.walls.rho))

@@ -384,8 +384,10 @@ def find_walls(
     if commanded is None and log.torque_cmd is not None:
         commanded = command_limits(log, inputs)
     width = WALL_WIDTH * inputs.spec.linear_torque_limit
+    order = np.argsort(index, kind="stable")  # rows by bin, ascending within each
+    bounds = np.searchsorted(index[order], np.arange(bins + 1))
     for b in range(bins):
-        members = np.flatnonzero(index == b)
+        members = order[bounds[b] : bounds[b + 1]]
         found = []
         for margin_of, cmd_side in ((lambda i: log.torque[i] - hi[i], 1.0), (lambda i: lo[i] - log.torque[i], -1.0)):
             if members.size < MIN_SAMPLES:
@@ -434,7 +436,7 @@ def find_walls(
                 m = margin[i]
                 # one pass of a moving command spreads more than the noise; passes of a limit sit on one curve in
                 # speed (drifting against a model that is wrong there), passes of commands at several levels
-                line = m - np.polyval(np.polyfit(w[i], m, 2), w[i]) if np.ptp(w[i]) > 0 else m
+                line = _about_parabola(w[i], m) if np.ptp(w[i]) > 0 else m
                 i = _agreeing_passes(i, line, rho, floor)
                 drifts = (side, b) in drifting  # its passes were checked to drift alike (_passes_agree)
                 if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
@@ -467,12 +469,36 @@ def _pass_count(idx: NDArray[np.int64], run: int = PASS_RUN) -> int:
     return int(np.count_nonzero(stops - starts >= run))
 
 
+def _about_line(x: Array, y: Array) -> Array:
+    """``y`` about its least-squares straight line in ``x`` (``x`` not all equal): np.polyfit's line in closed form,
+    without its overhead (a wall finder fits hundreds of them)."""
+    dx, dy = x - np.mean(x), y - np.mean(y)
+    return np.asarray(dy - (np.dot(dx, dy) / np.dot(dx, dx)) * dx)
+
+
+def _about_parabola(x: Array, y: Array) -> Array:
+    """``y`` about its least-squares parabola in ``x`` (``x`` not all equal): np.polyfit's, from the orthogonal
+    polynomials 1, t, t^2 - ... of the centred ``x`` (three values of x or more; fewer fit exactly)."""
+    if x.size < 3:
+        return np.zeros_like(y)
+    t = x - np.mean(x)
+    square = t * t
+    square -= np.mean(square)
+    square -= (np.dot(square, t) / np.dot(t, t)) * t  # orthogonal to 1 and t
+    out = y - np.mean(y)
+    out -= (np.dot(out, t) / np.dot(t, t)) * t
+    norm = np.dot(square, square)
+    if norm > 0.0:  # two distinct speeds only: the line fits them exactly
+        out -= (np.dot(out, square) / norm) * square
+    return np.asarray(out)
+
+
 def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[NDArray[np.int64], Array]]:
     """Each pass of a wall (rows ``idx``) with the torque about its own straight line in time: the noise."""
     out = []
     for p in _passes(idx):
         rows, tau = idx[p].astype(float), log.torque[idx[p]]
-        out.append((idx[p], tau - np.polyval(np.polyfit(rows, tau, 1), rows)))
+        out.append((idx[p], _about_line(rows, tau)))
     return out
 
 
@@ -488,7 +514,7 @@ def _autocorrelation(
         if idx.size < 3:
             continue
         w, tau = log.velocity[idx], log.torque[idx]
-        d = tau - np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else tau - tau.mean()
+        d = _about_line(w, tau) if np.ptp(w) > 0 else tau - tau.mean()
         next_ = np.flatnonzero(np.diff(idx) == 1)
         den = float(np.sum(d[next_] ** 2 + d[next_ + 1] ** 2)) / 2
         if next_.size >= fewest and den > 0:
@@ -512,8 +538,7 @@ def _noise_scale(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]]) -> float
             spreads.append(float(np.sqrt(np.mean(np.concatenate([d for _, d in parts]) ** 2))))
         else:
             w, tau = log.velocity[idx], log.torque[idx]
-            fit = np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else np.mean(tau)
-            spreads.append(float(np.std(tau - fit)))
+            spreads.append(float(np.std(_about_line(w, tau) if np.ptp(w) > 0 else tau)))
     return float(np.median(spreads)) if spreads else math.inf
 
 
