@@ -58,6 +58,8 @@ BISECTION_STEPS = 44
 #: The edge's root search stops when its bracket is this share of the torque limit (or after so many steps).
 EDGE_TOLERANCE = 1e-12
 EDGE_ITERATIONS = 100
+#: A voltage this share below the bus voltage is below it whatever the rounding (the edge's start, :func:`edge`).
+NO_LOAD_MARGIN = 1e-9
 
 Array = NDArray[np.float64]
 
@@ -309,15 +311,27 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
         g = there.margin(t, i)
         return g, (g >= 0.0) & (np.abs(i) <= i_limit) if curved else g >= 0.0
 
-    g0, ok0 = starts(tau0, volts)  # the search's feasible end starts here
-    bad = np.flatnonzero(~ok0) if not ok0.all() else np.array([], dtype=np.int64)
-    for _ in range(40):  # a curved current-torque line may need a smaller start: move towards zero torque
-        if not bad.size:
-            break
-        tau0[bad] *= 0.8
-        g0[bad], good = starts(tau0[bad], volts.take(bad))
-        ok0[bad] = good
-        bad = bad[~good]
+    g0 = np.full(w.size, np.nan)  # the search's feasible end starts here (its margin: where it is needed)
+    if curved or not isinstance(volts.resistance, float):
+        ok0 = np.zeros(w.size, dtype=bool)
+    else:
+        # With a linear line and the spec's resistance the start needs |v_q| <= |e| and draws no power (it brakes: P
+        # <= 0, so V_avail >= v0): it is feasible where |V_req| <= hypot(e, p omega L i) lies below v0.
+        bound = volts.back_emf * volts.back_emf
+        if volts.quadrature is not None:
+            bound += (volts.quadrature * (tau0 / spec.kt)) ** 2
+        ok0 = bound < ((1.0 - NO_LOAD_MARGIN) * spec.bus_voltage) ** 2
+    bad = np.flatnonzero(~ok0)
+    if bad.size:
+        there, t = volts.take(bad), tau0[bad]
+        for k in range(41):  # inductance or a curved current-torque line may need a smaller start: towards zero
+            if k:
+                t = t * 0.8
+            g, good = starts(t, there)
+            tau0[bad[good]], g0[bad[good]], ok0[bad[good]] = t[good], g[good], True
+            if good.all():
+                break
+            bad, t, there = bad[~good], t[~good], there.take(~good)
     out: Array = np.asarray(s * _current_reach(p, inputs), dtype=float)  # torque and current limits on this side
     if spec.max_speed is not None:  # past the rated speed this edge passes no motoring torque
         out[(np.abs(w) > spec.max_speed) & (s * w > 0)] = 0.0
@@ -325,7 +339,11 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
     live = np.flatnonzero(ok0 & ~(g_reach >= 0.0))  # the voltage line binds before the limits (NaN: it binds)
     if live.size:
         there, s_live = volts.take(live), s[live]
-        out[live] = _illinois(there, tau0[live], out[live], g0[live], g_reach[live], s_live, cap, there.guess(s_live))
+        g_live = g0[live]
+        unknown = np.isnan(g_live)  # a start feasible by construction
+        if unknown.any():
+            g_live[unknown] = there.take(unknown).margin(tau0[live[unknown]])
+        out[live] = _illinois(there, tau0[live], out[live], g_live, g_reach[live], s_live, cap, there.guess(s_live))
     if not ok0.all():
         out[~ok0] = np.nan
     return out
