@@ -14,7 +14,6 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping, Sequence
-from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, replace
 from functools import cached_property
 from typing import Any
@@ -94,9 +93,6 @@ SPILL_GROWTH = 2.0
 EVIDENCE_EXPLAINED = 0.5
 #: A refitted parameter is named in the reason when it moved by more than this share of itself (display only).
 MOVED = 1e-3
-#: Candidate effects fitted at once, in threads: their fits are independent, and numpy releases the GIL while it
-#: computes. The results do not depend on it. Calibrated on benchmarks/compare.py (its --threads table).
-CANDIDATE_THREADS = 2
 #: Rungs of the automatic ladder past the spec sheet. Calibrated on
 #: test_mor_compare_cli::test_a_wrong_add_names_the_right_effect_and_then_says_it_is_not_needed.
 MAX_STEPS = 4
@@ -147,39 +143,22 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     names = [c for c in effect_names(inputs_for(log, inputs, np.arange(log.n))) if c not in model]
     excess0 = np.nan_to_num(past_edges(log, inputs, base.sample_noise, model)[0], nan=0.0)
     spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.linear_torque_limit))
-
-    def fit(base: Mapping[str, float], name: str) -> tuple[float, float, bool]:
-        return _fit_one(log, walls, base, name, inputs)
-
-    def joint(start: dict[str, float], lead: str) -> tuple[dict[str, float], float]:
-        fitted = _refit(log, walls, start, inputs, all_params=True, lead=lead)
-        return fitted, offsets(log, walls, fitted, inputs).sse
-
-    # The candidates' fits are independent: CANDIDATE_THREADS run at a time, in rounds of similar tasks (numpy
-    # releases the GIL while it computes; the results are those of one after the other).
-    with ThreadPoolExecutor(max_workers=CANDIDATE_THREADS) as pool:
-        # each candidate on top of the model and, with a model, alone
-        tasks = [(model, name) for name in names] + ([({}, name) for name in names] if model else [])
-        fits = list(pool.map(fit, *zip(*tasks, strict=True))) if tasks else []
-        on_top = fits[: len(names)]
-        starts: list[tuple[dict[str, float], str]] = []
+    out = []
+    for name in names:
+        value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
+        refit = dict(model)
         if model:
             # Refit the model's own parameters with the candidate in, from two starts: the candidate on top of the
             # model, and the candidate alone (the model's effects then refitted): an effect added wrongly must not
             # hide the right one.
-            for name, top, own in zip(names, on_top, fits[len(names) :], strict=True):
-                starts += [({**model, name: top[0]}, name), ({**model, name: own[0]}, name)]
-        joints = list(pool.map(joint, *zip(*starts, strict=True))) if starts else []
-
-    def candidate(name: str, fitted: tuple[float, float, bool]) -> Suggestion:
-        value, sse1, at_bound = fitted
-        refit = dict(model)
-        for (_, lead), (both, sse_joint) in zip(starts, joints, strict=True):
-            if lead == name and sse_joint < sse1:  # the starts in turn, as they were listed
-                both = dict(both)
-                value, sse1 = both.pop(name), sse_joint
-                refit = both
-                at_bound = _at_bound(name, value, inputs)
+            alone = _fit_one(log, walls, {}, name, inputs)[0]
+            for start in ({**model, name: value}, {**model, name: alone}):
+                joint = _refit(log, walls, start, inputs, all_params=True, lead=name)
+                sse_joint = offsets(log, walls, joint, inputs).sse
+                if sse_joint < sse1:
+                    value, sse1 = joint.pop(name), sse_joint
+                    refit = joint
+                    at_bound = _at_bound(name, value, inputs)
         dof = max(n - 1, 1)
         f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
         p = f_pvalue(f_stat, 1, dof)
@@ -194,39 +173,38 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
             for k, v in refit.items()
             if abs(v - model[k]) > MOVED * max(abs(model[k]), 1e-12)
         )
-        return Suggestion(
-            effect=name,
-            value=value,
-            unit=effect.unit,
-            explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
-            rmse=math.sqrt(sse1 / n),
-            statistic=float(f_stat),
-            p_value=p,
-            p_adjusted=corrected(p, 1, len(names)),
-            # statistically and practically: the F-test, and an error that falls by at least the noise level
-            significant=significant(
-                corrected(p, 1, len(names)),
-                material=base.rmse - math.sqrt(sse1 / n) >= base.noise,
-                identified=not at_bound,
-                refuted=refuted,
-            ),
-            reason=(
-                f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
-                f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
-                + (f" ({moved})" if moved else "")
-                + (
-                    f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
-                    "its edges; the log makes torque it forbids)"
-                    if refuted
-                    else ""
-                )
-                + (" (at the bound of its search: not identified)" if at_bound else "")
-            ),
-            refit=refit,
+        out.append(
+            Suggestion(
+                effect=name,
+                value=value,
+                unit=effect.unit,
+                explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
+                rmse=math.sqrt(sse1 / n),
+                statistic=float(f_stat),
+                p_value=p,
+                p_adjusted=corrected(p, 1, len(names)),
+                # statistically and practically: the F-test, and an error that falls by at least the noise level
+                significant=significant(
+                    corrected(p, 1, len(names)),
+                    material=base.rmse - math.sqrt(sse1 / n) >= base.noise,
+                    identified=not at_bound,
+                    refuted=refuted,
+                ),
+                reason=(
+                    f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
+                    f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
+                    + (f" ({moved})" if moved else "")
+                    + (
+                        f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
+                        "its edges; the log makes torque it forbids)"
+                        if refuted
+                        else ""
+                    )
+                    + (" (at the bound of its search: not identified)" if at_bound else "")
+                ),
+                refit=refit,
+            )
         )
-
-    with ThreadPoolExecutor(max_workers=CANDIDATE_THREADS) as pool:  # past_edges on every row, for each candidate
-        out = list(pool.map(candidate, names, on_top))
     # Logged channels settle what the envelope alone cannot: a sagging bus, inductance and a saturating core all
     # shorten the motoring edge at speed; the bus voltage and the current say which it is.
     for named, evidence in (("bus_sag", bus_evidence(log, inputs)), ("kt_saturation", current_evidence(log, inputs))):
