@@ -311,7 +311,6 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
         g = there.margin(t, i)
         return g, (g >= 0.0) & (np.abs(i) <= i_limit) if curved else g >= 0.0
 
-    g0 = np.full(w.size, np.nan)  # the search's feasible end starts here (its margin: where it is needed)
     if curved or not isinstance(volts.resistance, float):
         ok0 = np.zeros(w.size, dtype=bool)
     else:
@@ -321,7 +320,8 @@ def edge(omega: ArrayLike, side: ArrayLike, params: Mapping[str, float], inputs:
         if volts.quadrature is not None:
             bound += (volts.quadrature * (tau0 / spec.kt)) ** 2
         ok0 = bound < ((1.0 - NO_LOAD_MARGIN) * spec.bus_voltage) ** 2
-    bad = np.flatnonzero(~ok0)
+    bad = np.array([], dtype=np.int64) if ok0.all() else np.flatnonzero(~ok0)
+    g0 = np.full(w.size, np.nan)  # the search's feasible end starts here (its margin: where it is needed)
     if bad.size:
         there, t = volts.take(bad), tau0[bad]
         for k in range(41):  # inductance or a curved current-torque line may need a smaller start: towards zero
