@@ -104,10 +104,7 @@ def bus_voltage(v0: float, r_x: Array | float, power: Array) -> Array:
     power, P < 0, raises it). Past the most the source can deliver, v0^2 / (4 r_x), no voltage is: -v0 (infeasible).
     """
     disc = v0 * v0 - 4.0 * np.asarray(r_x) * power
-    high = 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0)))
-    if np.all(disc >= 0.0):  # the usual case: the select below costs more than the rest
-        return np.asarray(high, dtype=float)
-    return np.asarray(np.where(disc >= 0.0, high, -v0), dtype=float)
+    return np.asarray(np.where(disc >= 0.0, 0.5 * (v0 + np.sqrt(np.maximum(disc, 0.0))), -v0), dtype=float)
 
 
 def motor_current(tau: Array, inputs: EnvelopeInputs, scale: float) -> Array:
