@@ -215,14 +215,17 @@ class _Voltage:
         v0, r, e = self.inputs.spec.bus_voltage, self.resistance, self.back_emf
         q = 0.0 if self.quadrature is None else self.quadrature
 
-        def line(r_x: float) -> Array:
-            rr, a = r + r_x, (r + r_x) ** 2 + q * q
-            return np.asarray((side * np.sqrt(np.maximum(a * v0 * v0 - q * q * e * e, 0.0)) - rr * e) / a)
+        def line(r_x: float, at: NDArray[np.bool_] | slice = slice(None)) -> Array:
+            rr = (r if isinstance(r, float) else r[at]) + r_x
+            qq = 0.0 if self.quadrature is None else self.quadrature[at] ** 2
+            a = rr * rr + qq
+            return np.asarray((side[at] * np.sqrt(np.maximum(a * v0 * v0 - qq * e[at] * e[at], 0.0)) - rr * e[at]) / a)
 
         i = line(self.sag)
-        if self.rise != self.sag:
-            i = np.where(side * i > 0.0, i, line(self.rise))
-        r_x = np.where(side * i > 0.0, self.sag, self.rise)
+        braking = side * i <= 0.0  # the edge regenerates there: the regen resistance instead
+        if self.rise != self.sag and braking.any():
+            i[braking] = line(self.rise, braking)
+        r_x = np.where(braking, self.rise, self.sag)
         if self.quadrature is not None and (self.sag or self.rise):
             with np.errstate(divide="ignore", invalid="ignore"):  # a degenerate step (NaN) is not taken
                 for _ in range(3):
@@ -237,8 +240,9 @@ class _Voltage:
         if self.sag > 0.0:
             v_q = r * i + e
             low = (side * i > 0.0) & (2.0 * np.sqrt(v_q * v_q + (q * i) ** 2) < v0)
-            cliff = (side * np.sqrt(e * e + r * v0 * v0 / self.sag) - e) / (2.0 * r)
-            i = np.where(low, cliff, i)
+            if low.any():
+                r_low, e_low = (r if isinstance(r, float) else r[low]), e[low]
+                i[low] = (side[low] * np.sqrt(e_low * e_low + r_low * v0 * v0 / self.sag) - e_low) / (2.0 * r_low)
         return np.asarray(self.inputs.spec.kt * i)
 
 
