@@ -27,6 +27,7 @@ from hound_id.dyno.envelope.offsets import (
     IsolatedBin,
     Offsets,
     OutsideStats,
+    at_limit,
     isolated_bins,
     offsets,
     outside_stats,
@@ -119,8 +120,9 @@ def _fit_one(
     from scipy.optimize import minimize_scalar
 
     lo_b, hi_b = _bounds(name, inputs)
+    at = at_limit(log, walls, inputs)  # the samples gathered once for the search's evaluations
     res = minimize_scalar(
-        lambda v: offsets(log, walls, {**model, name: float(v)}, inputs).sse,
+        lambda v: at.offsets({**model, name: float(v)}).sse,
         bounds=(lo_b, hi_b),
         method="bounded",
         options={"xatol": (hi_b - lo_b) * SEARCH_TOLERANCE},

@@ -20,6 +20,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hound_id.arrays import frozen
 from hound_id.dyno.envelope.walls import Walls, inputs_for
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
@@ -77,31 +78,80 @@ class Offsets:
         return float(np.sum(self.offset**2))
 
 
+@dataclass(frozen=True)
+class AtLimit:
+    """The samples of a log's walls, gathered once for the many models a fit evaluates on them (:func:`at_limit`):
+    the upper walls' samples by bin, then the lower ones'."""
+
+    walls: Walls
+    spec_limit: float
+    """The torque limit [N m] (a bin without a finite edge is this far off)."""
+    velocity: Array
+    """Motor speed of each sample [rad/s]."""
+    torque: Array
+    """Torque of each sample [N m]."""
+    sample_side: NDArray[np.int8]
+    """+1 for a sample at the upper limit, -1 at the lower one."""
+    inputs: EnvelopeInputs
+    """The samples' inputs (their temperatures)."""
+    starts: NDArray[np.int64]
+    """Where each wall's samples start (they are consecutive)."""
+    sizes: NDArray[np.int64]
+    """Samples per wall."""
+    side: NDArray[np.int8]
+    """+1 for an upper wall, -1 for a lower one."""
+    speeds: Array
+    """Mean speed of each wall's samples [rad/s]."""
+
+    def offsets(self, model: Mapping[str, float]) -> Offsets:
+        """Edge offsets of every wall bin against ``model`` (effect -> parameter)."""
+        if not self.sizes.size:
+            return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
+        # each sample against its own edge: positive margins lie past the model's
+        m = self.torque - edge(self.velocity, self.sample_side, model, self.inputs)
+        m *= self.sample_side
+        sizes, starts = self.sizes, self.starts
+        finite = np.isfinite(m)
+        if finite.all():  # the usual case: no bin without an edge
+            bad = np.zeros(sizes.size, dtype=bool)
+        else:
+            bad = np.logical_or.reduceat(~finite, starts)
+            m = np.where(finite, m, 0.0)
+        # each wall's samples are consecutive: sums by wall are sums over those runs
+        mean = np.add.reduceat(m, starts) / sizes
+        about = np.repeat(mean, sizes)
+        np.subtract(m, about, out=about)
+        about *= about
+        spread = np.sqrt(np.maximum(np.add.reduceat(about, starts) / sizes, 0.0))
+        off = np.where(bad, -self.spec_limit, mean)
+        # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
+        se = spread / np.sqrt(sizes) * math.sqrt((1 + self.walls.rho) / (1 - self.walls.rho))
+        return Offsets(self.speeds.copy(), self.side.copy(), off, se, spread)
+
+
+def at_limit(log: EnvelopeLog, walls: Walls, inputs: EnvelopeInputs) -> AtLimit:
+    """The samples of ``walls`` (found on ``log``), gathered for :meth:`AtLimit.offsets`."""
+    groups = [(s, i) for s, side in ((1, walls.upper), (-1, walls.lower)) for i in side if i.size]
+    sizes = np.array([i.size for _, i in groups], dtype=np.int64)
+    rows = np.concatenate([i for _, i in groups]) if groups else np.array([], dtype=np.int64)
+    velocity = log.velocity[rows]
+    return AtLimit(
+        walls=walls,
+        spec_limit=inputs.spec.linear_torque_limit,
+        velocity=frozen(velocity),
+        torque=frozen(log.torque[rows]),
+        sample_side=frozen(np.repeat([s for s, _ in groups], sizes), dtype=np.int8),
+        inputs=inputs_for(log, inputs, rows),
+        starts=frozen(np.cumsum(sizes) - sizes, dtype=np.int64),
+        sizes=frozen(sizes, dtype=np.int64),
+        side=frozen([s for s, _ in groups], dtype=np.int8),
+        speeds=frozen(np.add.reduceat(velocity, np.cumsum(sizes) - sizes) / sizes if groups else []),
+    )
+
+
 def offsets(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: EnvelopeInputs) -> Offsets:
     """Edge offsets of every wall bin against ``model`` (effect -> parameter)."""
-    groups = [(s, i) for s, side in ((1, walls.upper), (-1, walls.lower)) for i in side if i.size]
-    if not groups:
-        return Offsets(np.array([]), np.array([], dtype=np.int8), np.array([]), np.array([]), np.array([]))
-    margin = []
-    for s in (1, -1):  # each edge only where it is needed: positive margins lie past the model's edge
-        idx = np.concatenate([i for side, i in groups if side == s] or [np.array([], dtype=np.int64)])
-        if idx.size:
-            limit = edge(log.velocity[idx], s, model, inputs_for(log, inputs, idx))
-            margin.append(s * (log.torque[idx] - limit))
-    m = np.concatenate(margin)
-    ordered = [g for s in (1, -1) for g in groups if g[0] == s]
-    sizes = np.array([i.size for _, i in ordered])
-    gid = np.repeat(np.arange(sizes.size), sizes)
-    bad = np.bincount(gid, weights=~np.isfinite(m), minlength=sizes.size) > 0
-    m = np.where(np.isfinite(m), m, 0.0)
-    mean = np.bincount(gid, weights=m) / sizes
-    spread = np.sqrt(np.maximum(np.bincount(gid, weights=(m - mean[gid]) ** 2) / sizes, 0.0))
-    speeds = np.bincount(gid, weights=log.velocity[np.concatenate([i for _, i in ordered])]) / sizes
-    side = np.array([s for s, _ in ordered], dtype=np.int8)
-    off = np.where(bad, -inputs.spec.linear_torque_limit, mean)
-    # consecutive samples of a trajectory log share their noise: n (1 - rho) / (1 + rho) independent ones (AR(1))
-    se = spread / np.sqrt(sizes) * math.sqrt((1 + walls.rho) / (1 - walls.rho))
-    return Offsets(speeds, side, off, se, spread)
+    return at_limit(log, walls, inputs).offsets(model)
 
 
 def past_edges(

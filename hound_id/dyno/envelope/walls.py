@@ -384,8 +384,10 @@ def find_walls(
     if commanded is None and log.torque_cmd is not None:
         commanded = command_limits(log, inputs)
     width = WALL_WIDTH * inputs.spec.linear_torque_limit
+    order = np.argsort(index, kind="stable")  # rows by bin, ascending within each
+    bounds = np.searchsorted(index[order], np.arange(bins + 1))
     for b in range(bins):
-        members = np.flatnonzero(index == b)
+        members = order[bounds[b] : bounds[b + 1]]
         found = []
         for margin_of, cmd_side in ((lambda i: log.torque[i] - hi[i], 1.0), (lambda i: lo[i] - log.torque[i], -1.0)):
             if members.size < MIN_SAMPLES:
@@ -434,7 +436,7 @@ def find_walls(
                 m = margin[i]
                 # one pass of a moving command spreads more than the noise; passes of a limit sit on one curve in
                 # speed (drifting against a model that is wrong there), passes of commands at several levels
-                line = m - np.polyval(np.polyfit(w[i], m, 2), w[i]) if np.ptp(w[i]) > 0 else m
+                line = _about_parabola(w[i], m) if np.ptp(w[i]) > 0 else m
                 i = _agreeing_passes(i, line, rho, floor)
                 drifts = (side, b) in drifting  # its passes were checked to drift alike (_passes_agree)
                 if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
@@ -447,11 +449,48 @@ def find_walls(
     return Walls(centres, tuple(upper), tuple(lower), method, rho, commanded)
 
 
+def _pass_bounds(idx: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
+    """Where each pass of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) starts and stops, as
+    positions into ``idx``."""
+    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
+    return np.concatenate(([0], breaks)), np.concatenate((breaks, [idx.size]))
+
+
 def _passes(idx: NDArray[np.int64], run: int = PASS_RUN) -> list[NDArray[np.int64]]:
     """The passes of a wall (rows ``idx``, ascending, at most :data:`PASS_GAP` apart) of ``run`` samples or more,
     as positions into ``idx``."""
-    breaks = np.flatnonzero(np.diff(idx) > PASS_GAP) + 1
-    return [p for p in np.split(np.arange(idx.size), breaks) if p.size >= run]
+    starts, stops = _pass_bounds(idx)
+    return [np.arange(a, b) for a, b in zip(starts.tolist(), stops.tolist(), strict=True) if b - a >= run]
+
+
+def _pass_count(idx: NDArray[np.int64], run: int = PASS_RUN) -> int:
+    """How many passes of ``run`` samples or more a wall (rows ``idx``) has (:func:`_passes`)."""
+    starts, stops = _pass_bounds(idx)
+    return int(np.count_nonzero(stops - starts >= run))
+
+
+def _about_line(x: Array, y: Array) -> Array:
+    """``y`` about its least-squares straight line in ``x`` (``x`` not all equal): np.polyfit's line in closed form,
+    without its overhead (a wall finder fits hundreds of them)."""
+    dx, dy = x - np.mean(x), y - np.mean(y)
+    return np.asarray(dy - (np.dot(dx, dy) / np.dot(dx, dx)) * dx)
+
+
+def _about_parabola(x: Array, y: Array) -> Array:
+    """``y`` about its least-squares parabola in ``x`` (``x`` not all equal): np.polyfit's, from the orthogonal
+    polynomials 1, t, t^2 - ... of the centred ``x`` (three values of x or more; fewer fit exactly)."""
+    if x.size < 3:
+        return np.zeros_like(y)
+    t = x - np.mean(x)
+    square = t * t
+    square -= np.mean(square)
+    square -= (np.dot(square, t) / np.dot(t, t)) * t  # orthogonal to 1 and t
+    out = y - np.mean(y)
+    out -= (np.dot(out, t) / np.dot(t, t)) * t
+    norm = np.dot(square, square)
+    if norm > 0.0:  # two distinct speeds only: the line fits them exactly
+        out -= (np.dot(out, square) / norm) * square
+    return np.asarray(out)
 
 
 def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[NDArray[np.int64], Array]]:
@@ -459,7 +498,7 @@ def _detrended_passes(log: EnvelopeLog, idx: NDArray[np.int64]) -> list[tuple[ND
     out = []
     for p in _passes(idx):
         rows, tau = idx[p].astype(float), log.torque[idx[p]]
-        out.append((idx[p], tau - np.polyval(np.polyfit(rows, tau, 1), rows)))
+        out.append((idx[p], _about_line(rows, tau)))
     return out
 
 
@@ -475,7 +514,7 @@ def _autocorrelation(
         if idx.size < 3:
             continue
         w, tau = log.velocity[idx], log.torque[idx]
-        d = tau - np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else tau - tau.mean()
+        d = _about_line(w, tau) if np.ptp(w) > 0 else tau - tau.mean()
         next_ = np.flatnonzero(np.diff(idx) == 1)
         den = float(np.sum(d[next_] ** 2 + d[next_ + 1] ** 2)) / 2
         if next_.size >= fewest and den > 0:
@@ -499,8 +538,7 @@ def _noise_scale(log: EnvelopeLog, groups: Sequence[NDArray[np.int64]]) -> float
             spreads.append(float(np.sqrt(np.mean(np.concatenate([d for _, d in parts]) ** 2))))
         else:
             w, tau = log.velocity[idx], log.torque[idx]
-            fit = np.polyval(np.polyfit(w, tau, 1), w) if np.ptp(w) > 0 else np.mean(tau)
-            spreads.append(float(np.std(tau - fit)))
+            spreads.append(float(np.std(_about_line(w, tau) if np.ptp(w) > 0 else tau)))
     return float(np.median(spreads)) if spreads else math.inf
 
 
@@ -622,7 +660,8 @@ def _tracks_edge(idx: NDArray[np.int64], margin: Array, edge: Array, side: int, 
 
 def _one_pass(idx: NDArray[np.int64], share: float = ONE_PASS_SHARE) -> bool:
     """Whether ``share`` of the samples (row indices, ascending) form one pass (rows at most :data:`PASS_GAP` apart)."""
-    return bool(max(p.size for p in _passes(idx, run=1)) >= share * idx.size)
+    starts, stops = _pass_bounds(idx)
+    return bool(np.max(stops - starts) >= share * idx.size)
 
 
 def _contiguous(
@@ -632,7 +671,7 @@ def _contiguous(
     :data:`REPEATED` passes or more (a speed hold with several pulses: repeated evidence at one speed; their levels
     were checked to agree), or that are ``vouched`` for by the walls of such passes around them."""
     has = np.array([w.size > 0 for w in walls])
-    keep = np.array([w.size > 0 and (b in vouched or len(_passes(w)) >= REPEATED) for b, w in enumerate(walls)])
+    keep = np.array([w.size > 0 and (b in vouched or _pass_count(w) >= REPEATED) for b, w in enumerate(walls)])
     start = 0
     for b in range(len(has) + 1):
         if b == len(has) or not has[b]:
