@@ -216,6 +216,9 @@ class _Constants(NamedTuple):
     """Largest |joint velocity| likewise."""
     ordinary: float
     """Largest |joint torque| of an ordinary command (:data:`ORDINARY`)."""
+    stacked: Any = None
+    """numpy: the per-motor limits above, stall to wmax, as rows of one (12, size) array whose rows they view (the
+    fused loop's operand, :func:`hound_id.mor.fused.clip_correction`); None for torch."""
 
 
 @dataclass(frozen=True)
@@ -340,7 +343,10 @@ class Saturation:
             )
         else:
             mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
-            vecs = tuple(np.ascontiguousarray(np.broadcast_to(v.astype(like.dtype), shape)) for v in vectors)
+            stacked = np.empty((len(vectors), *shape), dtype=like.dtype)  # one block: the fused loop takes it whole
+            for row, v in zip(stacked, vectors, strict=True):
+                row[...] = v.astype(like.dtype)
+            vecs = tuple(stacked)
         tau_cap, qd_cap = self._caps(like.dtype)
         colsum = max(1e-300, float(np.abs(self.A).sum(axis=0).max()))
         consts = _Constants(
@@ -365,6 +371,7 @@ class Saturation:
             has_max_speed=bool(np.isfinite(self.max_speed).any()),
             tau_cap=tau_cap,
             qd_cap=qd_cap,
+            stacked=None if torch_like else stacked.reshape(len(vectors), -1),
             ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), limit_x.max())) / colsum),
         )
         self._remember(key, consts)
@@ -391,9 +398,10 @@ class Saturation:
         if not _is_torch(tau):
             tau = np.asarray(tau)
             qd = np.asarray(qd)
-            if not np.issubdtype(tau.dtype, np.floating):
+            if tau.dtype.kind != "f":
                 tau = tau.astype(np.float64)
-            qd = qd.astype(tau.dtype, copy=False)
+            if qd.dtype != tau.dtype:
+                qd = qd.astype(tau.dtype)
         elif qd.dtype != tau.dtype:
             qd = qd.to(tau.dtype)
         if tau.shape[-1:] != (self.n,) or qd.shape[-1:] != (self.n,) or tuple(tau.shape) != tuple(qd.shape):
@@ -525,8 +533,8 @@ class Saturation:
 
             return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0])))
         fused = _fusable(tau, qd)
-        within = fused_within if fused else _within
-        if not (within(tau, c.ordinary) and within(qd, c.qd_cap)):
+        ordinary = fused_within(tau, c.ordinary, qd, c.qd_cap) if fused else _within(tau, c.ordinary)
+        if not (ordinary and (fused or _within(qd, c.qd_cap))):
             return self._saturate_numpy(tau, qd, consts)
         return self._saturate_ordinary(tau, qd, consts, fused)
 
