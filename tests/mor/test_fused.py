@@ -10,10 +10,16 @@ from hypothesis import strategies as st
 from hypothesis.extra.numpy import arrays
 
 from hound_id.mor import fused
-from hound_id.mor.robot import robot_from_mapping
 from hound_id.mor.saturation import saturation_for
-from tests.conftest import SMALL_MOTOR
-from tests.mor.test_saturation import MOTOR_OVERSPEED, ROBOT_SAT, N, commands, uncoupled_robot, uncoupled_saturation
+from tests.mor.test_saturation import (
+    MOTOR_OVERSPEED,
+    ROBOT_SAT,
+    N,
+    commands,
+    small_motor_robot,
+    uncoupled_robot,
+    uncoupled_saturation,
+)
 
 DTYPES = [np.float32, np.float64]
 
@@ -85,16 +91,7 @@ def test_uncoupled_robots_of_any_motor_bit_for_bit(curve, robot_def):
 
 
 def test_rated_speed_signed_zeros_and_torch_views_bit_for_bit():
-    robot = robot_from_mapping(
-        {
-            "name": "s",
-            "motor_specs": {"s": str(SMALL_MOTOR)},
-            "joints": ["j"],
-            "transmissions": [{"type": "ratio", "joints": ["j"], "motors": ["m"], "motor_spec": "s", "ratios": [1.0]}],
-        },
-        source="inline",
-        base=SMALL_MOTOR.parent,
-    )
+    robot = small_motor_robot()
     sat = saturation_for(robot)
     assert sat._constants(np.zeros((1, 1))).has_max_speed
     w = float(sat.max_speed[0])

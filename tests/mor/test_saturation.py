@@ -189,8 +189,9 @@ def test_uncoupled_curved_joints_clip_to_the_brute_force_interval(robot_def, dat
             assert out_m[row, m] == pytest.approx(want, abs=scale)
 
 
-def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml):
-    robot = robot_from_mapping(
+def small_motor_robot():
+    """One joint on the small sample motor (which has a rated max_speed), ratio 1."""
+    return robot_from_mapping(
         {
             "name": "s",
             "motor_specs": {"s": str(SMALL_MOTOR)},
@@ -200,6 +201,10 @@ def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml)
         source="inline",
         base=SMALL_MOTOR.parent,
     )
+
+
+def test_past_overspeed_full_braking_and_past_max_speed_braking_only(write_yaml):
+    robot = small_motor_robot()
     sat = saturation_for(robot)
     spec = robot.motor_specs["m"]
     region = operating_region(spec)
