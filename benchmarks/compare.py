@@ -289,7 +289,7 @@ def main() -> None:
         "scaling": scaling,
     }
     if args.json:
-        print(json.dumps(report, indent=2))
+        print(json.dumps({"schema": "hound-id/bench-compare/2", **report}, indent=2))
         return
     print(f"edge on 20,000 speeds: {current * 1e3:.1f} ms; the earlier Illinois search {earlier * 1e3:.1f} ms "
           f"(ratio {earlier / current:.1f}, largest difference {diff_earlier:.1e} N m), bisection "

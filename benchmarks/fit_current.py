@@ -19,8 +19,8 @@ Targets (issue 18): cold whole run <= 1.0 s, warm <= 0.4 s; 5,000,000 rows <= 3 
 
 ``--scaling`` runs one fresh process per size from 10^4 to ``--max-rows`` (default 10^7)
 rows and prints the cold and warm totals and the peak memory of each (the peak resident set
-of the process, and its growth over the process before loading: Python, numpy, pandas and
-the code take about 150 MB of it).
+of the process, and its growth over the bare interpreter before any import: numpy, pandas,
+pyarrow, scipy and the code take about 250 MB of it).
 
 Single processes on the 2-core VM vary by about +-20 %, so --processes fresh workers
 run and the median one is printed with the range of cold totals.
@@ -230,7 +230,7 @@ def main() -> None:
         f"fit-current on {int(figures['cold_rows'])} rows of {args.format} (targets: cold <= {TARGET_COLD_S} s, warm "
         f"<= {TARGET_WARM_S} s); median of {figures['processes']} processes, cold total range "
         f"{figures['cold_total_s_min']:.2f}-{figures['cold_total_s_max']:.2f} s; peak memory "
-        f"{figures['peak_rss_mb']:.0f} MB ({figures['peak_growth_mb']:.0f} MB over the process before loading)"
+        f"{figures['peak_rss_mb']:.0f} MB ({figures['peak_growth_mb']:.0f} MB over the bare interpreter)"
     )
     for kind in ("cold", "warm"):
         print(

@@ -141,8 +141,7 @@ def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, .
     import pandas as pd
 
     if layout.plain:
-        fast = _read_numeric_csv(path)
-        return (fast if fast is not None else pd.read_csv(path, comment="#", index_col=False)), ()
+        return pd.read_csv(path, comment="#", index_col=False), ()
     names, notes = _unit_names(layout)
     extra = [f"field_{len(names) + k + 1}" for k in range(layout.extra_fields)]
     frame = pd.read_csv(
@@ -176,28 +175,6 @@ def _read_csv(path: Path, layout: CsvLayout) -> tuple[pd.DataFrame, tuple[str, .
                 f"so it is kept as column '{column}'"
             )
     return frame, tuple(notes)
-
-
-def _read_numeric_csv(path: Path) -> pd.DataFrame | None:
-    """A plain CSV whose every column is numbers, read by pyarrow's multithreaded reader (about twice as fast as
-    pandas' on a million-row log), or None when the file is anything else: a column of text, dates or booleans,
-    a comment, a short row, duplicate or empty names. pandas then reads it, so that what it makes of those (and
-    the messages about them) stays the one behaviour."""
-    import pyarrow as pa
-    import pyarrow.csv as pacsv
-
-    try:
-        table = pacsv.read_csv(path)
-    except (pa.ArrowException, OSError, ValueError):
-        return None
-    names = table.column_names
-    numeric = all(pa.types.is_integer(t) or pa.types.is_floating(t) for t in table.schema.types)
-    if not numeric or len(set(names)) != len(names) or not all(n.strip() for n in names):
-        return None
-    frame = table.to_pandas(split_blocks=True, self_destruct=True)
-    del table
-    pa.default_memory_pool().release_unused()  # the reader's buffers: hand them back rather than keep them pooled
-    return frame
 
 
 def _count(n: int, word: str) -> str:
