@@ -38,7 +38,7 @@ def _helpers() -> tuple[Any, Any, Any]:
     jit = _numba().njit(nogil=True, boundscheck=False, fastmath=False)
 
     @jit  # type: ignore[untyped-decorator]
-    def _max(a: Any, b: Any) -> Any:  # numpy's maximum: NaN if either is
+    def _max(a: Any, b: Any) -> Any:  # numpy's maximum: NaN if either is (a tie of +-0 may keep the other sign)
         return a if (a >= b) | (a != a) else b  # no short circuit: one select, so the loop vectorises
 
     @jit  # type: ignore[untyped-decorator]
