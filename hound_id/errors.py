@@ -68,3 +68,7 @@ def where(source: str | None, field: str | None = None) -> str:
     """Format the 'file: field' prefix used in every message."""
     parts = [p for p in (source, f"field '{field}'" if field else None) if p]
     return ": ".join(parts) if parts else "input"
+
+
+class FleetError(HoundIdError, ValueError):
+    """A fleet run cannot start or be compared (no logs found, a scheduler that cannot be reached, bad options)."""

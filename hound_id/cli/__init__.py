@@ -15,6 +15,7 @@ from hound_id.cli import demo as _demo
 from hound_id.cli import dyno as _dyno
 from hound_id.cli import dyno_rig as _dyno_rig
 from hound_id.cli import export as _export
+from hound_id.cli import fleet as _fleet
 from hound_id.cli import foot as _foot
 from hound_id.cli import mor as _mor
 from hound_id.errors import HoundIdError
@@ -31,6 +32,7 @@ app.command("mor", no_args_is_help=True)(_mor.mor)
 app.command("saturate", no_args_is_help=True)(_mor.saturate)
 app.command("fit-current", no_args_is_help=True)(_dyno.fit_current)
 app.command("effects")(_dyno.effects)
+app.command("fleet", no_args_is_help=True)(_fleet.fleet)
 app.add_typer(_dyno_rig.app, name="dyno")
 app.command("foot")(_foot.foot)
 app.command("export", no_args_is_help=True)(_export.export)
@@ -73,6 +75,8 @@ def main(argv: list[str] | None = None) -> None:
         if "UsageError" in kinds:
             command = _command_path(sys.argv[1:] if argv is None else argv)
             message = err.format_message().replace("\n", " ").rstrip(".")  # type: ignore[attr-defined]
+            if command == "hound-id fit-current" and "extra argument" in message:
+                message += "; fit-current takes one log: to fit many and compare them, run 'hound-id fleet LOG...'"
             print(f"hound-id: error: {command}: {message}; see '{command} --help'", file=sys.stderr)
             sys.exit(2)
         if "ClickException" in kinds:

@@ -177,6 +177,14 @@ def fit_current(
     from hound_id.mor.spec import load_motor_spec
 
     spec, plot, out = options.spec, options.plot, options.out
+    if Path(data).is_dir():
+        from hound_id.errors import DynoDataError
+
+        raise DynoDataError(
+            f"{data}: is a folder; fit-current takes one log (.csv or .parquet): to fit every log in the folder and "
+            f"compare them, run 'hound-id fleet {data}'",
+            path=str(data),
+        )
     sources = (data, spec, *options.effects_files)
     io.check_output(plot, (".png",), "plot", inputs=sources)
     start_stop = parse_window(options.window)

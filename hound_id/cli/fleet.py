@@ -1,0 +1,223 @@
+"""``hound-id fleet``: fit many actuators' logs with one model, in parallel, and flag the outliers."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import TYPE_CHECKING, Any, Optional
+
+import typer
+from rich import box
+from rich.markup import escape
+from rich.table import Table
+
+from hound_id.cli._render import console, err_console, print_json, warn
+
+if TYPE_CHECKING:
+    from hound_id.dyno.fleet.analyse import ActuatorFit, FleetReport
+
+#: Beyond this many actuators the table lists only the flagged and failed ones (the CSV has all).
+MAX_ROWS = 40
+
+
+def fleet(
+    logs: list[str] = typer.Argument(
+        ..., metavar="LOG...", help="Dyno logs (CSV or Parquet), folders of them, or quoted glob patterns."
+    ),
+    model: str = typer.Option("linear+saturation", "--model", help="Model of every log: effects joined by '+'."),
+    add: Optional[list[str]] = typer.Option(None, "--add", help="Add an effect to the model (repeatable)."),
+    auto: bool = typer.Option(
+        False, "--auto", help="Each log adds its significant effects; the fleet is compared on their union."
+    ),
+    columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
+    units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
+    flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensors mounted reversed)."),
+    window: Optional[str] = typer.Option(None, "--window", help="Fit only START:STOP seconds of every log."),
+    robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares."),
+    workers: Optional[int] = typer.Option(
+        None, "--workers", help="Worker processes of the local Dask cluster (default: one per core)."
+    ),
+    scheduler: Optional[str] = typer.Option(
+        None, "--scheduler", metavar="ADDRESS", help="An existing Dask scheduler (tcp://host:8786) instead."
+    ),
+    z: float = typer.Option(3.5, "--z", help="Outlier limit: modified z-score (robust spreads with the log's error)."),
+    tolerance: Optional[str] = typer.Option(
+        None, "--tolerance", help="Least relative difference flagged, per quantity: kt=0.05,coulomb=1,..."
+    ),
+    csv: Optional[Path] = typer.Option(None, "--csv", help="Write the fleet table (one row per actuator) as CSV."),
+    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: every quantity per actuator, outliers named."),
+    reports: Optional[Path] = typer.Option(
+        None, "--reports", help="Folder: each log's fit report (what fit-current --json prints)."
+    ),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fleet/1)."),
+) -> None:
+    """Fit every log with the same model on Dask (local cores, or --scheduler), compare the actuators with the
+    fleet's median and flag the outliers with their physical reading. Exit 1 when a log failed."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
+
+    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.fleet.run import FleetOptions, write_outputs
+    from hound_id.dyno.fleet.run import fleet as run
+
+    fit = FitCurrentOptions(
+        model=model,
+        add=tuple(add or ()),
+        auto=auto,
+        columns=columns,
+        units=units,
+        flip_torque=flip_torque,
+        window=window,
+        robust=robust,
+    )
+    options = FleetOptions(scheduler, workers, z, tolerance, csv, plot, reports)
+    with Progress(
+        TextColumn("{task.description}"),
+        BarColumn(),
+        MofNCompleteColumn(),
+        TimeRemainingColumn(),
+        console=err_console,
+        transient=True,
+        disable=not err_console.is_terminal,
+    ) as progress:
+        task: list[TaskID] = []
+
+        def on_pass(description: str, count: int) -> None:
+            if task:
+                progress.remove_task(task.pop())
+            task.append(progress.add_task(description, total=count))
+            if not err_console.is_terminal and not json_out:
+                err_console.print(f"{description}: {count} logs", highlight=False, markup=False)
+
+        def on_result(fit_: ActuatorFit, done: int, total: int) -> None:
+            progress.update(task[-1], completed=done)
+            progress.console.print(_log_line(fit_), highlight=False, soft_wrap=True)
+
+        result = run(logs, fit, options, on_result=on_result, on_pass=on_pass)
+    write_outputs(result)
+    report = result.report
+    if json_out:
+        print_json(result.to_dict())
+    else:
+        _print(result.to_dict(), report)
+        for note in result.run.notes:
+            warn(note)
+    if not report.fitted:
+        raise typer.Exit(2)
+    if report.failed:
+        raise typer.Exit(1)
+
+
+def _log_line(fit: ActuatorFit) -> str:
+    if fit.report is None:
+        first = (fit.error or "").splitlines()[0] if fit.error else "failed"
+        return f"FAILED {fit.name}: {first}"
+    r = fit.report
+    kt = r["parameters"]["kt"]
+    err = f" +- {kt['stderr']:.2g}" if kt.get("stderr") is not None else ""
+    verdict = "at the noise floor" if r["at_noise_floor"] else "not at the noise floor"
+    return f"ok     {fit.name}: Kt {kt['value']:.5g}{err} N m/A, {verdict} ({fit.seconds:.2f} s)"
+
+
+#: Short column names of the table (the CSV and JSON use the metric keys).
+SHORT = {
+    "kt": "Kt",
+    "peak_torque": "peak",
+    "coulomb": "Coul.",
+    "viscous": "visc.",
+    "stribeck": "static",
+    "gear_friction": "gear",
+    "cogging_amplitude": "cog.",
+    "noise_floor": "noise",
+}
+
+
+def _deviation(value: float | None, median: float | None) -> str:
+    if value is None:
+        return "-"
+    if not median:
+        return f"{value:.3g}"
+    return f"{(value - median) / abs(median):+.0%}"
+
+
+def _print(data: dict[str, Any], report: FleetReport) -> None:
+    """Per actuator, each quantity's deviation from the fleet's median; then the medians and spreads in SI."""
+    stats = report.stats
+    flagged = {f.actuator for f in report.flags}
+    rows = report.actuators
+    if len(rows) > MAX_ROWS:
+        rows = tuple(a for a in rows if a.name in flagged or not a.ok)
+    table = Table(
+        title=f"{len(report.actuators)} actuators against the fleet's median (flagged in red)",
+        title_justify="left",
+        box=box.SIMPLE_HEAD,
+        pad_edge=False,
+    )
+    table.add_column("actuator", no_wrap=True)
+    for s in stats:
+        table.add_column(SHORT.get(s.metric.key, s.metric.key), justify="right")
+    table.add_column("order", justify="right")
+    table.add_column("verdict")
+    for a in rows:
+        if a.report is None:
+            table.add_row(escape(a.name), *(["-"] * (len(stats) + 1)), "[red]failed[/red]")
+            continue
+        values = report.values[a.name]
+        mine = {f.metric for f in report.flags_of(a.name)}
+        cells = []
+        for s in stats:
+            text = _deviation(values[s.metric.key].value, s.median)
+            cells.append(f"[bold red]{text}[/bold red]" if s.metric.key in mine else text)
+        order = report.cogging_order.get(a.name)
+        order_text = "-" if order is None else f"{order:g}"
+        cells.append(f"[bold red]{order_text}[/bold red]" if "cogging_order" in mine else order_text)
+        verdict = "floor" if a.report["at_noise_floor"] else "missing"
+        table.add_row(escape(a.name), *cells, f"[bold red]{verdict}[/bold red]" if "verdict" in mine else verdict)
+    console.print(table)
+    fleet = Table(title=f"the fleet (model {'+'.join(report.model)})", title_justify="left", box=box.SIMPLE_HEAD)
+    for col in ("quantity", "median", "robust spread", "unit", "n", "flagged if"):
+        fleet.add_column(col, justify="right" if col in ("median", "robust spread", "n") else "left")
+    for s in stats:
+        m = s.metric
+        rule = {"both": "off", "high": "above", "low": "below"}[m.side]
+        fleet.add_row(
+            m.label,
+            "-" if s.median is None else f"{s.median:.4g}",
+            "-" if s.spread is None else f"{s.spread:.2g}",
+            m.unit,
+            str(s.n),
+            f"{rule} by > {m.tolerance:.0%}" if s.judged else "too few",
+        )
+    if report.fleet_order is not None:
+        fleet.add_row("cogging order", f"{report.fleet_order:g}", "", "1/rev", "", "another")
+    console.print(fleet)
+    console.print(
+        f"flagged if also more than {report.z:g} robust spreads (combined with the log's own standard error) "
+        "from the median; verdict: floor = the fit is at its log's noise floor, missing = the log shows an effect the "
+        "model lacks",
+        highlight=False,
+    )
+    if len(rows) < len(report.actuators):
+        console.print(
+            f"{len(report.actuators) - len(rows)} healthy actuators not listed (--csv has every one)", highlight=False
+        )
+    engine = data["engine"]
+    per_log = engine["seconds_per_log"]
+    console.print(
+        f"{len(report.fitted)} fitted, {len(report.failed)} failed on {engine['workers']} Dask workers "
+        f"({'local cluster' if engine['local_cluster'] else engine['scheduler']}) in {engine['seconds']:.1f} s"
+        + (f", {per_log:.2f} s per log" if per_log is not None else "")
+        + (f"; fitted again with the fleet's model: {', '.join(engine['refitted'])}" if engine["refitted"] else ""),
+        highlight=False,
+    )
+    if report.flags:
+        console.print(f"[bold]flagged ({len(flagged)} actuators):[/bold]")
+        for f in report.flags:
+            console.print(f"  {escape(f.actuator)}: {escape(f.reading)}", highlight=False)
+    else:
+        console.print("[bold]no actuator is flagged[/bold]")
+    for a in report.failed:
+        console.print(f"[red]failed[/red] {escape(a.name)}: {escape((a.error or '').splitlines()[0])}", highlight=False)
+    for note in report.notes:
+        console.print(f"note: {escape(note)}", highlight=False)
+    for what in ("csv", "plot", "reports"):
+        if data[what]:
+            console.print(f"{what} written to {data[what]}", highlight=False)

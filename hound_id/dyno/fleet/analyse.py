@@ -1,0 +1,588 @@
+"""The fleet report: one row per actuator, the fleet's median and robust spread, and the outliers.
+
+Every actuator's log is fitted by ``fit-current`` with the same model and options (see
+:mod:`hound_id.dyno.fleet.engine`); this module only reads the fit reports (schema
+``hound-id/fit/3``). Pure functions, no engine, no printing.
+
+**Outliers.** For each quantity of :data:`METRICS`, over the actuators where the log identifies it:
+the fleet's median m and its robust spread s = 1.4826 MAD (the standard deviation for a normal
+fleet, untouched by up to half the fleet being faulty). An actuator with value x and standard
+error e is flagged when both hold:
+
+* ``|x - m| > z sqrt(s^2 + e^2)`` (``z`` = :data:`Z_THRESHOLD`, the modified z-score limit of
+  Iglewicz and Hoaglin), so neither the fleet's scatter nor the log's own noise flags it; and
+* ``|x - m| > tolerance |m|``: the least difference that matters physically (:class:`Metric`),
+  so a fleet of near-identical motors, whose spread is tiny, does not flag a healthy one.
+
+Friction, cogging and the noise floor are flagged only when high (low friction is no fault);
+Kt and the peak torque both ways. The cogging order is compared with the fleet's most common
+order, and the verdict (at the noise floor or not) with the fleet's majority. With fewer than
+:data:`MIN_FLEET` identified values, nothing is flagged: five values cannot show an outlier.
+"""
+
+from __future__ import annotations
+
+import math
+from collections import Counter
+from collections.abc import Mapping, Sequence
+from dataclasses import dataclass, field, replace
+from typing import Any
+
+from hound_id.errors import FleetError
+
+SCHEMA = "hound-id/fleet/1"
+
+#: Modified z-score above which a value is an outlier (Iglewicz and Hoaglin, 1993).
+Z_THRESHOLD = 3.5
+#: MAD -> standard deviation for a normal population.
+MAD_TO_SIGMA = 1.4826
+#: Fewest actuators with an identified value for that value to be judged.
+MIN_FLEET = 5
+#: A cogging amplitude below this many standard errors is noise: its order is not identified.
+COGGING_SIGNIFICANCE = 4.0
+
+
+@dataclass(frozen=True)
+class Metric:
+    """A per-actuator quantity the fleet is compared on."""
+
+    key: str
+    """Key in the report, the CSV and the JSON."""
+    label: str
+    """Name for tables and plots."""
+    unit: str
+    """SI unit."""
+    side: str
+    """Which deviations are faults: "both", "high" or "low"."""
+    tolerance: float
+    """Least relative difference from the fleet's median that is flagged [-] (assumed; ``--tolerance``)."""
+    low: str = ""
+    """What a low value means physically."""
+    high: str = ""
+    """What a high value means physically."""
+
+
+PEAK_LOW = "peak torque low: the core saturates early (another stator or lamination)"
+
+#: The quantities compared, in table order. Tolerances are assumptions, not measured fleet data:
+#: Kt 3 % (magnet remanence and winding tolerances keep healthy motors of one type within a few
+#: per cent), peak torque 5 %, friction and cogging 50 % (they vary between healthy units with
+#: grease, preload and temperature), the noise floor a factor 2.
+METRICS: tuple[Metric, ...] = (
+    Metric(
+        "kt",
+        "Kt",
+        "N m/A",
+        "both",
+        0.03,
+        low="Kt low: a weakened (demagnetised) magnet or a wrong winding",
+        high="Kt high: another winding or magnet grade than the fleet's: check the part",
+    ),
+    Metric(
+        "peak_torque",
+        "peak torque",
+        "N m",
+        "both",
+        0.05,
+        low=PEAK_LOW,
+        high="peak torque high: a stronger motor than the fleet's: check the part",
+    ),
+    Metric("coulomb", "Coulomb friction", "N m", "high", 0.5, high="friction high: a bearing or gearbox problem"),
+    Metric(
+        "viscous",
+        "viscous friction",
+        "N m s/rad",
+        "high",
+        0.5,
+        high="viscous friction high: a rubbing seal, too much or too thick grease, or a bearing problem",
+    ),
+    Metric(
+        "stribeck",
+        "static (Stribeck) friction",
+        "N m",
+        "high",
+        0.5,
+        high="static friction high: a bearing or gearbox that sticks at rest",
+    ),
+    Metric(
+        "gear_friction",
+        "load-dependent friction",
+        "N m/A",
+        "high",
+        0.5,
+        high="load-dependent friction high: a gearbox problem (worn, misaligned or dry gears)",
+    ),
+    Metric(
+        "cogging_amplitude",
+        "cogging amplitude",
+        "N m",
+        "high",
+        0.5,
+        high="cogging high: a displaced or chipped magnet, or an eccentric rotor",
+    ),
+    Metric(
+        "noise_floor",
+        "noise floor",
+        "N m",
+        "high",
+        1.0,
+        high="noise floor high: the measurement (a loose coupling, a noisy transducer or cable), not the motor",
+    ),
+)
+METRIC_BY_KEY: Mapping[str, Metric] = {m.key: m for m in METRICS}
+#: The friction parameters of the effects library that become fleet columns.
+FRICTION = ("coulomb", "viscous", "stribeck", "gear_friction")
+COGGING_PARAMETERS = ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2")
+
+
+@dataclass(frozen=True)
+class ActuatorFit:
+    """One actuator's log after ``fit-current``: its report, or why it failed."""
+
+    name: str
+    """The actuator's name (the log's file name without its suffix, or its path when names repeat)."""
+    source: str
+    """The log as given."""
+    report: Mapping[str, Any] | None
+    """The fit report (what ``fit-current --json`` prints, schema ``hound-id/fit/3``); None when it failed."""
+    error: str | None = None
+    """Why it failed: the one-line message ``fit-current`` gives."""
+    bug: bool = False
+    """The failure was not a bad input but a fault in hound-id (the error holds the traceback)."""
+    seconds: float = math.nan
+    """Time spent fitting it on its worker [s]."""
+    worker: str = ""
+    """The worker that fitted it."""
+    version: str = ""
+    """The hound-id version on that worker."""
+
+    @property
+    def ok(self) -> bool:
+        """True when the log was fitted."""
+        return self.report is not None
+
+
+@dataclass(frozen=True)
+class Value:
+    """One quantity of one actuator."""
+
+    value: float | None
+    """The estimate (SI), None when the log does not identify it."""
+    stderr: float
+    """Its standard error (0 when the fit gives none)."""
+    why: str = ""
+    """Why it is not identified, or what qualifies it (extrapolated)."""
+
+    @property
+    def identified(self) -> bool:
+        """True when the value can be compared with the fleet's."""
+        return self.value is not None
+
+
+@dataclass(frozen=True)
+class Stats:
+    """The fleet's centre and spread of one quantity."""
+
+    metric: Metric
+    """The quantity."""
+    n: int
+    """Actuators where it is identified."""
+    median: float | None
+    """The fleet's median (None with no value)."""
+    spread: float | None
+    """Robust spread, 1.4826 MAD (None with no value)."""
+    judged: bool
+    """False with fewer than :data:`MIN_FLEET` values: no outlier is flagged."""
+
+    def limits(self, z: float) -> tuple[float, float] | None:
+        """The values that would be flagged for an exact value (stderr 0): (low, high) bounds."""
+        if self.median is None or self.spread is None:
+            return None
+        reach = max(z * self.spread, self.metric.tolerance * abs(self.median))
+        return self.median - reach, self.median + reach
+
+
+@dataclass(frozen=True)
+class Flag:
+    """An outlier: one actuator, one quantity, what it means."""
+
+    actuator: str
+    """The actuator's name."""
+    metric: str
+    """The quantity's key (``cogging_order`` and ``verdict`` too)."""
+    value: Any
+    """Its value (SI)."""
+    fleet: Any
+    """The fleet's median (or most common order / verdict)."""
+    z: float | None
+    """Deviation in combined standard deviations (None for orders and verdicts)."""
+    reading: str
+    """The physical reading."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "actuator": self.actuator,
+            "metric": self.metric,
+            "value": self.value,
+            "fleet": self.fleet,
+            "z": self.z,
+            "reading": self.reading,
+        }
+
+
+@dataclass(frozen=True)
+class FleetReport:
+    """The fleet: each actuator's values, the fleet's statistics and the outliers."""
+
+    actuators: tuple[ActuatorFit, ...]
+    """Every log, fitted or failed, in name order."""
+    values: Mapping[str, Mapping[str, Value]]
+    """Actuator name -> metric key -> value (fitted actuators only)."""
+    cogging_order: Mapping[str, float | None]
+    """Actuator name -> its cogging order [1/rev] (None: not identified)."""
+    stats: tuple[Stats, ...]
+    """One per metric in the common model."""
+    fleet_order: float | None
+    """The fleet's most common cogging order (None when none is identified)."""
+    flags: tuple[Flag, ...]
+    """The outliers."""
+    model: tuple[str, ...]
+    """The effects every actuator was fitted with."""
+    z: float = Z_THRESHOLD
+    """The z-score limit used."""
+    notes: tuple[str, ...] = field(default=())
+    """What the fleet cannot show, and why."""
+
+    @property
+    def fitted(self) -> tuple[ActuatorFit, ...]:
+        return tuple(a for a in self.actuators if a.ok)
+
+    @property
+    def failed(self) -> tuple[ActuatorFit, ...]:
+        return tuple(a for a in self.actuators if not a.ok)
+
+    def flags_of(self, name: str) -> tuple[Flag, ...]:
+        return tuple(f for f in self.flags if f.actuator == name)
+
+    def to_dict(self) -> dict[str, Any]:
+        """JSON-ready report, schema ``hound-id/fleet/1`` (SI units)."""
+        rows = []
+        for a in self.actuators:
+            row: dict[str, Any] = {"name": a.name, "source": a.source, "ok": a.ok, "seconds": _num(a.seconds)}
+            if a.ok:
+                assert a.report is not None
+                row["values"] = {
+                    k: {"value": v.value, "stderr": v.stderr, "note": v.why or None}
+                    for k, v in self.values[a.name].items()
+                }
+                row["cogging_order"] = self.cogging_order.get(a.name)
+                row["rmse_test"] = a.report["rmse"]["test"]
+                row["at_noise_floor"] = a.report["at_noise_floor"]
+                row["verdict"] = a.report["summary"]
+                row["warnings"] = list(a.report.get("warnings", ()))
+                row["flags"] = [f.to_dict() for f in self.flags_of(a.name)]
+            else:
+                row["error"] = a.error
+                row["bug"] = a.bug
+            rows.append(row)
+        return {
+            "schema": SCHEMA,
+            "model": list(self.model),
+            "actuators": rows,
+            "fleet": {
+                s.metric.key: {
+                    "label": s.metric.label,
+                    "unit": s.metric.unit,
+                    "n": s.n,
+                    "median": s.median,
+                    "spread": s.spread,
+                    "judged": s.judged,
+                    "flag_side": s.metric.side,
+                    "tolerance": s.metric.tolerance,
+                    "limits": list(lim) if (lim := s.limits(self.z)) is not None else None,
+                }
+                for s in self.stats
+            },
+            "cogging_order": self.fleet_order,
+            "flags": [f.to_dict() for f in self.flags],
+            "fitted": len(self.fitted),
+            "failed": [{"name": a.name, "source": a.source, "error": a.error, "bug": a.bug} for a in self.failed],
+            "z_threshold": self.z,
+            "notes": list(self.notes),
+            "units": {s.metric.key: s.metric.unit for s in self.stats},
+        }
+
+    def table(self) -> tuple[list[str], list[list[Any]]]:
+        """The CSV: a header (units in brackets, as hound-id reads them) and one row per actuator."""
+        keys = [s.metric.key for s in self.stats]
+        header = ["actuator", "source", "status"]
+        for s in self.stats:
+            unit = s.metric.unit.replace(" ", "*")
+            header += [f"{s.metric.key}[{unit}]", f"{s.metric.key}_stderr[{unit}]"]
+        header += ["cogging_order[1/rev]", "rmse_test[N*m]", "at_noise_floor", "flags", "verdict_or_error"]
+        rows = []
+        for a in self.actuators:
+            if not a.ok:
+                rows.append([a.name, a.source, "failed", *([""] * (2 * len(keys) + 4)), a.error])
+                continue
+            assert a.report is not None
+            cells: list[Any] = [a.name, a.source, "flagged" if self.flags_of(a.name) else "ok"]
+            for k in keys:
+                v = self.values[a.name][k]
+                cells += ["" if v.value is None else v.value, "" if v.value is None else v.stderr]
+            order = self.cogging_order.get(a.name)
+            cells += [
+                "" if order is None else order,
+                a.report["rmse"]["test"],
+                a.report["at_noise_floor"],
+                "; ".join(f.reading for f in self.flags_of(a.name)),
+                a.report["summary"],
+            ]
+            rows.append(cells)
+        return header, rows
+
+
+def _num(x: float) -> float | None:
+    return None if x is None or math.isnan(x) else float(x)
+
+
+def _parameter(report: Mapping[str, Any], name: str) -> Value:
+    p = report["parameters"].get(name)
+    if p is None:
+        return Value(None, 0.0, "not in the model")
+    if p.get("at_bound"):
+        return Value(None, 0.0, f"held at its physical bound {p['value']:.4g}: the log cannot show it")
+    err = p.get("stderr")
+    if err is None or not math.isfinite(err):
+        return Value(None, 0.0, "no standard error: the log cannot separate it from another term")
+    return Value(float(p["value"]), float(err))
+
+
+def _cogging(report: Mapping[str, Any]) -> tuple[Value, float | None]:
+    """Cogging amplitude (root-sum-square of the harmonics) with its propagated error, and the order."""
+    params = report["parameters"]
+    if not all(n in params for n in COGGING_PARAMETERS):
+        return Value(None, 0.0, "not in the model"), None
+    values = [float(params[n]["value"]) for n in COGGING_PARAMETERS]
+    errors = [params[n].get("stderr") for n in COGGING_PARAMETERS]
+    if any(e is None or not math.isfinite(e) for e in errors):
+        return Value(None, 0.0, "no standard error"), None
+    amplitude = math.sqrt(sum(v * v for v in values))
+    if amplitude == 0.0:
+        return Value(0.0, 0.0), None
+    stderr = math.sqrt(sum((v / amplitude) ** 2 * e * e for v, e in zip(values, errors, strict=True)))
+    order = params.get("cogging_order", {}).get("value")
+    significant = amplitude > COGGING_SIGNIFICANCE * stderr
+    return Value(amplitude, stderr), (float(order) if order is not None and significant else None)
+
+
+def values_of(report: Mapping[str, Any]) -> tuple[dict[str, Value], float | None]:
+    """Every metric of one fit report, and its cogging order (None: not identified)."""
+    out = {"kt": _parameter(report, "kt")}
+    peak = report["peak_torque"]
+    if peak["torque"] is None:
+        out["peak_torque"] = Value(None, 0.0, "not reached by the fitted curve")
+    else:
+        out["peak_torque"] = Value(float(peak["torque"]), 0.0, "extrapolated" if peak["extrapolated"] else "")
+    for name in FRICTION:
+        out[name] = _parameter(report, name)
+    out["cogging_amplitude"], order = _cogging(report)
+    out["noise_floor"] = Value(float(report["noise_floor"]), 0.0)
+    return out, order
+
+
+def parse_tolerances(text: str | Mapping[str, float] | None) -> dict[str, float]:
+    """``kt=0.05,coulomb=1`` -> {metric: fraction}; every key must be a metric, every value >= 0."""
+    if text is None:
+        return {}
+    if isinstance(text, Mapping):
+        items = [(k, str(v)) for k, v in text.items()]
+    else:
+        items = []
+        for part in (p.strip() for p in text.split(",") if p.strip()):
+            key, sep, value = part.partition("=")
+            if not sep:
+                raise FleetError(f"--tolerance: found {part!r}, expected METRIC=FRACTION (kt=0.05)")
+            items.append((key.strip(), value.strip()))
+    out = {}
+    for key, value in items:
+        if key not in METRIC_BY_KEY:
+            raise FleetError(f"--tolerance: unknown metric {key!r}; expected one of {', '.join(METRIC_BY_KEY)}")
+        try:
+            fraction = float(value)
+        except ValueError:
+            fraction = math.nan
+        if not math.isfinite(fraction) or fraction < 0:
+            raise FleetError(f"--tolerance {key}: found {value!r}, expected a fraction >= 0 (0.05 for 5 %)")
+        out[key] = fraction
+    return out
+
+
+def check_z(z: float) -> None:
+    """Raise :class:`FleetError` unless ``z`` is a positive finite number."""
+    if not (z > 0 and math.isfinite(z)):
+        raise FleetError(f"--z: found {z}, expected a positive number (3.5 is the usual outlier limit)")
+
+
+def _median(xs: Sequence[float]) -> float:
+    s = sorted(xs)
+    n = len(s)
+    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
+
+
+def analyse(
+    actuators: Sequence[ActuatorFit],
+    z: float = Z_THRESHOLD,
+    tolerances: Mapping[str, float] | None = None,
+    model: Sequence[str] | None = None,
+) -> FleetReport:
+    """Compare every fitted actuator with the fleet and flag the outliers with their physical reading.
+
+    Args:
+        actuators: Every log's outcome (failed ones are listed, not compared).
+        z: Modified z-score limit.
+        tolerances: Metric key -> least relative difference flagged, overriding :data:`METRICS`' own.
+        model: The fleet's model in the order to report it (default: the first fitted log's).
+
+    Raises:
+        FleetError: ``z`` is not positive, or the fitted logs were fitted with different models.
+    """
+    check_z(z)
+    metrics = [replace(m, tolerance=(tolerances or {}).get(m.key, m.tolerance)) for m in METRICS]
+    ordered = tuple(sorted(actuators, key=lambda a: a.name))
+    fitted = [a for a in ordered if a.report is not None]
+    models = {frozenset(a.report["model"]): tuple(a.report["model"]) for a in fitted if a.report is not None}
+    if len(models) > 1:
+        raise FleetError(
+            "the logs were fitted with different models ("
+            + "; ".join(sorted("+".join(m) for m in models.values()))
+            + "): a fleet is compared on one model"
+        )
+    common = next(iter(models.values()), ())
+    if model is not None and fitted and set(model) != set(common):
+        raise FleetError(f"the logs were fitted with {'+'.join(common)}, not the model given ({'+'.join(model)})")
+    model = tuple(model) if model is not None else common
+    values: dict[str, dict[str, Value]] = {}
+    orders: dict[str, float | None] = {}
+    for a in fitted:
+        assert a.report is not None
+        values[a.name], orders[a.name] = values_of(a.report)
+    notes: list[str] = []
+    stats, flags = [], []
+    for metric in metrics:
+        present = {n: v[metric.key] for n, v in values.items()}
+        if present and all(v.why == "not in the model" for v in present.values()):
+            continue  # a friction or cogging term the fleet's model does not have
+        known = {n: v for n, v in present.items() if v.value is not None}
+        xs = [v.value for v in known.values() if v.value is not None]
+        median = _median(xs) if xs else None
+        spread = MAD_TO_SIGMA * _median([abs(x - median) for x in xs]) if median is not None else None
+        judged = len(xs) >= MIN_FLEET
+        st = Stats(metric, len(xs), median, spread, judged)
+        stats.append(st)
+        if not judged:
+            if fitted:
+                notes.append(
+                    f"{metric.label}: identified on {len(xs)} actuators; fewer than {MIN_FLEET} cannot show an "
+                    "outlier, so none is flagged"
+                )
+            continue
+        assert median is not None and spread is not None
+        for name, v in known.items():
+            assert v.value is not None
+            dev = v.value - median
+            side = "high" if dev > 0 else "low"
+            if metric.side not in ("both", side):
+                continue
+            scale = math.hypot(spread, v.stderr)
+            zscore = abs(dev) / scale if scale > 0 else math.inf
+            if zscore > z and abs(dev) > metric.tolerance * abs(median):
+                reading = metric.high if side == "high" else metric.low
+                percent = f"{dev / median:+.0%} against the fleet's median" if median else ""
+                flags.append(
+                    Flag(
+                        name,
+                        metric.key,
+                        v.value,
+                        median,
+                        _num(zscore),
+                        f"{reading} ({percent})" if percent else reading,
+                    )
+                )
+    low_kt = {f.actuator for f in flags if f.metric == "kt" and f.value < f.fleet}
+    flags = [
+        replace(f, reading=f.reading.replace(PEAK_LOW, "peak torque low: it follows the low Kt"))
+        if f.metric == "peak_torque" and f.actuator in low_kt
+        else f
+        for f in flags
+    ]
+    fleet_order = _fleet_order(orders, notes)
+    if fleet_order is not None:
+        for name, order in orders.items():
+            if order is not None and order != fleet_order:
+                flags.append(
+                    Flag(
+                        name,
+                        "cogging_order",
+                        order,
+                        fleet_order,
+                        None,
+                        f"cogging order {order:g}/rev against the fleet's {fleet_order:g}/rev: a different motor "
+                        "(another slot and pole count)",
+                    )
+                )
+    flags += _verdict_flags(fitted)
+    flags.sort(
+        key=lambda f: (f.actuator, [m.key for m in metrics].index(f.metric) if f.metric in METRIC_BY_KEY else 99)
+    )
+    return FleetReport(
+        actuators=ordered,
+        values=values,
+        cogging_order=orders,
+        stats=tuple(stats),
+        fleet_order=fleet_order,
+        flags=tuple(flags),
+        model=tuple(model),
+        z=z,
+        notes=tuple(notes),
+    )
+
+
+def _fleet_order(orders: Mapping[str, float | None], notes: list[str]) -> float | None:
+    """The most common identified cogging order, when it is a clear majority of at least MIN_FLEET actuators."""
+    found = Counter(o for o in orders.values() if o is not None)
+    if not found:
+        return None
+    (order, count), total = found.most_common(1)[0], sum(found.values())
+    if count < MIN_FLEET or 2 * count <= total:
+        notes.append(
+            f"cogging order: {dict(sorted(found.items()))} (order: actuators); no order is shared by a majority of at "
+            f"least {MIN_FLEET}, so none is flagged as different"
+        )
+        return None
+    return order
+
+
+def _verdict_flags(fitted: Sequence[ActuatorFit]) -> list[Flag]:
+    """Actuators whose fit misses an effect while most of the fleet's is at the noise floor."""
+    at_floor = [a for a in fitted if a.report is not None and a.report["at_noise_floor"]]
+    if len(fitted) < MIN_FLEET or 2 * len(at_floor) <= len(fitted):
+        return []
+    out = []
+    for a in fitted:
+        assert a.report is not None
+        if a.report["at_noise_floor"]:
+            continue
+        best = next((s["effect"] for s in a.report["suggestions"] if s["significant"]), None)
+        missing = f"{best} is significant in its residual" if best else "its residual is above the noise floor"
+        out.append(
+            Flag(
+                a.name,
+                "verdict",
+                False,
+                True,
+                None,
+                f"its log shows an effect the fleet's model lacks ({missing}): run fit-current --auto on it",
+            )
+        )
+    return out
