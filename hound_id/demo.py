@@ -146,6 +146,38 @@ def step_fit_current(out: Path) -> StepResult:
     )
 
 
+def step_fleet(out: Path) -> StepResult:
+    """Fit the sample fleet of twelve actuators on a local Dask cluster and flag the faulty ones."""
+    import json
+
+    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.fleet.run import FleetOptions, fleet, write_outputs
+
+    folder = samples_dir() / "fleet"
+    options = FleetOptions(csv=out / "fleet.csv", plot=out / "fleet.png")
+    result = fleet([folder], FitCurrentOptions(auto=True), options)
+    io.write_json(out / "fleet.json", result.to_dict())  # what `fleet --json` prints
+    write_outputs(result, dpi=DPI)
+    report = result.report
+    planted = json.loads((folder / "fleet_truth.json").read_text())["faults"]
+    flagged = sorted({f.actuator for f in report.flags})
+    found = sum(name in flagged for name in planted)
+    readings = "; ".join(f"{f.actuator}: {f.reading.split(':')[0]}" for f in report.flags)
+    return StepResult(
+        "compare a fleet",
+        f"{len(report.fitted)} of {len(report.actuators)} actuators fitted with {'+'.join(report.model)}; "
+        f"flagged {', '.join(flagged) or 'none'} ({readings}); {found} of {len(planted)} planted faults found, "
+        f"{len(set(flagged) - set(planted))} healthy actuators flagged",
+        ("fleet.json", "fleet.csv", "fleet.png"),
+        {
+            "flagged": float(len(flagged)),
+            "planted_found": float(found),
+            "healthy_flagged": float(len(set(flagged) - set(planted))),
+            "seconds_per_log": float(result.to_dict()["engine"]["seconds_per_log"] or 0.0),
+        },
+    )
+
+
 def step_foot(out: Path) -> StepResult:
     """Optimise the sample leg's foot for the sample running log: STL, URDF, JSON, plot."""
     from hound_id.foot.design import PAPER
@@ -258,6 +290,7 @@ STEPS: tuple[Callable[[Path], StepResult], ...] = (
     step_robot_regions,
     step_saturate_log,
     step_fit_current,
+    step_fleet,
     step_compare,
     step_foot,
     step_export,

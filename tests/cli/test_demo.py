@@ -15,6 +15,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
         "robot regions and saturation",
         "saturate a command log",
         "fit a dyno log",
+        "compare a fleet",
         "compare a log with the region",
         "optimise the foot",
         "export to trainers",
@@ -27,7 +28,8 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
                 assert path.read_bytes().startswith(PNG_MAGIC)
             elif name.endswith(".json"):
                 assert json.loads(path.read_text())["schema"].startswith("hound-id/")
-    robot_step = data["steps"][1]["figures"]
+    step = {s["name"]: s["figures"] for s in data["steps"]}
+    robot_step = step["robot regions and saturation"]
     assert robot_step["hound_like.inner_infeasible"] == 0.0
     assert robot_step["hound_like.outer_infeasible"] > 0.5
     motor = json.loads((tmp_path / "out" / "mor_hound_ilm85.json").read_text())
@@ -39,10 +41,13 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert run_cli("mor", "--spec", str(tmp_path / "out" / "hound_ilm85_fitted.yaml")).returncode == 0
     foot = json.loads((tmp_path / "out" / "foot" / "foot.json").read_text())
     assert foot["schema"] == "hound-id/foot/2" and all(c["satisfied"] for c in foot["constraints"].values())
-    assert data["steps"][5]["figures"]["mass_ratio"] == foot["mass_ratio"] < 1
+    assert step["optimise the foot"]["mass_ratio"] == foot["mass_ratio"] < 1
+    fleet = json.loads((tmp_path / "out" / "fleet.json").read_text())  # every planted fault, no healthy actuator
+    assert fleet["schema"] == "hound-id/fleet/1" and fleet["fitted"] == 12 and fleet["engine"]["workers"] >= 1
+    assert step["compare a fleet"]["planted_found"] == 4 and step["compare a fleet"]["healthy_flagged"] == 0
     compare = json.loads((tmp_path / "out" / "compare_ilm85_sag.json").read_text())
     assert compare["schema"] == "hound-id/mor-compare/2" and compare["added"] == ["bus_sag"]
-    sag = data["steps"][4]["figures"]  # the sagging pack turns the corner sooner than the spec sheet says
+    sag = step["compare a log with the region"]  # the sagging pack turns the corner sooner than the spec sheet says
     assert sag["corner_speed_measured"] < 0.9 * sag["corner_speed_spec_sheet"]
     export = json.loads((tmp_path / "out" / "export" / "export.json").read_text())
     assert export["schema"] == "hound-id/export/1" and export["fitted_motors"] == ["hound_ilm85"] and export["foot"]
