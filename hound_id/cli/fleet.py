@@ -184,15 +184,15 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
             "-" if s.spread is None else f"{s.spread:.2g}",
             m.unit,
             str(s.n),
-            f"{rule} by > {m.tolerance:.0%}" if s.judged else "too few",
+            f"{rule} by > {m.tolerance:.0%} and > {s.z:.3g} spreads" if s.judged else "too few",
         )
     if report.fleet_order is not None:
         fleet.add_row("cogging order", f"{report.fleet_order:g}", "", "1/rev", "", "another")
     console.print(fleet)
     console.print(
-        f"flagged if also more than {report.z:g} robust spreads (combined with the log's own standard error) "
-        "from the median; verdict: floor = the fit is at its log's noise floor, missing = the log shows an effect the "
-        "model lacks",
+        "spreads: the robust spread combined with the log's own standard error; the limit grows with the fleet so "
+        "that a healthy fleet is flagged with chance below 1 %. verdict: floor = the fit is at its log's noise floor, "
+        "missing = the log shows an effect the model lacks",
         highlight=False,
     )
     if len(rows) < len(report.actuators):

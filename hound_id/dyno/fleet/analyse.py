@@ -34,6 +34,8 @@ SCHEMA = "hound-id/fleet/1"
 
 #: Modified z-score above which a value is an outlier (Iglewicz and Hoaglin, 1993).
 Z_THRESHOLD = 3.5
+#: Chance that any healthy actuator of a normal fleet passes the z limit: the limit grows with the fleet.
+FAMILY_ALPHA = 0.01
 #: MAD -> standard deviation for a normal population.
 MAD_TO_SIGMA = 1.4826
 #: Fewest actuators with an identified value for that value to be judged.
@@ -65,16 +67,17 @@ class Metric:
 PEAK_LOW = "peak torque low: the core saturates early (another stator or lamination)"
 
 #: The quantities compared, in table order. Tolerances are assumptions, not measured fleet data:
-#: Kt 3 % (magnet remanence and winding tolerances keep healthy motors of one type within a few
-#: per cent), peak torque 5 %, friction and cogging 50 % (they vary between healthy units with
-#: grease, preload and temperature), the noise floor a factor 2.
+#: Kt 5 % (a usual datasheet tolerance of Kt; magnet remanence and winding keep healthy motors of one
+#: type within a few per cent), peak torque 10 % (it goes with Kt squared over the saturation), friction
+#: and cogging 50 % (they vary between healthy units with grease, preload and temperature), the noise
+#: floor a factor 2.
 METRICS: tuple[Metric, ...] = (
     Metric(
         "kt",
         "Kt",
         "N m/A",
         "both",
-        0.03,
+        0.05,
         low="Kt low: a weakened (demagnetised) magnet or a wrong winding",
         high="Kt high: another winding or magnet grade than the fleet's: check the part",
     ),
@@ -83,7 +86,7 @@ METRICS: tuple[Metric, ...] = (
         "peak torque",
         "N m",
         "both",
-        0.05,
+        0.10,
         low=PEAK_LOW,
         high="peak torque high: a stronger motor than the fleet's: check the part",
     ),
@@ -193,12 +196,14 @@ class Stats:
     """Robust spread, 1.4826 MAD (None with no value)."""
     judged: bool
     """False with fewer than :data:`MIN_FLEET` values: no outlier is flagged."""
+    z: float = Z_THRESHOLD
+    """The z limit applied (:func:`z_limit` of the requested one and ``n``)."""
 
-    def limits(self, z: float) -> tuple[float, float] | None:
-        """The values that would be flagged for an exact value (stderr 0): (low, high) bounds."""
+    def limits(self) -> tuple[float, float] | None:
+        """The values beyond which an exact value (stderr 0) is flagged: (low, high)."""
         if self.median is None or self.spread is None:
             return None
-        reach = max(z * self.spread, self.metric.tolerance * abs(self.median))
+        reach = max(self.z * self.spread, self.metric.tolerance * abs(self.median))
         return self.median - reach, self.median + reach
 
 
@@ -299,7 +304,8 @@ class FleetReport:
                     "judged": s.judged,
                     "flag_side": s.metric.side,
                     "tolerance": s.metric.tolerance,
-                    "limits": list(lim) if (lim := s.limits(self.z)) is not None else None,
+                    "z_limit": s.z,
+                    "limits": list(lim) if (lim := s.limits()) is not None else None,
                 }
                 for s in self.stats
             },
@@ -418,6 +424,16 @@ def parse_tolerances(text: str | Mapping[str, float] | None) -> dict[str, float]
     return out
 
 
+def z_limit(z: float, n: int) -> float:
+    """The z limit for ``n`` values: ``z``, or more, so that a normal fleet of ``n`` flags none with chance 99 %.
+
+    Bonferroni over the fleet, two-sided: Phi^-1(1 - FAMILY_ALPHA / (2 n)); 3.5 up to 21 actuators, 4.06 at 200.
+    """
+    from statistics import NormalDist
+
+    return max(z, NormalDist().inv_cdf(1.0 - FAMILY_ALPHA / (2 * max(n, 1))))
+
+
 def check_z(z: float) -> None:
     """Raise :class:`FleetError` unless ``z`` is a positive finite number."""
     if not (z > 0 and math.isfinite(z)):
@@ -478,7 +494,8 @@ def analyse(
         median = _median(xs) if xs else None
         spread = MAD_TO_SIGMA * _median([abs(x - median) for x in xs]) if median is not None else None
         judged = len(xs) >= MIN_FLEET
-        st = Stats(metric, len(xs), median, spread, judged)
+        limit = z_limit(z, len(xs))
+        st = Stats(metric, len(xs), median, spread, judged, limit)
         stats.append(st)
         if not judged:
             if fitted:
@@ -496,7 +513,7 @@ def analyse(
                 continue
             scale = math.hypot(spread, v.stderr)
             zscore = abs(dev) / scale if scale > 0 else math.inf
-            if zscore > z and abs(dev) > metric.tolerance * abs(median):
+            if zscore > limit and abs(dev) > metric.tolerance * abs(median):
                 reading = metric.high if side == "high" else metric.low
                 percent = f"{dev / median:+.0%} against the fleet's median" if median else ""
                 flags.append(

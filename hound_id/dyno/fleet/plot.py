@@ -83,7 +83,7 @@ def _metric_panel(
     ax: Axes, report: FleetReport, st: Stats, index: dict[str, int], flagged: set[tuple[str, str]]
 ) -> None:
     m = st.metric
-    limits = st.limits(report.z)
+    limits = st.limits()
     if st.median is not None:
         ax.axhline(st.median, color="k", lw=0.8, label=f"median {st.median:.4g}")
     for name, i in index.items():

@@ -1,0 +1,237 @@
+"""The fleet comparison on reports with known values: the median, the robust spread and the flag rule."""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+import pytest
+from hypothesis import given, settings
+from hypothesis import strategies as st
+
+from hound_id.dyno.fleet.analyse import (
+    MAD_TO_SIGMA,
+    MIN_FLEET,
+    ActuatorFit,
+    analyse,
+    parse_tolerances,
+    values_of,
+)
+from hound_id.errors import FleetError
+
+MODEL = ["linear", "saturation", "coulomb", "cogging"]
+
+
+def report(
+    kt=0.14,
+    coulomb=0.08,
+    order=24.0,
+    cogging=0.06,
+    noise=0.015,
+    peak=7.7,
+    at_floor=True,
+    kt_err=1e-4,
+    coulomb_bound=False,
+    model=MODEL,
+):
+    """A fit report with just the fields the fleet reads (schema hound-id/fit/3)."""
+    half = cogging / math.sqrt(2)
+    params = {
+        "kt": {"value": kt, "stderr": kt_err, "unit": "N m/A", "at_bound": False},
+        "k_sat": {"value": 4e-4, "stderr": 1e-6, "unit": "N m/A^2", "at_bound": False},
+    }
+    if "coulomb" in model:
+        params["coulomb"] = {
+            "value": 0.0 if coulomb_bound else coulomb,
+            "stderr": 3e-4,
+            "unit": "N m",
+            "at_bound": coulomb_bound,
+        }
+    if "cogging" in model:
+        for name, value in (("cogging_sin_1", half), ("cogging_cos_1", half), ("cogging_sin_2", 0.0)):
+            params[name] = {"value": value, "stderr": 2e-4, "unit": "N m", "at_bound": False}
+        params["cogging_cos_2"] = {"value": 0.0, "stderr": 2e-4, "unit": "N m", "at_bound": False}
+        params["cogging_order"] = {"value": order, "stderr": None, "unit": "1/rev", "at_bound": False}
+    return {
+        "model": list(model),
+        "parameters": params,
+        "peak_torque": {"torque": peak, "extrapolated": False},
+        "noise_floor": noise,
+        "rmse": {"test": noise},
+        "at_noise_floor": at_floor,
+        "summary": "at the noise floor" if at_floor else "missing: stribeck",
+        "suggestions": [] if at_floor else [{"effect": "stribeck", "significant": True}],
+        "warnings": [],
+    }
+
+
+def fleet(n=10, **changes):
+    """``n`` healthy actuators with a small deterministic scatter; ``changes`` maps an index to report overrides."""
+    out = []
+    for i in range(n):
+        wobble = (i - (n - 1) / 2) / n  # -0.5 .. 0.5
+        kw = dict(kt=0.14 * (1 + 0.01 * wobble), coulomb=0.08 * (1 + 0.1 * wobble), cogging=0.06 * (1 - 0.1 * wobble))
+        kw.update(changes.get(f"a{i:02d}", {}))
+        out.append(ActuatorFit(f"a{i:02d}", f"a{i:02d}.csv", report(**kw)))
+    return out
+
+
+def flagged(result):
+    return sorted((f.actuator, f.metric) for f in result.flags)
+
+
+def test_a_healthy_fleet_flags_nothing_and_reports_median_and_robust_spread():
+    result = analyse(fleet())
+    assert result.flags == ()
+    kt = next(s for s in result.stats if s.metric.key == "kt")
+    values = np.array([0.14 * (1 + 0.01 * (i - 4.5) / 10) for i in range(10)])
+    assert kt.median == pytest.approx(np.median(values), rel=1e-12)
+    assert kt.spread == pytest.approx(MAD_TO_SIGMA * np.median(np.abs(values - np.median(values))), rel=1e-12)
+    assert result.fleet_order == 24.0
+    assert {s.metric.key for s in result.stats} == {"kt", "peak_torque", "coulomb", "cogging_amplitude", "noise_floor"}
+
+
+def test_each_fault_gets_its_reading():
+    result = analyse(
+        fleet(
+            a02={"kt": 0.125},
+            a04={"coulomb": 0.25},
+            a06={"order": 28.0},
+            a08={"noise": 0.05},
+            a09={"cogging": 0.15},
+        )
+    )
+    assert flagged(result) == [
+        ("a02", "kt"),
+        ("a04", "coulomb"),
+        ("a06", "cogging_order"),
+        ("a08", "noise_floor"),
+        ("a09", "cogging_amplitude"),
+    ]
+    reading = {f.actuator: f.reading for f in result.flags}
+    assert reading["a02"].startswith("Kt low: a weakened (demagnetised) magnet or a wrong winding")
+    assert "bearing or gearbox" in reading["a04"]
+    assert "a different motor" in reading["a06"] and "28" in reading["a06"]
+    assert "not the motor" in reading["a08"]
+    assert "magnet" in reading["a09"]
+
+
+def test_low_friction_and_low_noise_are_no_fault_but_low_and_high_kt_are():
+    result = analyse(fleet(a01={"coulomb": 0.01}, a03={"noise": 0.001}, a05={"kt": 0.16}, a07={"kt": 0.12}))
+    assert flagged(result) == [("a05", "kt"), ("a07", "kt")]
+    assert next(f for f in result.flags if f.actuator == "a05").reading.startswith("Kt high")
+
+
+def test_a_difference_below_the_tolerance_is_not_flagged_however_tight_the_fleet():
+    exact = [ActuatorFit(f"a{i}", "x", report(kt=0.14, kt_err=1e-7)) for i in range(8)]
+    exact.append(ActuatorFit("b", "x", report(kt=0.14 * 0.98, kt_err=1e-7)))  # 2 % low: within Kt's 3 %
+    assert analyse(exact).flags == ()
+    assert flagged(analyse(exact, tolerances={"kt": 0.01})) == [("b", "kt")]
+
+
+def test_a_noisy_log_is_not_flagged_by_a_deviation_within_its_own_error():
+    fits = fleet(a03={"kt": 0.125, "kt_err": 0.01})  # 11 % low, but +- 7 %
+    assert ("a03", "kt") not in flagged(analyse(fits))
+
+
+def test_unidentified_values_are_left_out_and_never_flagged():
+    result = analyse(fleet(a02={"coulomb_bound": True}))
+    assert result.values["a02"]["coulomb"].value is None
+    assert "bound" in result.values["a02"]["coulomb"].why
+    assert next(s for s in result.stats if s.metric.key == "coulomb").n == 9
+
+
+def test_too_few_actuators_flag_nothing_and_say_why():
+    result = analyse(fleet(n=MIN_FLEET - 1, a00={"kt": 0.1}))
+    assert result.flags == ()
+    assert any("cannot show an outlier" in note for note in result.notes)
+
+
+def test_a_split_cogging_order_is_not_judged():
+    result = analyse(fleet(n=6, a00={"order": 28.0}, a01={"order": 28.0}, a02={"order": 28.0}))
+    assert result.fleet_order is None and not [f for f in result.flags if f.metric == "cogging_order"]
+    assert any("cogging order" in note for note in result.notes)
+
+
+def test_a_log_missing_an_effect_is_flagged_only_against_a_fleet_at_its_floor():
+    result = analyse(fleet(a03={"at_floor": False}))
+    assert flagged(result) == [("a03", "verdict")]
+    assert "stribeck" in result.flags[0].reading
+    assert analyse(fleet(**{f"a{i:02d}": {"at_floor": False} for i in range(6)})).flags == ()
+
+
+def test_failed_logs_are_listed_not_compared():
+    fits = [*fleet(), ActuatorFit("broken", "broken.csv", None, "broken.csv: no torque column")]
+    result = analyse(fits)
+    assert [a.name for a in result.failed] == ["broken"] and result.flags == ()
+    data = result.to_dict()
+    assert data["failed"] == [{"name": "broken", "source": "broken.csv", "error": "broken.csv: no torque column",
+                               "bug": False}]  # fmt: skip
+    header, rows = result.table()
+    assert header[0] == "actuator" and "kt[N*m/A]" in header and len(rows) == 11
+    assert rows[0][0] == "a00" and rows[-1][:3] == ["broken", "broken.csv", "failed"]
+
+
+def test_fits_with_different_models_are_refused():
+    fits = [*fleet(), ActuatorFit("other", "o.csv", report(model=["linear", "saturation"]))]
+    with pytest.raises(FleetError, match="different models"):
+        analyse(fits)
+
+
+def test_the_cogging_amplitude_carries_its_propagated_error():
+    values, order = values_of(report(cogging=0.05))
+    assert values["cogging_amplitude"].value == pytest.approx(0.05)
+    assert values["cogging_amplitude"].stderr == pytest.approx(2e-4)  # equal errors: the same error
+    assert order == 24.0
+    _, order = values_of(report(cogging=5e-4))  # below four standard errors: its order is noise
+    assert order is None
+
+
+@pytest.mark.parametrize(
+    ("text", "message"),
+    [
+        ("kt", "expected METRIC=FRACTION"),
+        ("torque=0.1", "unknown metric 'torque'"),
+        ("kt=-1", "expected a fraction >= 0"),
+        ("kt=abc", "expected a fraction >= 0"),
+        ("kt=nan", "expected a fraction >= 0"),
+    ],
+)
+def test_bad_tolerances_are_one_clear_error(text, message):
+    with pytest.raises(FleetError, match=message):
+        parse_tolerances(text)
+
+
+def test_z_must_be_positive():
+    with pytest.raises(FleetError, match="--z"):
+        analyse(fleet(), z=0.0)
+
+
+@settings(max_examples=40, deadline=None)
+@given(
+    scale=st.floats(1e-3, 1e3),
+    shift=st.integers(0, 9),
+    fault=st.sampled_from([("kt", 0.12), ("coulomb", 0.3), ("noise", 0.06), (None, None)]),
+)
+def test_flags_do_not_depend_on_units_or_on_the_order_of_the_logs(scale, shift, fault):
+    """Every quantity times one factor (another unit) and the actuators in another order: the same flags."""
+    key, value = fault
+    changes = {"a03": {key: value}} if key else {}
+    base = fleet(**changes)
+    scaled = []
+    for a in base[shift:] + base[:shift]:
+        r = a.report
+        kw = dict(
+            kt=r["parameters"]["kt"]["value"] * scale,
+            kt_err=r["parameters"]["kt"]["stderr"] * scale,
+            coulomb=r["parameters"]["coulomb"]["value"] * scale,
+            noise=r["noise_floor"] * scale,
+            peak=r["peak_torque"]["torque"] * scale,
+        )
+        rs = report(**kw)
+        for p in ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2"):
+            rs["parameters"][p] = {**r["parameters"][p], "value": r["parameters"][p]["value"] * scale,
+                                   "stderr": r["parameters"][p]["stderr"] * scale}  # fmt: skip
+        rs["parameters"]["coulomb"]["stderr"] = r["parameters"]["coulomb"]["stderr"] * scale
+        scaled.append(ActuatorFit(a.name, a.source, rs))
+    assert flagged(analyse(scaled)) == flagged(analyse(base))
