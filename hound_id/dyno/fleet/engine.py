@@ -42,6 +42,8 @@ LOG_SUFFIXES = (".csv", ".parquet", ".pq")
 SCATTER_BYTES = 1 << 20
 #: Tasks in flight per worker.
 IN_FLIGHT = 2
+#: How long to try to reach an existing scheduler [s].
+CONNECT_TIMEOUT = 10.0
 #: How long to wait for an existing cluster to have a worker [s].
 WORKER_WAIT = 30.0
 
@@ -180,11 +182,12 @@ def client_for(scheduler: str | None, workers: int | None) -> Iterator[Client]:
         if workers is not None:
             raise FleetError("--workers: a cluster at --scheduler has its own workers; give one or the other")
         try:
-            client = Client(scheduler, timeout="10s")
+            client = Client(scheduler, timeout=f"{CONNECT_TIMEOUT}s")
         except (OSError, ValueError, TypeError) as err:
             raise FleetError(
-                f"--scheduler {scheduler}: cannot reach a Dask scheduler there ({err}); start one with "
-                "'dask scheduler' and workers with 'dask worker ADDRESS', or leave --scheduler out for a local cluster"
+                f"--scheduler {scheduler}: cannot reach a Dask scheduler there in {CONNECT_TIMEOUT:g} s ({err}); "
+                "start one with 'dask scheduler' and workers with 'dask worker ADDRESS', or leave --scheduler out "
+                "for a local cluster"
             ) from err
         with client:
             try:
