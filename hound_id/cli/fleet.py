@@ -26,7 +26,7 @@ def fleet(
     model: str = typer.Option("linear+saturation", "--model", help="Model of every log: effects joined by '+'."),
     add: Optional[list[str]] = typer.Option(None, "--add", help="Add an effect to the model (repeatable)."),
     auto: bool = typer.Option(
-        False, "--auto", help="Each log adds its significant effects; the fleet is compared on their union."
+        False, "--auto", help="Each log adds its significant effects; the fleet is compared on those most logs need."
     ),
     columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
     units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),

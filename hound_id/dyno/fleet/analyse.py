@@ -78,8 +78,10 @@ METRICS: tuple[Metric, ...] = (
         "N m/A",
         "both",
         0.05,
-        low="Kt low: a weakened (demagnetised) magnet or a wrong winding",
-        high="Kt high: another winding or magnet grade than the fleet's: check the part",
+        low="Kt low: a weakened (demagnetised) magnet or a wrong winding (or, for logs from several rigs, a torque "
+        "sensor calibrated differently)",
+        high="Kt high: another winding or magnet grade than the fleet's: check the part (or, for logs from several "
+        "rigs, a torque sensor calibrated differently)",
     ),
     Metric(
         "peak_torque",
@@ -223,6 +225,8 @@ class Flag:
     """Deviation in combined standard deviations (None for orders and verdicts)."""
     reading: str
     """The physical reading."""
+    trusted: bool = True
+    """False when the actuator's own fit is flagged: the log may be the cause before the motor."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -232,6 +236,7 @@ class Flag:
             "fleet": self.fleet,
             "z": self.z,
             "reading": self.reading,
+            "trusted": self.trusted,
         }
 
 
@@ -480,6 +485,7 @@ def analyse(
     model = tuple(model) if model is not None else common
     values: dict[str, dict[str, Value]] = {}
     orders: dict[str, float | None] = {}
+    reports = {a.name: a.report for a in fitted if a.report is not None}
     for a in fitted:
         assert a.report is not None
         values[a.name], orders[a.name] = values_of(a.report)
@@ -549,6 +555,7 @@ def analyse(
                     )
                 )
     flags += _verdict_flags(fitted)
+    flags = [_qualified(f, reports[f.actuator]) for f in flags]
     flags.sort(
         key=lambda f: (f.actuator, [m.key for m in metrics].index(f.metric) if f.metric in METRIC_BY_KEY else 99)
     )
@@ -562,6 +569,24 @@ def analyse(
         model=tuple(model),
         z=z,
         notes=tuple(notes),
+    )
+
+
+#: Longest quotation of a log's own flag in a reading [characters].
+QUOTE = 160
+
+
+def _qualified(flag: Flag, report: Mapping[str, Any]) -> Flag:
+    """A flag on an actuator whose own fit is flagged says so: the log may explain it before the motor."""
+    own = list(report.get("flags", ()))
+    if not own or flag.metric == "verdict":
+        return flag
+    first = own[0] if len(own[0]) <= QUOTE else own[0][: QUOTE - 3] + "..."
+    return replace(
+        flag,
+        trusted=False,
+        reading=f"{flag.reading}; but this log's own fit is flagged ({first}): the log may be the cause before "
+        "the motor, check it with fit-current",
     )
 
 

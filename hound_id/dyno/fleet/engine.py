@@ -8,8 +8,8 @@ system. At most two tasks per worker are in flight, so a fleet of thousands of l
 memory at once. A log that fails (a bad input, or a worker that dies) is reported and the others go on.
 
 With ``--auto`` every log first climbs its own ladder of effects; the fleet is then compared on one
-model, the union of the effects any log needed, and the logs that ended with fewer effects are fitted
-again with it (a second pass on the same cluster).
+model, the effects more than half of the logs needed (:func:`common_model`), and the logs that ended with
+another model are fitted again with it (a second pass on the same cluster).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import socket
 import tempfile
 import time
 import traceback
+from collections import Counter
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
@@ -253,11 +254,18 @@ def _map(
 
 
 def common_model(fits: Sequence[ActuatorFit], start: Sequence[str]) -> tuple[str, ...]:
-    """The union of every fitted model: ``start``'s effects first, then the others in the order logs added them."""
+    """The fleet's model: ``start``'s effects, then each effect more than half of the fitted logs added.
+
+    An effect only a few logs need (a faulty bearing's extra friction, or logs of other protocols) stays out:
+    those logs are fitted without it and their verdict says what they miss, instead of every log carrying
+    terms it cannot identify. Order: the order in which the logs (by name) added them.
+    """
+    fitted = [f for f in sorted(fits, key=lambda f: f.name) if f.report is not None]
+    counts = Counter(e for f in fitted if f.report is not None for e in set(f.report["model"]))
     model = list(start)
-    for fit in sorted(fits, key=lambda f: f.name):
-        if fit.report is not None:
-            model += [e for e in fit.report["model"] if e not in model]
+    for fit in fitted:
+        assert fit.report is not None
+        model += [e for e in fit.report["model"] if e not in model and 2 * counts[e] > len(fitted)]
     return tuple(model)
 
 

@@ -13,6 +13,10 @@ if TYPE_CHECKING:  # pragma: no cover
 
 #: Actuators beyond this count get no tick label each; only the flagged ones are named.
 MAX_TICK_LABELS = 40
+#: Longest name on an axis [characters]: longer ones keep their end ("...trial3").
+MAX_LABEL = 24
+#: Flagged points beyond this count in one panel are not annotated (their tick labels are red).
+MAX_ANNOTATIONS = 8
 FLAGGED = "#c0392b"
 HEALTHY = "#1f4e79"
 NOT_IDENTIFIED = "#999999"
@@ -38,7 +42,8 @@ def plot_fleet(report: FleetReport) -> Figure:
     panels.append("verdict")
     ncols = 2
     nrows = math.ceil(len(panels) / ncols)
-    fig = Figure(figsize=(6.5 * ncols, 2.6 * nrows + 0.8), layout="constrained")
+    longest = max((len(_short(n)) for n in names), default=0)
+    fig = Figure(figsize=(6.5 * ncols, 2.6 * nrows + 0.8 + 0.07 * longest), layout="constrained")
     axes = fig.subplots(nrows, ncols, squeeze=False, sharex=True)
     flagged = {(f.actuator, f.metric) for f in report.flags}
     for ax, panel in zip(axes.flat, panels, strict=False):
@@ -57,26 +62,26 @@ def plot_fleet(report: FleetReport) -> Figure:
         _ticks(axes[-2][-1], names, {f.actuator for f in report.flags})
         axes[-2][-1].tick_params(labelbottom=True)
     failed = f", {len(report.failed)} failed" if report.failed else ""
-    who = sorted({f.actuator for f in report.flags})
+    who = {f.actuator for f in report.flags}
     fig.suptitle(
-        f"fleet of {len(report.actuators)} actuators ({len(names)} fitted{failed}), model "
-        f"{'+'.join(report.model)}: {len(who)} flagged"
-        + (f" ({', '.join(who[:8])}{' ...' if len(who) > 8 else ''})" if who else ""),
+        f"fleet of {len(report.actuators)} actuators ({len(names)} fitted{failed}), model {'+'.join(report.model)}: "
+        f"{len(who)} flagged (red)",
         fontsize=10,
     )
     return fig
 
 
+def _short(name: str) -> str:
+    return name if len(name) <= MAX_LABEL else "..." + name[-(MAX_LABEL - 3) :]
+
+
 def _ticks(ax: Axes, names: list[str], flagged: set[str]) -> None:
-    if len(names) <= MAX_TICK_LABELS:
-        ax.set_xticks(range(len(names)), names, rotation=90, fontsize=7)
-        for label in ax.get_xticklabels():
-            if label.get_text() in flagged:
-                label.set_color(FLAGGED)
-    else:
-        marks = [i for i, n in enumerate(names) if n in flagged]
-        ax.set_xticks(marks, [names[i] for i in marks], rotation=90, fontsize=7, color=FLAGGED)
-    ax.set_xlabel("actuator")
+    marks = range(len(names)) if len(names) <= MAX_TICK_LABELS else [i for i, n in enumerate(names) if n in flagged]
+    ax.set_xticks(list(marks), [_short(names[i]) for i in marks], rotation=90, fontsize=7)
+    for i, label in zip(marks, ax.get_xticklabels(), strict=True):
+        if names[i] in flagged:
+            label.set_color(FLAGGED)
+    ax.set_xlabel("actuator" if len(names) <= MAX_TICK_LABELS else "actuator (only the flagged ones named)")
 
 
 def _metric_panel(
@@ -86,6 +91,7 @@ def _metric_panel(
     limits = st.limits()
     if st.median is not None:
         ax.axhline(st.median, color="k", lw=0.8, label=f"median {st.median:.4g}")
+    annotate = sum((n, m.key) in flagged for n in index) <= MAX_ANNOTATIONS
     for name, i in index.items():
         v = report.values[name][m.key]
         if v.value is None:
@@ -101,8 +107,10 @@ def _metric_panel(
             ecolor="0.4",
             elinewidth=0.8,
         )
-        if bad:
-            ax.annotate(name, (i, v.value), xytext=(4, 3), textcoords="offset points", fontsize=7, color=FLAGGED)
+        if bad and annotate:
+            ax.annotate(
+                _short(name), (i, v.value), xytext=(4, 3), textcoords="offset points", fontsize=7, color=FLAGGED
+            )
     if limits is not None and st.judged:
         ax.autoscale_view()
         bottom, top = ax.get_ylim()
@@ -130,7 +138,7 @@ def _order_panel(ax: Axes, report: FleetReport, index: dict[str, int], flagged: 
         bad = (name, "cogging_order") in flagged
         ax.plot(i, order, "s", ms=4, color=FLAGGED if bad else HEALTHY)
         if bad:
-            ax.annotate(name, (i, order), xytext=(4, 3), textcoords="offset points", fontsize=7, color=FLAGGED)
+            ax.annotate(_short(name), (i, order), xytext=(4, 3), textcoords="offset points", fontsize=7, color=FLAGGED)
     if report.fleet_order is not None:
         ax.axhline(report.fleet_order, color="k", lw=0.8, label=f"fleet's order {report.fleet_order:g}")
         ax.legend(fontsize=7, loc="best")
@@ -150,6 +158,8 @@ def _verdict_panel(ax: Axes, report: FleetReport, index: dict[str, int], flagged
             i, ratio, "o" if at_floor else "D", ms=4, color=FLAGGED if bad else (HEALTHY if at_floor else "#e67e22")
         )
     ax.axhline(1.0, color="k", lw=0.8, label="the noise floor")
+    if ax.get_ylim()[1] > 10:  # logs far above their floor: a log scale keeps the ones near it readable
+        ax.set_yscale("log")
     ax.set_title("verdict: held-out RMSE / noise floor (diamond: an effect is missing)", fontsize=9)
     ax.grid(alpha=0.3)
     ax.legend(fontsize=7, loc="best")

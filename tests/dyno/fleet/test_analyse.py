@@ -160,6 +160,15 @@ def test_a_log_missing_an_effect_is_flagged_only_against_a_fleet_at_its_floor():
     assert analyse(fleet(**{f"a{i:02d}": {"at_floor": False} for i in range(6)})).flags == ()
 
 
+def test_an_outlier_whose_own_fit_is_flagged_says_the_log_may_be_the_cause():
+    fits = fleet(a02={"kt": 0.09})
+    fits[2].report["flags"] = ["Kt = 0.09 +- 0.12 N m/A is not determined by this log"]
+    (flag,) = analyse(fits).flags
+    assert not flag.trusted and flag.reading.startswith("Kt low")
+    assert "own fit is flagged (Kt = 0.09 +- 0.12 N m/A is not determined by this log)" in flag.reading
+    assert analyse(fleet(a02={"kt": 0.09})).flags[0].trusted
+
+
 def test_failed_logs_are_listed_not_compared():
     fits = [*fleet(), ActuatorFit("broken", "broken.csv", None, "broken.csv: no torque column")]
     result = analyse(fits)

@@ -8,7 +8,8 @@ import shutil
 import pytest
 
 from hound_id.dyno.fit_current import FitCurrentOptions
-from hound_id.dyno.fleet.engine import actuator_names, find_logs, fit_log, run_fleet
+from hound_id.dyno.fleet.analyse import ActuatorFit
+from hound_id.dyno.fleet.engine import actuator_names, common_model, find_logs, fit_log, run_fleet
 from hound_id.dyno.simulate.fleet import FLEET_MODEL
 from hound_id.errors import FleetError
 from hound_id.samples import samples_dir
@@ -90,11 +91,28 @@ def test_a_two_worker_cluster_gives_the_fits_of_this_process(tmp_path, cluster):
         assert there.report["source"] == str(path)
 
 
-def test_auto_compares_the_fleet_on_the_union_of_the_effects(cluster):
+def test_auto_compares_the_fleet_on_the_effects_most_logs_need(cluster):
     logs = sorted(SAMPLE.glob("*.csv"))
     run = run_fleet(logs, FitCurrentOptions(auto=True), scheduler=cluster.scheduler_address)
     assert set(run.model) == set(FLEET_MODEL.split("+"))
     assert all(a.ok and set(a.report["model"]) == set(run.model) for a in run.actuators)
+
+
+def _fit(name, model):
+    return ActuatorFit(name, f"{name}.csv", {"model": list(model)})
+
+
+def test_the_fleet_model_takes_what_more_than_half_of_the_logs_added():
+    fits = [
+        _fit("a", ["linear", "saturation", "coulomb", "viscous"]),
+        _fit("b", ["linear", "saturation", "viscous", "coulomb"]),
+        _fit("c", ["linear", "saturation", "coulomb", "stribeck"]),  # one bearing needs more
+        _fit("d", ["linear", "saturation", "coulomb"]),
+        ActuatorFit("e", "e.csv", None, "failed"),  # not counted
+    ]
+    assert common_model(fits, ["linear", "saturation"]) == ("linear", "saturation", "coulomb")
+    assert common_model(fits[:2], ["linear", "saturation"]) == ("linear", "saturation", "coulomb", "viscous")
+    assert common_model([], ["linear"]) == ("linear",)
 
 
 def test_options_a_fleet_cannot_take_fail_before_any_work(tmp_path):
