@@ -79,17 +79,20 @@ def fleet(
         disable=not err_console.is_terminal,
     ) as progress:
         task: list[TaskID] = []
+        again: list[bool] = []
 
         def on_pass(description: str, count: int) -> None:
             if task:
                 progress.remove_task(task.pop())
+                again.append(True)  # the second pass: the fleet's model
             task.append(progress.add_task(description, total=count))
             if not err_console.is_terminal and not json_out:
                 err_console.print(f"{description}: {count} logs", highlight=False, markup=False)
 
         def on_result(fit_: ActuatorFit, done: int, total: int) -> None:
             progress.update(task[-1], completed=done)
-            progress.console.print(_log_line(fit_), highlight=False, soft_wrap=True)
+            line = _log_line(fit_)
+            progress.console.print(line + (" [fleet model]" if again else ""), highlight=False, soft_wrap=True)
 
         result = run(logs, fit, options, on_result=on_result, on_pass=on_pass)
     write_outputs(result)
@@ -151,14 +154,16 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         box=box.SIMPLE_HEAD,
         pad_edge=False,
     )
-    table.add_column("actuator", no_wrap=True)
+    table.add_column("actuator", overflow="fold", min_width=8, max_width=28)
     for s in stats:
         table.add_column(SHORT.get(s.metric.key, s.metric.key), justify="right")
-    table.add_column("order", justify="right")
+    orders = any(o is not None for o in report.cogging_order.values())
+    if orders:
+        table.add_column("order", justify="right")
     table.add_column("verdict")
     for a in rows:
         if a.report is None:
-            table.add_row(escape(a.name), *(["-"] * (len(stats) + 1)), "[red]failed[/red]")
+            table.add_row(escape(a.name), *(["-"] * (len(stats) + orders)), "[red]failed[/red]")
             continue
         values = report.values[a.name]
         mine = {f.metric for f in report.flags_of(a.name)}
@@ -168,7 +173,8 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
             cells.append(f"[bold red]{text}[/bold red]" if s.metric.key in mine else text)
         order = report.cogging_order.get(a.name)
         order_text = "-" if order is None else f"{order:g}"
-        cells.append(f"[bold red]{order_text}[/bold red]" if "cogging_order" in mine else order_text)
+        if orders:
+            cells.append(f"[bold red]{order_text}[/bold red]" if "cogging_order" in mine else order_text)
         verdict = "floor" if a.report["at_noise_floor"] else "missing"
         table.add_row(escape(a.name), *cells, f"[bold red]{verdict}[/bold red]" if "verdict" in mine else verdict)
     console.print(table)

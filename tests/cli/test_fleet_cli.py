@@ -118,3 +118,32 @@ def test_the_same_run_on_an_existing_two_worker_cluster(sample_run):
     assert data["engine"]["scheduler"] == cluster.scheduler_address and not data["engine"]["local_cluster"]
     assert data["engine"]["workers"] == 2
     assert data["flags"] == before["flags"] and data["fleet"] == before["fleet"]
+
+
+def test_ctrl_c_stops_the_workers_and_writes_nothing(tmp_path):
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    import psutil
+
+    proc = subprocess.Popen(
+        [sys.executable, "-m", "hound_id", "fleet", str(SAMPLE), "--auto", "--workers", "1", "--csv", "fleet.csv"],
+        cwd=tmp_path,
+        stdout=subprocess.PIPE,
+        stderr=subprocess.PIPE,
+        text=True,
+    )
+    deadline = time.monotonic() + 60
+    while not psutil.Process(proc.pid).children(recursive=True) and time.monotonic() < deadline:
+        time.sleep(0.1)
+    time.sleep(2.0)  # the cluster is up and fitting
+    children = psutil.Process(proc.pid).children(recursive=True)
+    proc.send_signal(signal.SIGINT)
+    _, err = proc.communicate(timeout=60)
+    assert proc.returncode == 130, err
+    assert err.strip().splitlines()[-1] == "hound-id: interrupted"
+    assert not (tmp_path / "fleet.csv").exists() and list(tmp_path.iterdir()) == []
+    gone, alive = psutil.wait_procs(children, timeout=20)
+    assert alive == []  # the local cluster's workers went with it

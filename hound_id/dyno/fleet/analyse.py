@@ -173,8 +173,8 @@ class Value:
 
     value: float | None
     """The estimate (SI), None when the log does not identify it."""
-    stderr: float
-    """Its standard error (0 when the fit gives none)."""
+    stderr: float | None
+    """Its standard error (None when the fit gives none: the peak torque, the noise floor)."""
     why: str = ""
     """Why it is not identified, or what qualifies it (extrapolated)."""
 
@@ -340,7 +340,7 @@ class FleetReport:
             cells: list[Any] = [a.name, a.source, "flagged" if self.flags_of(a.name) else "ok"]
             for k in keys:
                 v = self.values[a.name][k]
-                cells += ["" if v.value is None else v.value, "" if v.value is None else v.stderr]
+                cells += ["" if v.value is None else v.value, "" if v.value is None or v.stderr is None else v.stderr]
             order = self.cogging_order.get(a.name)
             cells += [
                 "" if order is None else order,
@@ -360,12 +360,12 @@ def _num(x: float) -> float | None:
 def _parameter(report: Mapping[str, Any], name: str) -> Value:
     p = report["parameters"].get(name)
     if p is None:
-        return Value(None, 0.0, "not in the model")
+        return Value(None, None, "not in the model")
     if p.get("at_bound"):
-        return Value(None, 0.0, f"held at its physical bound {p['value']:.4g}: the log cannot show it")
+        return Value(None, None, f"held at its physical bound {p['value']:.4g}: the log cannot show it")
     err = p.get("stderr")
     if err is None or not math.isfinite(err):
-        return Value(None, 0.0, "no standard error: the log cannot separate it from another term")
+        return Value(None, None, "no standard error: the log cannot separate it from another term")
     return Value(float(p["value"]), float(err))
 
 
@@ -373,14 +373,14 @@ def _cogging(report: Mapping[str, Any]) -> tuple[Value, float | None]:
     """Cogging amplitude (root-sum-square of the harmonics) with its propagated error, and the order."""
     params = report["parameters"]
     if not all(n in params for n in COGGING_PARAMETERS):
-        return Value(None, 0.0, "not in the model"), None
+        return Value(None, None, "not in the model"), None
     values = [float(params[n]["value"]) for n in COGGING_PARAMETERS]
     errors = [params[n].get("stderr") for n in COGGING_PARAMETERS]
     if any(e is None or not math.isfinite(e) for e in errors):
-        return Value(None, 0.0, "no standard error"), None
+        return Value(None, None, "no standard error"), None
     amplitude = math.sqrt(sum(v * v for v in values))
     if amplitude == 0.0:
-        return Value(0.0, 0.0), None
+        return Value(0.0, math.sqrt(sum(e * e for e in errors) / len(errors))), None
     stderr = math.sqrt(sum((v / amplitude) ** 2 * e * e for v, e in zip(values, errors, strict=True)))
     order = params.get("cogging_order", {}).get("value")
     significant = amplitude > COGGING_SIGNIFICANCE * stderr
@@ -392,13 +392,13 @@ def values_of(report: Mapping[str, Any]) -> tuple[dict[str, Value], float | None
     out = {"kt": _parameter(report, "kt")}
     peak = report["peak_torque"]
     if peak["torque"] is None:
-        out["peak_torque"] = Value(None, 0.0, "not reached by the fitted curve")
+        out["peak_torque"] = Value(None, None, "not reached by the fitted curve")
     else:
-        out["peak_torque"] = Value(float(peak["torque"]), 0.0, "extrapolated" if peak["extrapolated"] else "")
+        out["peak_torque"] = Value(float(peak["torque"]), None, "extrapolated" if peak["extrapolated"] else "")
     for name in FRICTION:
         out[name] = _parameter(report, name)
     out["cogging_amplitude"], order = _cogging(report)
-    out["noise_floor"] = Value(float(report["noise_floor"]), 0.0)
+    out["noise_floor"] = Value(float(report["noise_floor"]), None)
     return out, order
 
 
@@ -517,7 +517,7 @@ def analyse(
             side = "high" if dev > 0 else "low"
             if metric.side not in ("both", side):
                 continue
-            scale = math.hypot(spread, v.stderr)
+            scale = math.hypot(spread, v.stderr or 0.0)
             zscore = abs(dev) / scale if scale > 0 else math.inf
             if zscore > limit and abs(dev) > metric.tolerance * abs(median):
                 reading = metric.high if side == "high" else metric.low

@@ -77,10 +77,10 @@ def _short(name: str) -> str:
 
 def _ticks(ax: Axes, names: list[str], flagged: set[str]) -> None:
     marks = range(len(names)) if len(names) <= MAX_TICK_LABELS else [i for i, n in enumerate(names) if n in flagged]
-    ax.set_xticks(list(marks), [_short(names[i]) for i in marks], rotation=90, fontsize=7)
-    for i, label in zip(marks, ax.get_xticklabels(), strict=True):
+    ticks = ax.set_xticks(list(marks), [_short(names[i]) for i in marks], rotation=90, fontsize=7)
+    for i, tick in zip(marks, ticks, strict=True):
         if names[i] in flagged:
-            label.set_color(FLAGGED)
+            tick.label1.set_color(FLAGGED)
     ax.set_xlabel("actuator" if len(names) <= MAX_TICK_LABELS else "actuator (only the flagged ones named)")
 
 
