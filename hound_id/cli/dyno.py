@@ -3,13 +3,16 @@
 from __future__ import annotations
 
 from pathlib import Path
-from typing import Optional
+from typing import TYPE_CHECKING, Any, Optional
 
 import typer
 from rich.markup import escape
 from rich.table import Table
 
 from hound_id.cli._render import console, err_console, print_json, warn
+
+if TYPE_CHECKING:
+    from hound_id.dyno.fit_current import FitCurrentOptions
 
 
 def fit_current(
@@ -41,18 +44,18 @@ def fit_current(
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
     from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.fit_current import FitCurrentOptions, write_outputs
     from hound_id.dyno.fit_current import fit_current as run
+    from hound_id.dyno.fit_current import write_outputs
 
-    options = FitCurrentOptions(
-        model=model,
-        add=tuple(add or ()),
-        auto=auto,
-        columns=columns,
-        units=units,
-        flip_torque=flip_torque,
-        window=window,
-        robust=robust,
+    options = fit_options(
+        model,
+        add,
+        auto,
+        columns,
+        units,
+        flip_torque,
+        window,
+        robust,
         effects_files=tuple(effects_file or ()),
         spec=spec,
         plot=plot,
@@ -88,6 +91,33 @@ def fit_current(
         print_json(report)
         return
     _print(report, result.fit, result.diagnosis, result.ladder, plot, out)
+
+
+def fit_options(
+    model: str,
+    add: list[str] | None,
+    auto: bool,
+    columns: str | None,
+    units: str | None,
+    flip_torque: bool,
+    window: str | None,
+    robust: bool,
+    **extra: Any,
+) -> FitCurrentOptions:
+    """The fit's options as ``fit-current`` and ``fleet`` take them on the command line."""
+    from hound_id.dyno.fit_current import FitCurrentOptions
+
+    return FitCurrentOptions(
+        model=model,
+        add=tuple(add or ()),
+        auto=auto,
+        columns=columns,
+        units=units,
+        flip_torque=flip_torque,
+        window=window,
+        robust=robust,
+        **extra,
+    )
 
 
 def _bound_text(p: dict) -> str:  # type: ignore[type-arg]

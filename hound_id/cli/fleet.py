@@ -11,6 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from hound_id.cli._render import console, err_console, print_json, warn
+from hound_id.cli.dyno import fit_options
 
 if TYPE_CHECKING:
     from hound_id.dyno.fleet.analyse import ActuatorFit, FleetReport
@@ -54,20 +55,10 @@ def fleet(
     fleet's median and flag the outliers with their physical reading. Exit 1 when a log failed."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
-    from hound_id.dyno.fit_current import FitCurrentOptions
     from hound_id.dyno.fleet.run import FleetOptions, write_outputs
     from hound_id.dyno.fleet.run import fleet as run
 
-    fit = FitCurrentOptions(
-        model=model,
-        add=tuple(add or ()),
-        auto=auto,
-        columns=columns,
-        units=units,
-        flip_torque=flip_torque,
-        window=window,
-        robust=robust,
-    )
+    fit = fit_options(model, add, auto, columns, units, flip_torque, window, robust)
     options = FleetOptions(scheduler, workers, z, tolerance, csv, plot, reports)
     with Progress(
         TextColumn("{task.description}"),
