@@ -90,11 +90,17 @@ def fleet(
     report = result.report
     if json_out:
         print_json(result.to_dict())
-    else:
+    elif report.fitted:
         _print(result.to_dict(), report)
         for note in result.run.notes:
             warn(note)
     if not report.fitted:
+        err_console.print(
+            f"hound-id: error: none of the {len(report.actuators)} logs could be fitted (each one's reason is above)",
+            highlight=False,
+            markup=False,
+            soft_wrap=True,
+        )
         raise typer.Exit(2)
     if report.failed:
         raise typer.Exit(1)

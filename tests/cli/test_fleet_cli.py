@@ -147,3 +147,13 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(tmp_path):
     assert not (tmp_path / "fleet.csv").exists() and list(tmp_path.iterdir()) == []
     gone, alive = psutil.wait_procs(children, timeout=20)
     assert alive == []  # the local cluster's workers went with it
+
+
+def test_when_no_log_fits_each_reason_is_given_and_the_exit_is_2(tmp_path):
+    (tmp_path / "a.csv").write_text("time,current,torque\n0,1,2\n")
+    (tmp_path / "b.csv").write_text("x,y\n1,2\n")
+    proc = run_cli("fleet", str(tmp_path), "--workers", "1")
+    assert proc.returncode == 2 and proc.stdout == ""
+    lines = proc.stderr.strip().splitlines()
+    assert lines[-1] == "hound-id: error: none of the 2 logs could be fitted (each one's reason is above)"
+    assert sum(line.startswith(("FAILED a:", "FAILED b:")) for line in lines) == 2 and "Traceback" not in proc.stderr
