@@ -212,7 +212,7 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         highlight=False,
     )
     if report.flags:
-        console.print(f"[bold]flagged ({len(flagged)} actuators):[/bold]")
+        console.print(f"[bold]flagged ({len(flagged)} actuator{'s' if len(flagged) != 1 else ''}):[/bold]")
         for f in report.flags:
             console.print(f"  {escape(f.actuator)}: {escape(f.reading)}", highlight=False)
     else:
