@@ -136,3 +136,13 @@ def test_workers_and_scheduler_together_are_refused(cluster):
         run_fleet([SAMPLE / "FL_hip.csv"], FitCurrentOptions(), scheduler=cluster.scheduler_address, workers=2)
     with pytest.raises(FleetError, match="expected 1 or more"):
         run_fleet([SAMPLE / "FL_hip.csv"], FitCurrentOptions(), workers=0)
+
+
+def test_logs_scattered_ahead_of_their_task_give_the_same_fits(cluster, monkeypatch):
+    monkeypatch.setattr("hound_id.dyno.fleet.engine.SCATTER_BYTES", 0)  # every log takes the large-log path
+    logs = sorted(SAMPLE.glob("*.csv"))[:2]
+    options = FitCurrentOptions(model=FLEET_MODEL)
+    run = run_fleet(logs, options, scheduler=cluster.scheduler_address)
+    for path, there in zip(logs, run.actuators, strict=True):
+        here = fit_log(path.stem, str(path), path.read_bytes(), options)
+        assert there.report is not None and there.report["parameters"] == here.report["parameters"]
