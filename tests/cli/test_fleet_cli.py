@@ -134,6 +134,8 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        # Ctrl-C's default action even when this test runs under a shell that ignores SIGINT (a background job)
+        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
     )
     deadline = time.monotonic() + 60
     while not psutil.Process(proc.pid).children(recursive=True) and time.monotonic() < deadline:
