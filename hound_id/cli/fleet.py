@@ -83,7 +83,9 @@ def fleet(
         def on_result(fit_: ActuatorFit, done: int, total: int) -> None:
             progress.update(task[-1], completed=done)
             line = _log_line(fit_)
-            progress.console.print(line + (" [fleet model]" if again else ""), highlight=False, soft_wrap=True)
+            progress.console.print(
+                line + (" [fleet model]" if again else ""), highlight=False, markup=False, soft_wrap=True
+            )
 
         result = run(logs, fit, options, on_result=on_result, on_pass=on_pass)
     write_outputs(result)

@@ -354,7 +354,8 @@ class FleetReport:
 
 
 def _num(x: float) -> float | None:
-    return None if x is None or math.isnan(x) else float(x)
+    """A JSON-safe number: None for NaN and infinity (a deviation where the fleet's spread is 0)."""
+    return None if x is None or not math.isfinite(x) else float(x)
 
 
 def _parameter(report: Mapping[str, Any], name: str) -> Value:
@@ -539,6 +540,18 @@ def analyse(
         else f
         for f in flags
     ]
+    raised = sorted({round(st.z, 2) for st in stats if st.judged and st.z > z})
+    if raised:
+        notes.append(
+            f"the z limit used is {', '.join(f'{r:g}' for r in raised)}, above the {z:g} asked for: with this many "
+            "actuators a lower limit would flag a healthy fleet with chance above 1 %"
+        )
+    missing = [a for a in fitted if a.report is not None and not a.report["at_noise_floor"]]
+    if fitted and 2 * len(missing) > len(fitted):
+        notes.append(
+            f"{len(missing)} of {len(fitted)} fits are not at their noise floor: the model misses effects the logs "
+            "show, so faults in those effects cannot be flagged; run again with --auto or a fuller --model"
+        )
     fleet_order = _fleet_order(orders, notes)
     if fleet_order is not None:
         for name, order in orders.items():

@@ -107,7 +107,10 @@ def actuator_names(paths: Sequence[Path]) -> list[str]:
         return stems
     resolved = [p.resolve() for p in paths]
     root = Path(os.path.commonpath([str(r.parent) for r in resolved]))
-    return [str(r.relative_to(root).with_suffix("")) for r in resolved]
+    names = [str(r.relative_to(root).with_suffix("")) for r in resolved]
+    if len(set(names)) == len(names):
+        return names
+    return [str(r.relative_to(root)) for r in resolved]  # act.csv beside act.parquet: the suffix tells them apart
 
 
 def fit_log(name: str, source: str, data: bytes, options: FitCurrentOptions) -> ActuatorFit:

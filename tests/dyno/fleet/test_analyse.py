@@ -244,3 +244,15 @@ def test_flags_do_not_depend_on_units_or_on_the_order_of_the_logs(scale, shift, 
         rs["parameters"]["coulomb"]["stderr"] = r["parameters"]["coulomb"]["stderr"] * scale
         scaled.append(ActuatorFit(a.name, a.source, rs))
     assert flagged(analyse(scaled)) == flagged(analyse(base))
+
+
+def test_a_fleet_with_no_spread_gives_valid_json_and_notes_what_it_cannot_flag():
+    import json
+
+    fits = [ActuatorFit(f"a{i}", "x", report(kt=0.14, at_floor=False)) for i in range(6)]
+    fits.append(ActuatorFit("b", "x", report(kt=0.14, peak=9.0, at_floor=False)))  # spread 0, no stderr: z infinite
+    result = analyse(fits, z=2.0)
+    assert ("b", "peak_torque") in flagged(result)
+    json.loads(json.dumps(result.to_dict(), allow_nan=False))
+    assert any("run again with --auto" in n for n in result.notes)
+    assert any("above the 2 asked for" in n for n in result.notes)

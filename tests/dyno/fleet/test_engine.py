@@ -46,6 +46,7 @@ def test_names_are_file_stems_or_paths_when_stems_repeat(tmp_path):
     paths = [tmp_path / "left" / "knee.csv", tmp_path / "right" / "knee.csv"]
     assert actuator_names(paths) == ["left/knee", "right/knee"]
     assert actuator_names([tmp_path / "hip.csv", tmp_path / "knee.parquet"]) == ["hip", "knee"]
+    assert actuator_names([tmp_path / "a.csv", tmp_path / "a.parquet"]) == ["a.csv", "a.parquet"]
 
 
 def test_a_bad_log_fails_alone_with_the_message_fit_current_gives(tmp_path):
