@@ -260,7 +260,10 @@ def step_export(out: Path) -> StepResult:
     report = run_export(samples_dir() / "robots" / "hound_like.yaml", out / "export", options)
     stats = rollout_check(out / "export" / "hound_like.xml", out / "export" / "hound_like_bundle.yaml", seconds=1.0)
     stats["straight_line_gap"] = _straight_line_gap(fit if fit.is_file() else None)
-    files = tuple(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
+    # formats share files (Isaac Lab, Genesis and Newton read the bundle JSON): each file once
+    files = tuple(
+        dict.fromkeys(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
+    )
     io.write_json(out / "export" / "export.json", report | {"mujoco_check": stats})
     return StepResult(
         "export to trainers",

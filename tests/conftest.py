@@ -1,6 +1,5 @@
 from __future__ import annotations
 
-import importlib.util
 import os
 import subprocess
 import sys
@@ -38,11 +37,3 @@ def write_yaml(tmp_path: Path):
         return path
 
     return _write
-
-
-def load_script(path: Path):
-    """Import a sample generator script (data/samples/**/make_*.py) as a module."""
-    spec = importlib.util.spec_from_file_location(path.stem, path)
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module

@@ -21,6 +21,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
         "export to trainers",
     ]
     for step in data["steps"]:
+        assert len(set(step["files"])) == len(step["files"]), step["files"]  # each file listed once
         for name in step["files"]:
             path = tmp_path / "out" / name
             assert path.is_file(), name

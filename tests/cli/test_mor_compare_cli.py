@@ -3,7 +3,7 @@ import json
 import pytest
 
 from tests.cli.test_mor_cli import PNG_MAGIC, assert_one_line_error
-from tests.conftest import MOTOR, SAMPLES, load_script, run_cli
+from tests.conftest import MOTOR, SAMPLES, run_cli
 
 LOG = SAMPLES / "envelope" / "ilm85_sag_log.csv"
 COLUMNS = "velocity=speed,current=iq,temperature=winding_temp,bus_voltage=vbus"
@@ -78,12 +78,6 @@ def test_a_wrong_add_names_the_right_effect_and_then_says_it_is_not_needed():
 )  # fmt: skip
 def test_compare_bad_input_is_one_line(args, fragments):
     assert_one_line_error(run_cli("mor", *args), *fragments)
-
-
-def test_sample_log_regenerates_byte_for_byte(tmp_path):
-    module = load_script(SAMPLES / "envelope" / "make_envelope_log.py")
-    module.main(tmp_path)
-    assert (tmp_path / "ilm85_sag_log.csv").read_bytes() == LOG.read_bytes()
 
 
 def test_out_is_refused_when_the_model_does_not_explain_the_log(tmp_path):

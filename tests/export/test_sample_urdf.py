@@ -8,7 +8,7 @@ import pytest
 import yaml
 
 from hound_id.foot.urdf import read_foot
-from tests.conftest import SAMPLES, load_script
+from tests.conftest import SAMPLES
 
 ROBOTS = SAMPLES / "robots"
 URDF = ROBOTS / "hound_like.urdf"
@@ -17,10 +17,6 @@ TOTAL_MASS = 45.0  # KAIST Hound (the paper)
 CALF, FOOT = 0.25, 0.458  # hound_leg.urdf
 LEG_MASS = 1.0 + 1.20 + CALF + FOOT  # hip (assumed) + thigh + calf + foot
 STANCE = np.array([0.0, 0.7, -1.4] * 4)  # HAA, HFE, KFE per leg: knees bent, inside the limits
-
-
-def load_generator():
-    return load_script(ROBOTS / "make_hound_urdf.py")
 
 
 @pytest.fixture(scope="module")
@@ -115,8 +111,3 @@ def test_without_the_extension_mujoco_fuses_the_static_links(mujoco):
     assert model.body_mass.sum() == pytest.approx(4 * LEG_MASS)  # the trunk went into the world body
     assert model.body("FL_calf").mass[0] == pytest.approx(CALF + FOOT)
     assert np.count_nonzero(model.geom_bodyid == model.body("FL_calf").id) == 2  # calf and foot cylinders
-
-
-def test_generator_reproduces_the_committed_file(tmp_path):
-    out = load_generator().main(tmp_path / "hound_like.urdf")
-    assert out.read_bytes() == URDF.read_bytes()

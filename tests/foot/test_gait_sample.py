@@ -7,16 +7,12 @@ import pytest
 
 from hound_id.foot.angles import contact_angles
 from hound_id.tables import read_table
-from tests.conftest import SAMPLES, load_script
+from tests.conftest import SAMPLES
 
 GAIT = SAMPLES / "gait"
 LOG = GAIT / "hound_running.csv"
 LEGS = ("RR", "RL", "FR", "FL")
 THIGH, CALF = 0.27, 0.28  # hound_leg.urdf
-
-
-def load_generator():
-    return load_script(GAIT / "make_gait_log.py")
 
 
 @pytest.fixture(scope="module")
@@ -71,9 +67,3 @@ def test_leg_line_sweeps_as_in_the_physics_notes(log):
     assert len(touch) == 32
     assert -32 < np.mean(touch) < -25 and 25 < np.mean(lift) < 32
     assert -36 < min(touch) and max(touch) < -21 and 21 < min(lift) and max(lift) < 36
-
-
-def test_generator_reproduces_the_sample(tmp_path):
-    out = load_generator().main(tmp_path / "hound_running.csv")
-    assert out.read_bytes() == LOG.read_bytes()
-    assert LOG.stat().st_size < 400_000

@@ -6,9 +6,10 @@ the knees swing at up to 60 rad/s. The numbers are synthetic (sinusoids with
 phase offsets), not recorded; they exist so `hound-id saturate` and the demo have
 something to clip. Columns: time [s], tau_<joint> [N m], qd_<joint> [rad/s].
 
-Run: python data/samples/commands/make_commands.py
+Run: python data/samples/commands/make_commands.py [OUT_DIR]
 """
 
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -16,10 +17,12 @@ import numpy as np
 RATE_HZ, DURATION_S, STRIDE_HZ = 500, 0.5, 4.0
 LEGS = {"FL": 0.0, "FR": 0.5, "RL": 0.5, "RR": 0.0}  # trot: diagonal pairs in phase
 # joint -> (torque amplitude [N m], torque phase, speed amplitude [rad/s], speed phase)
+HERE = Path(__file__).resolve().parent
 JOINTS = {"HAA": (30.0, 0.3, 10.0, 1.2), "HFE": (70.0, 3.4, 45.0, 0.2), "KFE": (95.0, 1.35, 60.0, 1.0)}
 
 
-def main() -> None:
+def main(out_dir: str | Path = HERE) -> list[Path]:
+    """Write hound_like_running.csv into out_dir; return the files written."""
     t = np.arange(int(RATE_HZ * DURATION_S)) / RATE_HZ
     cols = {"time": t}
     for leg, phase in LEGS.items():
@@ -29,10 +32,11 @@ def main() -> None:
             cols[f"qd_{leg}_{joint}"] = a_qd * np.sin(angle + p_qd)
     names = list(cols)
     data = np.column_stack([cols[n] for n in names])
-    out = Path(__file__).with_name("hound_like_running.csv")
+    out = Path(out_dir) / "hound_like_running.csv"
     header = "# synthetic, see make_commands.py\n" + ",".join(names)
     np.savetxt(out, data, delimiter=",", header=header, comments="", fmt="%.6g")
+    return [out]
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])

@@ -7,11 +7,12 @@ drift and a 5 ms torque-channel delay. Then made to look like a real rig's expor
 its own column names, units in the headers (ms, mN*m, rpm, deg), a few NaN rows, one
 165 A current glitch, a duplicated timestamp. The truth is in ilm85_dyno_truth.json.
 
-Run: python data/samples/dyno/make_dyno_log.py
+Run: python data/samples/dyno/make_dyno_log.py [OUT_DIR]
 """
 
 import dataclasses
 import json
+import sys
 from pathlib import Path
 
 import numpy as np
@@ -22,7 +23,8 @@ HERE = Path(__file__).resolve().parent
 EFFECTS = ("linear", "saturation", "offset", "coulomb", "cogging", "thermal", "delay")
 
 
-def main() -> None:
+def main(out_dir: str | Path = HERE) -> list[Path]:
+    """Write ilm85_dyno.csv and ilm85_dyno_truth.json into out_dir; return the files written."""
     plan = dataclasses.replace(TestPlan(), current_rise_time=0.01)
     sim = simulate(EFFECTS, plan=plan, rate_hz=500.0, seed=7)
     f = sim.frame.copy()
@@ -47,10 +49,12 @@ def main() -> None:
         }
     )
     f = f.iloc[np.r_[0 : dup + 1, dup, dup + 1 : len(f)]]
-    f.to_csv(HERE / "ilm85_dyno.csv", index=False, float_format="%.6g")
+    log, truth_file = Path(out_dir) / "ilm85_dyno.csv", Path(out_dir) / "ilm85_dyno_truth.json"
+    f.to_csv(log, index=False, float_format="%.6g")
     truth = {k: float(v) for k, v in sim.truth.items()}
-    (HERE / "ilm85_dyno_truth.json").write_text(json.dumps({"effects": list(EFFECTS), "truth": truth}, indent=2) + "\n")
+    truth_file.write_text(json.dumps({"effects": list(EFFECTS), "truth": truth}, indent=2) + "\n")
+    return [log, truth_file]
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])

@@ -30,17 +30,17 @@ so its contact angle runs from about -49 deg at touchdown to about +10 deg at li
 Columns (SI): time [s], pitch [rad], then for RR, RL, FR, FL: <leg>_HFE [rad],
 <leg>_KFE [rad], <leg>_contact (1 stance, 0 flight). 500 Hz, 1000 rows.
 
-Run: python data/samples/gait/make_gait_log.py
+Run: python data/samples/gait/make_gait_log.py [OUT_DIR]
 """
 
 from __future__ import annotations
 
+import sys
 from pathlib import Path
 
 import numpy as np
 
 HERE = Path(__file__).resolve().parent
-OUT = HERE / "hound_running.csv"
 SEED = 65
 
 RATE_HZ, DURATION_S = 500, 2.0
@@ -119,15 +119,15 @@ def build(seed: int = SEED) -> dict[str, np.ndarray]:
     return cols
 
 
-def main(out_path: str | Path = OUT) -> Path:
-    """Write the log as CSV (6 significant digits) to out_path and return the path."""
+def main(out_dir: str | Path = HERE) -> list[Path]:
+    """Write hound_running.csv (6 significant digits) into out_dir; return the files written."""
     cols = build()
     names = list(cols)
     header = "# synthetic Hound-like running log at 6.5 m/s, see make_gait_log.py (SI: s, rad)\n" + ",".join(names)
-    out = Path(out_path)
+    out = Path(out_dir) / "hound_running.csv"
     np.savetxt(out, np.column_stack([cols[n] for n in names]), delimiter=",", header=header, comments="", fmt="%.6g")
-    return out
+    return [out]
 
 
 if __name__ == "__main__":
-    main()
+    main(*sys.argv[1:2])

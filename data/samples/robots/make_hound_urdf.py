@@ -25,7 +25,7 @@ extension written here it would merge the fixed-base trunk into the world body (
 out of model.body_mass) and each foot into its calf (the foot cylinder becomes a calf geom). With
 it, every link is a MuJoCo body of the same name. Pinocchio ignores the extension.
 
-Run: python data/samples/robots/make_hound_urdf.py
+Run: python data/samples/robots/make_hound_urdf.py [OUT_DIR]
 """
 
 from __future__ import annotations
@@ -36,7 +36,6 @@ from pathlib import Path
 
 HERE = Path(__file__).resolve().parent
 LEG_URDF = HERE.parent / "legs" / "hound_leg.urdf"
-OUT = HERE / "hound_like.urdf"
 
 TOTAL_MASS = 45.0  # KAIST Hound (the paper)
 TRUNK_SIZE = (0.60, 0.26, 0.14)  # assumed [m]
@@ -228,12 +227,12 @@ def urdf_text(leg_urdf: Path = LEG_URDF) -> str:
     return header + _trunk(trunk_mass) + legs + "</robot>\n"
 
 
-def main(out_path: str | Path = OUT) -> Path:
-    """Write the URDF to ``out_path`` and return the path."""
-    out = Path(out_path)
+def main(out_dir: str | Path = HERE) -> list[Path]:
+    """Write hound_like.urdf into out_dir; return the files written."""
+    out = Path(out_dir) / "hound_like.urdf"
     out.write_text(urdf_text(), encoding="utf-8")
-    return out
+    return [out]
 
 
 if __name__ == "__main__":
-    main(sys.argv[1] if len(sys.argv) > 1 else OUT)
+    main(*sys.argv[1:2])
