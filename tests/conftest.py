@@ -1,6 +1,7 @@
 from __future__ import annotations
 
 import os
+import signal
 import subprocess
 import sys
 from pathlib import Path
@@ -19,6 +20,15 @@ SAMPLES = ROOT / "data" / "samples"
 MOTOR = SAMPLES / "motors" / "hound_ilm85.yaml"
 SMALL_MOTOR = SAMPLES / "motors" / "qdd_small.yaml"
 ROBOT = SAMPLES / "robots" / "hound_like.yaml"
+
+
+def restore_sigint() -> None:
+    """``preexec_fn`` of a child a test interrupts: SIGINT's default action (Ctrl-C raises KeyboardInterrupt).
+
+    A shell without job control starts a background job with SIGINT ignored, and children inherit that; Python then
+    installs no KeyboardInterrupt handler, so a test sending SIGINT would wait on a child that never hears it.
+    """
+    signal.signal(signal.SIGINT, signal.SIG_DFL)
 
 
 def run_cli(*args: str, cwd: Path | None = None) -> subprocess.CompletedProcess[str]:

@@ -12,7 +12,7 @@ import yaml
 
 from hound_id.dyno.acquire.plan import load_plan
 from tests.cli.test_mor_cli import assert_one_line_error
-from tests.conftest import run_cli
+from tests.conftest import restore_sigint, run_cli
 
 # a 12 s plan: four plateaus, short pauses; enough for friction, quick enough for a test
 SHORT_PLAN = [
@@ -37,6 +37,7 @@ def start_rig(tmp_path, *args):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
+        preexec_fn=restore_sigint,
     )
     deadline = time.monotonic() + 30
     while not rig_file.exists() and time.monotonic() < deadline and proc.poll() is None:
@@ -145,6 +146,7 @@ def test_ctrl_c_stops_recording_with_the_file_valid(tmp_path):
             stdout=subprocess.PIPE,
             stderr=subprocess.PIPE,
             text=True,
+            preexec_fn=restore_sigint,
         )
         # wait until the recorder runs (its sidecar appears; slow to start on a loaded machine), then record a while
         deadline = time.monotonic() + 60

@@ -11,7 +11,7 @@ import pytest
 
 from hound_id.samples import samples_dir
 from tests.cli.test_mor_cli import PNG_MAGIC
-from tests.conftest import run_cli
+from tests.conftest import restore_sigint, run_cli
 
 SAMPLE = samples_dir() / "fleet"
 PLANTED = {
@@ -134,8 +134,7 @@ def test_ctrl_c_stops_the_workers_and_writes_nothing(tmp_path):
         stdout=subprocess.PIPE,
         stderr=subprocess.PIPE,
         text=True,
-        # Ctrl-C's default action even when this test runs under a shell that ignores SIGINT (a background job)
-        preexec_fn=lambda: signal.signal(signal.SIGINT, signal.SIG_DFL),
+        preexec_fn=restore_sigint,
     )
     deadline = time.monotonic() + 60
     while not psutil.Process(proc.pid).children(recursive=True) and time.monotonic() < deadline:

@@ -13,6 +13,7 @@ import yaml
 
 from hound_id.dyno.acquire.recorder import CsvLog, ReadError, RetryPolicy, record, sidecar_path
 from hound_id.errors import DynoDataError, OutputError
+from tests.conftest import restore_sigint
 
 
 def sine_sampler():
@@ -92,7 +93,9 @@ record(read, ["current", "torque"], Path(sys.argv[1]), rate_hz=500.0, flush_inte
 @pytest.mark.parametrize("sig", [signal.SIGINT, signal.SIGKILL])
 def test_ctrl_c_keeps_everything_and_sigkill_loses_at_most_a_flush(tmp_path, sig):
     out = tmp_path / "killed.csv"
-    proc = subprocess.Popen([sys.executable, "-c", SCRIPT, str(out)], stdout=subprocess.PIPE, text=True)
+    proc = subprocess.Popen(
+        [sys.executable, "-c", SCRIPT, str(out)], stdout=subprocess.PIPE, text=True, preexec_fn=restore_sigint
+    )
     try:
         assert proc.stdout.readline().strip() == "ready"
         ready_at = time.monotonic()
@@ -286,6 +289,7 @@ def rig_process(tmp_path_factory):
         + ["--rig-out", str(rig_file), "--duration", "300"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        preexec_fn=restore_sigint,
     )
     try:
         deadline = time.monotonic() + 30
@@ -387,6 +391,7 @@ def test_sigkill_during_a_hung_peer_leaves_a_sidecar_with_the_open_gap(rig_proce
         + ["--rate", "200"],
         stdout=subprocess.DEVNULL,
         stderr=subprocess.DEVNULL,
+        preexec_fn=restore_sigint,
     )
     side = sidecar_path(out)
     try:
@@ -455,7 +460,12 @@ def test_a_second_recorder_on_the_same_file_is_refused_at_once(rig_process, tmp_
     _, rig_file = rig_process
     out = tmp_path / "shared.csv"
     args = [sys.executable, "-m", "hound_id", "dyno", "record", "--rig", str(rig_file), "--out", str(out)]
-    first = subprocess.Popen([*args, "--rate", "200", "--duration", "4", "--json"], stdout=subprocess.PIPE, text=True)
+    first = subprocess.Popen(
+        [*args, "--rate", "200", "--duration", "4", "--json"],
+        stdout=subprocess.PIPE,
+        text=True,
+        preexec_fn=restore_sigint,
+    )
     try:
         side = sidecar_path(out)
         deadline = time.monotonic() + 30
