@@ -16,10 +16,10 @@ A candidate is **significant** when the corrected p-value is below ``alpha`` and
 :data:`MATERIAL` of the noise variance (an effect whose RMS is a fifth of the noise
 or more), so a model at the noise floor is not grown for a 0.03 % gain.
 
-The noise floor is estimated from the residual itself: for white measurement noise of
-standard deviation sigma, second differences in time have variance 6 sigma^2, while
-effects that are smooth at the sample rate nearly cancel; the median absolute
-deviation keeps steps and spikes from inflating it.
+The noise floor (:mod:`hound_id.dyno.current.noise`) is the larger of the residual's
+sample-to-sample noise (second differences: right for white noise, low for a filtered
+transducer) and its scatter where every input holds still (right whatever the noise's
+colour), when the log holds still long enough; never below the torque channel's rounding.
 
 The verdict compares blocks too: a block whose held-out error is several times the
 others' and its own noise (a motor switched off, a current running away, a change of
@@ -54,6 +54,7 @@ from hound_id.dyno.current.fit import (
     solve_bounded,
     solve_normal,
 )
+from hound_id.dyno.current.noise import NoiseFloor, estimate, white_floor
 from hound_id.dyno.identify.engine import (
     ALPHA,
     MAX_STEPS,
@@ -66,7 +67,6 @@ from hound_id.dyno.identify.engine import (
     rank,
     significant,
 )
-from hound_id.dyno.logs import MAD_TO_SIGMA
 from hound_id.errors import DynoDataError, FitError
 
 __all__ = [
@@ -115,9 +115,6 @@ OUTLIER_WEIGHT = 0.5
 #: Calibrated on test_diagnose::test_noise_only_data_has_nothing_significant.
 ORDER_TRIALS = 511
 SEARCH_TRIALS = 30
-#: Fewest residual samples a noise floor is estimated from. Calibrated on
-#: test_diagnose::test_noise_floor_of_white_noise.
-MIN_FLOOR_ROWS = 10
 
 
 @dataclass(frozen=True)
@@ -147,11 +144,22 @@ class Diagnosis:
     the typical agreeing block's and their own noise."""
     block_agreeing: Array = field(default_factory=lambda: np.empty(0))
     """Each block's RMSE under the model fitted to the agreeing half of the blocks [N m]."""
+    noise: NoiseFloor | None = None
+    """How :attr:`noise_floor` was found (its method and both estimates)."""
 
     @property
     def best(self) -> Suggestion | None:
         """The significant suggestion that explains most, if any."""
         return best(self.suggestions)
+
+    @property
+    def floor_label(self) -> str:
+        """The floor with how it was found, e.g. '0.36 N m, its scatter where the inputs hold still'."""
+        how = {
+            "still": "the torque's scatter where the inputs hold still",
+            "quantisation": "the torque channel's rounding",
+        }.get(self.noise.method if self.noise is not None else "", "sample-to-sample")
+        return f"{self.noise_floor:.3g} N m, {how}"
 
     def summary(self) -> str:
         """One sentence on where the model stands."""
@@ -159,12 +167,12 @@ class Diagnosis:
         if self.at_noise_floor:
             return (
                 f"the cross-validated residual ({self.rmse_test:.3g} N m) is at the noise floor "
-                f"({self.noise_floor:.3g} N m); no missing effect is significant"
+                f"({self.floor_label}); no missing effect is significant"
             )
         if self.best is not None:
             head = (
                 f"cross-validated residual {self.rmse_test:.3g} N m is {ratio:.2g}x the noise floor "
-                f"({self.noise_floor:.3g} N m); add '{self.best.effect}': {self.best.reason}"
+                f"({self.floor_label}); add '{self.best.effect}': {self.best.reason}"
             )
             return f"{head}; also: {self.flags[0]}" if self.flags else head
         if self.outliers:
@@ -175,7 +183,7 @@ class Diagnosis:
             return f"no candidate effect is significant and material; {self.rmse_test:.3g} N m is at the noise floor"
         head = (
             f"no candidate effect is significant, but the cross-validated residual is {ratio:.2g}x the noise floor "
-            f"({self.noise_floor:.3g} N m)"
+            f"({self.floor_label})"
         )
         if self.skipped:
             return f"{head}; not tried: {'; '.join(self.skipped)}"
@@ -183,12 +191,9 @@ class Diagnosis:
 
 
 def noise_floor(residual: Array) -> float:
-    """Standard deviation of white measurement noise in a residual series [N m] (see module docstring)."""
-    r = np.asarray(residual, float)
-    if r.size < MIN_FLOOR_ROWS:
-        return float("nan")
-    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
-    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    """Standard deviation of white measurement noise in a residual series [N m] (second differences; reads low for
+    correlated noise: :func:`hound_id.dyno.current.noise.estimate` is the floor the verdicts use)."""
+    return white_floor(residual)
 
 
 def _trials(name: str) -> int:
@@ -322,7 +327,8 @@ def diagnose(
     lower, upper = bounds_of(fit.model)
     base_sse = cross_validate(stats, stats, cols, lower, upper).sse
     residual_search = np.asarray(fit.residual)[design.search]
-    floor = noise_floor(fit.residual)
+    noise = estimate(signals, design.torque, np.asarray(fit.residual))
+    floor = noise.value
     clusters = design.blocks.count
 
     suggestions = []
@@ -339,7 +345,7 @@ def diagnose(
             continue
         explained = (base_sse - trial.cv_sse) / base_sse if base_sse > 0 else 0.0
         gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
-        material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2)
+        material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2 and gain > 0)
         dfd = max(clusters - 1, 1)
         p = f_pvalue(trial.wald, trial.q, dfd)
         p_adj = corrected(p, _trials(name), len(names))
@@ -357,7 +363,7 @@ def diagnose(
         elif p_adj < alpha and gain > 0:
             reason = (
                 f"real (p = {p_adj:.2g}) but immaterial: it lowers the cross-validated mean-square error by "
-                f"{gain / floor**2:.1%} of the noise variance, less than {MATERIAL:.0%}"
+                f"{_share(gain, floor**2)} of the noise variance, less than {MATERIAL:.0%}"
             )
         elif p_adj < alpha:
             reason = (
@@ -398,7 +404,13 @@ def diagnose(
         block_floor,
         disagreeing,
         agreeing.rmse,
+        noise,
     )
+
+
+def _share(part: float, whole: float) -> str:
+    """part / whole as a percentage, or 'all' when whole is zero (a noiseless log)."""
+    return f"{part / whole:.1%}" if whole > 0 else "all"
 
 
 def _span(signals: Signals, start: int, stop: int) -> str:

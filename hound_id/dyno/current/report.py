@@ -141,6 +141,10 @@ def fit_report(
 ) -> dict[str, Any]:
     """JSON-ready report, schema ``hound-id/fit/3`` (SI units).
 
+    Version 3 also carries ``noise`` (added later, so readers of version 3 without it still work): how
+    ``noise_floor`` was found (``method``: ``still``, ``sample-to-sample`` or ``quantisation``; both estimates,
+    the still rows and pieces, the torque channel's rounding, a sentence).
+
     Version 3 (from 2): ``current_curve`` is the fitted current-torque curve, ``compensation`` its exact inverse
     (method and error) and ``compensation_polynomial`` the odd polynomial that ``compensation`` was in version 2.
 
@@ -182,6 +186,7 @@ def fit_report(
         "skipped": list(diagnosis.skipped),
         "outliers": diagnosis.outliers,
         "noise_floor": diagnosis.noise_floor,
+        "noise": None if diagnosis.noise is None else diagnosis.noise.to_dict(),
         "at_noise_floor": diagnosis.at_noise_floor,
         "summary": diagnosis.summary(),
         "ladder": None if ladder is None else [step_dict(s) for s in ladder],
