@@ -26,9 +26,18 @@ def fit_current(
     units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
     flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensor mounted reversed)."),
     window: Optional[str] = typer.Option(
-        None, "--window", help="Fit only START:STOP seconds (data rows of a steady-state table); ends optional."
+        None,
+        "--window",
+        help="Fit only START:STOP seconds (data rows of a steady-state table); ends optional; several ranges "
+        "separated by commas.",
     ),
     robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares (outliers left in the log)."),
+    whole_log: bool = typer.Option(
+        False,
+        "--whole-log",
+        help="Keep the whole log as the headline even where part of it disagrees (by default the disagreeing "
+        "stretches are left out and the whole log's fit is reported beside).",
+    ),
     effects_file: Optional[list[Path]] = typer.Option(
         None,
         "--effects-file",
@@ -39,7 +48,7 @@ def fit_current(
     out: Optional[Path] = typer.Option(
         None, "--out", help="Write a fitted-motor YAML (with --spec, one that 'hound-id mor --spec' reads)."
     ),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/2)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/3)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
     from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
@@ -56,6 +65,7 @@ def fit_current(
         flip_torque,
         window,
         robust,
+        whole_log=whole_log,
         effects_files=tuple(effects_file or ()),
         spec=spec,
         plot=plot,

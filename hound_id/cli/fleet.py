@@ -34,6 +34,9 @@ def fleet(
     flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensors mounted reversed)."),
     window: Optional[str] = typer.Option(None, "--window", help="Fit only START:STOP seconds of every log."),
     robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares."),
+    whole_log: bool = typer.Option(
+        False, "--whole-log", help="Each log's headline is the whole log, even where part of it disagrees."
+    ),
     workers: Optional[int] = typer.Option(
         None, "--workers", help="Worker processes of the local Dask cluster (default: one per core)."
     ),
@@ -58,7 +61,7 @@ def fleet(
     from hound_id.dyno.fleet.run import FleetOptions, write_outputs
     from hound_id.dyno.fleet.run import fleet as run
 
-    fit = fit_options(model, add, auto, columns, units, flip_torque, window, robust)
+    fit = fit_options(model, add, auto, columns, units, flip_torque, window, robust, whole_log=whole_log)
     options = FleetOptions(scheduler, workers, z, tolerance, csv, plot, reports)
     with Progress(
         TextColumn("{task.description}"),

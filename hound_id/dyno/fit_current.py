@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from hound_id.dyno.current.diagnose import Diagnosis, Step
     from hound_id.dyno.current.effects import Signals
     from hound_id.dyno.current.fit import FitResult
+    from hound_id.dyno.current.stretch import Stretch
     from hound_id.dyno.logs import DynoLog
 
 #: Cleaning notes that are information, not warnings (shown as ``note:`` outside ``--json``).
@@ -51,6 +52,9 @@ class FitCurrentOptions:
     """``START:STOP`` seconds (data rows of a steady-state table); ends optional."""
     robust: bool = False
     """Huber-robust least squares."""
+    whole_log: bool = False
+    """Keep the whole log as the headline even when part of it disagrees (by default the headline is the longest
+    stretch that agrees and exercises the current)."""
     effects_files: tuple[Path, ...] = ()
     """Python files registering the user's own effects (executed)."""
     spec: Path | None = None
@@ -69,6 +73,29 @@ class FitFigure:
     """(label, fit) pairs whose residuals the panels compare."""
     cogging_order: float | None
     """Periods per revolution the position panel folds on (None: no fold)."""
+
+
+@dataclass(frozen=True, eq=False)
+class Fitted:
+    """One log (or stretch) fitted: the starting model, the ladder and where it ended."""
+
+    signals: Signals
+    """The model's input channels."""
+    start: FitResult
+    """Fit of the starting model."""
+    ladder: tuple[Step, ...] | None
+    """The ``auto`` ladder (None without ``auto``)."""
+    fit: FitResult
+    """The final fit."""
+    diagnosis: Diagnosis
+    """Its diagnosis."""
+
+
+#: Stretches tried as the headline before the whole log is kept (each is a whole fit, with its ladder); times the
+#: headline is narrowed again when its own blocks disagree; the largest share of a log the headline may leave out.
+HEADLINE_TRIES = 4
+HEADLINE_LEVELS = 2
+MAX_LEFT_OUT = 0.5
 
 
 @dataclass(frozen=True, eq=False)
@@ -107,6 +134,10 @@ class FitCurrentResult:
     """The fitted-motor mapping for ``options.out`` (None without it)."""
     figure: FitFigure | None = field(default=None)
     """What ``options.plot`` draws (None without it)."""
+    whole: Fitted | None = None
+    """The fit to the whole log when the headline is a stretch of it (None when the headline is the whole log)."""
+    left_out: tuple[Stretch, ...] = ()
+    """The stretches of the whole log the headline leaves out, each read from its channels (rows of the whole log)."""
 
     def report_json(self) -> dict[str, Any]:
         """The report with its ``warnings`` (what ``--json`` prints before ``plot`` and ``out``)."""
@@ -168,12 +199,9 @@ def fit_current(
     Raises:
         HoundIdError: A bad input (log, option, spec, output path), or a fit the log cannot support.
     """
-    from hound_id.dyno.current.diagnose import auto as run_auto
-    from hound_id.dyno.current.diagnose import diagnose
     from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model
-    from hound_id.dyno.current.fit import fit_model
     from hound_id.dyno.current.report import check_kt, fitted_motor, spec_checks, summarize
-    from hound_id.dyno.logs import load_log, parse_window
+    from hound_id.dyno.logs import load_log, parse_windows
     from hound_id.mor.spec import load_motor_spec
 
     spec, plot, out = options.spec, options.plot, options.out
@@ -187,7 +215,7 @@ def fit_current(
         )
     sources = (data, spec, *options.effects_files)
     io.check_output(plot, (".png",), "plot", inputs=sources)
-    start_stop = parse_window(options.window)
+    ranges = parse_windows(options.window)
     io.check_output(out, (".yaml", ".yml"), "fitted-motor", inputs=sources)
     sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet
     for path in options.effects_files:
@@ -205,28 +233,18 @@ def fit_current(
         flip_torque=options.flip_torque,
     )
     if options.window is not None:
-        log = log.window(*start_stop)
+        log = log.windows(ranges)
+    model = tuple(names)
+    whole = _fit_log(Signals.from_log(log), log.torque, model, options, on_progress)
+    fitted: Fitted = whole
+    left_out: tuple[Stretch, ...] = ()
+    option: str | None = None
+    if options.window is None and not options.whole_log and whole.diagnosis.disagreeing.any():
+        fitted, log, left_out, option = _headline(log, whole, model, options, on_progress)
     notes = tuple(n.message for n in log.notes if n.kind in NOTE_KINDS)
     log_warnings = tuple(n.message for n in log.notes if n.kind not in NOTE_KINDS)
-    signals = Signals.from_log(log)
-    torque = log.torque
-    model = tuple(names)
-    if on_progress is not None:
-        on_progress(f"fitting {'+'.join(model)}")
-    start = fit_model(signals, torque, model, robust=options.robust)
-    ladder: tuple[Step, ...] | None = None
-    if options.auto:
-
-        def on_step(step: Step) -> None:
-            if on_progress is not None:
-                on_progress(f"diagnosed {'+'.join(step.model)}: held-out RMSE {step.fit.rmse_test:.3g} N m")
-
-        ladder = tuple(run_auto(signals, torque, start, on_step=on_step))
-        fit, diagnosis = ladder[-1].fit, ladder[-1].diagnosis
-    else:
-        if on_progress is not None:
-            on_progress("diagnosing")
-        fit, diagnosis = start, diagnose(signals, torque, start)
+    signals, torque = fitted.signals, log.torque
+    start, ladder, fit, diagnosis = fitted.start, fitted.ladder, fitted.fit, fitted.diagnosis
     peak, comp, report = summarize(
         str(data),
         fit,
@@ -238,7 +256,12 @@ def fit_current(
         current_limit=log.current_limit,
         time=signals.time if signals.timed else None,
     )
+    if left_out:
+        report["headline"], report["whole_log"] = _headline_report(whole, left_out, option)
+        report["left_out"] = [s.to_dict(whole.signals) for s in left_out]
     warnings = fit_warnings(report)
+    if left_out:
+        warnings.insert(0, report["headline"]["sentence"])
     check_kt(str(data), report["parameters"]["kt"]["value"], sheet, str(spec))
     if sheet is not None:
         warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
@@ -274,7 +297,211 @@ def fit_current(
         warnings=tuple(warnings),
         motor=motor,
         figure=figure,
+        whole=whole if left_out else None,
+        left_out=left_out,
     )
+
+
+def _fit_log(
+    signals: Signals,
+    torque: Any,
+    model: tuple[str, ...],
+    options: FitCurrentOptions,
+    on_progress: Callable[[str], None] | None,
+) -> Fitted:
+    """Fit the starting model, then climb the ladder (``auto``) or diagnose once."""
+    from hound_id.dyno.current.diagnose import auto as run_auto
+    from hound_id.dyno.current.diagnose import diagnose
+    from hound_id.dyno.current.fit import fit_model
+
+    if on_progress is not None:
+        on_progress(f"fitting {'+'.join(model)}")
+    start = fit_model(signals, torque, model, robust=options.robust)
+    if options.auto:
+
+        def on_step(step: Step) -> None:
+            if on_progress is not None:
+                on_progress(f"diagnosed {'+'.join(step.model)}: held-out RMSE {step.fit.rmse_test:.3g} N m")
+
+        ladder = tuple(run_auto(signals, torque, start, on_step=on_step))
+        return Fitted(signals, start, ladder, ladder[-1].fit, ladder[-1].diagnosis)
+    if on_progress is not None:
+        on_progress("diagnosing")
+    return Fitted(signals, start, None, start, diagnose(signals, torque, start))
+
+
+def _headline(
+    log: DynoLog,
+    whole: Fitted,
+    model: tuple[str, ...],
+    options: FitCurrentOptions,
+    on_progress: Callable[[str], None] | None,
+) -> tuple[Fitted, DynoLog, tuple[Stretch, ...], str | None]:
+    """The part of a log whose blocks agree, fitted on its own; the stretches left out, read from their channels
+    (:mod:`hound_id.dyno.current.stretch`, in the whole log's rows); the ``--window`` that keeps the part (None when
+    it is not a few ranges). The whole log when no part fits.
+
+    Narrowed up to :data:`HEADLINE_LEVELS` times (a part's own blocks may disagree), never leaving out more than
+    :data:`MAX_LEFT_OUT` of the log's rows that show torque per amp (a motor switched off or a frozen reply shows
+    none, and leaving it out costs nothing).
+    """
+    import numpy as np
+
+    fitted, part, rows = whole, log, np.arange(log.n)
+    left: list[Stretch] = []
+    budget = int(MAX_LEFT_OUT * log.n)
+    for _ in range(HEADLINE_LEVELS):
+        if not fitted.diagnosis.disagreeing.any():
+            break
+        step = _narrow(part, fitted, rows, model, options, on_progress, budget)
+        if step is None:
+            break
+        fitted, part, rows, found, cost = step
+        left += found
+        budget -= cost
+    if not left:
+        return whole, log, (), None
+    return fitted, part, tuple(left), _window_option(whole.signals, rows)
+
+
+def _narrow(
+    log: DynoLog,
+    fitted: Fitted,
+    rows: Any,
+    model: tuple[str, ...],
+    options: FitCurrentOptions,
+    on_progress: Callable[[str], None] | None,
+    budget: int,
+) -> tuple[Fitted, DynoLog, Any, list[Stretch], int] | None:
+    """One narrowing of :func:`_headline`: leave out the disagreeing stretches (only the rows just after the current
+    steps of a step transient), else keep the longest stretch that agrees and exercises the current. ``rows`` are the
+    whole log's rows of ``log``; the result's stretches are in the whole log's rows too, and the last value is how
+    many rows that show torque per amp it left out (at most ``budget``)."""
+    import dataclasses
+
+    import numpy as np
+
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.stretch import (
+        STEP_ROWS,
+        UNINFORMATIVE,
+        candidates,
+        read,
+        runs,
+        transient_rows,
+        varies_rows,
+    )
+    from hound_id.dyno.logs import MIN_ROWS
+
+    signals = fitted.signals
+    edges = fitted.fit.blocks.edges
+    bad = np.asarray(fitted.diagnosis.disagreeing, bool)
+
+    def whole_rows(s: Stretch) -> Stretch:
+        return dataclasses.replace(s, start=int(rows[s.start]), stop=int(rows[s.stop - 1]) + 1)
+
+    def attempt(keep: Any, message: str, stretches: list[Stretch]) -> tuple[Any, ...] | None:
+        blank = np.zeros(keep.size, dtype=bool)  # rows that show no torque per amp
+        for s in stretches:
+            if s.kind in UNINFORMATIVE:
+                blank[s.start : s.stop] = True
+        cost = int((~keep & ~blank).sum())
+        if cost > budget or int(keep.sum()) < MIN_ROWS:
+            return None
+        try:
+            part = log.without(np.flatnonzero(~keep), message)
+            fitted = _fit_log(Signals.from_log(part), part.torque, model, options, on_progress)
+        except HoundIdError:
+            return None
+        return fitted, part, rows[keep], [whole_rows(s) for s in stretches], cost
+
+    kt = fitted.diagnosis.kt_agreeing
+    flagged = [read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(bad)]
+    keep = np.ones(signals.current.size, dtype=bool)
+    for s in flagged:
+        keep[transient_rows(signals, s) if s.kind == "step transient" else slice(s.start, s.stop)] = False
+    if varies_rows(signals, keep):
+        if on_progress is not None:
+            on_progress("fitting the log without its disagreeing stretches")
+        what = ", ".join(f"{_span(signals, s.start, s.stop)} ({s.kind})" for s in flagged)
+        steps = any(s.kind == "step transient" for s in flagged)
+        note = f" (of a step transient, the rows within {STEP_ROWS} samples after its current steps)" if steps else ""
+        done = attempt(keep, f"left out {int((~keep).sum())} rows of {what}{note}", flagged)
+        if done is not None:
+            return done  # type: ignore[return-value]
+    for a, b in candidates(signals, edges, bad, MIN_ROWS)[:HEADLINE_TRIES]:
+        if on_progress is not None:
+            on_progress(f"fitting the stretch {_span(signals, a, b)} on its own")
+        keep = np.zeros(signals.current.size, dtype=bool)
+        keep[a:b] = True
+        outside = np.ones(bad.size, dtype=bool)
+        outside[(edges[:-1] >= a) & (edges[1:] <= b)] = False
+        left = [
+            read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(outside)
+        ]
+        message = f"kept {_span(signals, a, b)}, the longest stretch that agrees and exercises the current"
+        done = attempt(keep, message, left)
+        if done is not None:
+            return done  # type: ignore[return-value]
+    return None
+
+
+def _window_option(signals: Signals, rows: Any) -> str | None:
+    """``--window`` ranges that keep exactly ``rows`` of the whole log (at most four ranges), else None."""
+    import numpy as np
+
+    breaks = np.flatnonzero(np.diff(rows) > 1)
+    starts = np.concatenate(([rows[0]], rows[breaks + 1]))
+    stops = np.concatenate((rows[breaks], [rows[-1]]))
+    if starts.size > 4:
+        return None
+    keys = [_window_keys(signals, int(a), int(b) + 1) for a, b in zip(starts, stops, strict=True)]
+    # the log's own ends stay open, so that a bound printed to 6 digits cannot cut a row
+    n = signals.current.size
+    text = []
+    for (lo, hi), a, b in zip(keys, starts, stops, strict=True):
+        text.append(f"{'' if a == 0 else f'{lo:.6g}'}:{'' if b == n - 1 else f'{hi:.6g}'}")
+    return "--window " + ",".join(text)
+
+
+def _window_keys(signals: Signals, a: int, b: int) -> tuple[float, float]:
+    """The --window bounds that keep rows a..b-1 (seconds, or 1-based data rows of a steady-state table)."""
+    if signals.timed:
+        return float(signals.time[a]), float(signals.time[b - 1])
+    return float(signals.time[a]) + 1.0, float(signals.time[b - 1]) + 1.0
+
+
+def _span(signals: Signals, a: int, b: int) -> str:
+    lo, hi = _window_keys(signals, a, b)
+    return f"t = {lo:.4g}-{hi:.4g} s" if signals.timed else f"data rows {lo:.0f}-{hi:.0f}"
+
+
+def _headline_report(
+    whole: Fitted, left_out: tuple[Stretch, ...], option: str | None
+) -> tuple[dict[str, Any], dict[str, Any]]:
+    """The report's ``headline`` (what was left out and why, the option that repeats it, a sentence) and
+    ``whole_log`` (the whole log's fit)."""
+    signals = whole.signals
+    kt = whole.fit.parameters.get("kt")
+    kt_text = f"Kt = {kt.value:.4g} +- {kt.stderr:.2g} N m/A" if kt is not None else "no Kt"
+    parts = "; ".join(f"{_span(signals, s.start, s.stop)}: {s.kind} ({s.reading})" for s in left_out)
+    repeat = f" ({option})" if option is not None else ""
+    sentence = (
+        f"part of the log disagrees with the rest, so the headline fit leaves it out{repeat}: {parts}. The whole log "
+        f"gives {kt_text} with a cross-validated error of {whole.fit.rmse_test:.3g} N m (pass --whole-log to make "
+        "it the headline)"
+    )
+    headline = {"option": option, "sentence": sentence}
+    whole_log = {
+        "model": list(whole.fit.model),
+        "parameters": {name: est.to_dict() for name, est in whole.fit.parameters.items()},
+        "rmse_test": whole.fit.rmse_test,
+        "noise_floor": whole.diagnosis.noise_floor,
+        "at_noise_floor": whole.diagnosis.at_noise_floor,
+        "flags": list(whole.diagnosis.flags),
+        "summary": whole.diagnosis.summary(),
+    }
+    return headline, whole_log
 
 
 def _figure(
@@ -338,4 +565,12 @@ def write_outputs(result: FitCurrentResult, dpi: int = 120) -> None:
             raise
 
 
-__all__ = ["FitCurrentOptions", "FitCurrentResult", "FitFigure", "fit_current", "fit_warnings", "write_outputs"]
+__all__ = [
+    "FitCurrentOptions",
+    "FitCurrentResult",
+    "FitFigure",
+    "Fitted",
+    "fit_current",
+    "fit_warnings",
+    "write_outputs",
+]

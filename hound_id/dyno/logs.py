@@ -61,7 +61,7 @@ import dataclasses
 import difflib
 import math
 import re
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -313,34 +313,66 @@ class DynoLog:
             channel=name,
         )
 
+    def without(self, rows: NDArray[np.intp], message: str) -> DynoLog:
+        """The log less ``rows``, with a note (kind ``window``) saying why.
+
+        Raises:
+            DynoDataError: Fewer than :data:`MIN_ROWS` rows would be left.
+        """
+        keep = np.ones(self.n, dtype=bool)
+        keep[np.asarray(rows, dtype=np.intp)] = False
+        if int(keep.sum()) < MIN_ROWS:
+            raise DynoDataError(
+                f"{self.source}: leaving out {self.n - int(keep.sum())} rows keeps {int(keep.sum())}, expected at "
+                f"least {MIN_ROWS}"
+            )
+        arrays: dict[str, Any] = {
+            name: (None if getattr(self, name) is None else getattr(self, name)[keep]) for name in CANONICAL
+        }
+        note = CleaningNote("window", int(self.n - keep.sum()), message)
+        return dataclasses.replace(self, **arrays, notes=(*self.notes, note))
+
     def window(self, start: float | None, stop: float | None) -> DynoLog:
         """The rows with start <= t <= stop [s] (for a steady-state table, 1-based data rows); None is open.
 
         Raises:
             DynoDataError: Fewer than :data:`MIN_ROWS` rows lie in the window.
         """
+        return self.windows([(start, stop)])
+
+    def windows(self, ranges: Sequence[tuple[float | None, float | None]]) -> DynoLog:
+        """The rows inside any of the (start, stop) ranges (:meth:`window`'s bounds), in log order.
+
+        Raises:
+            DynoDataError: Fewer than :data:`MIN_ROWS` rows lie in the ranges.
+        """
         key = self.time if self.timed else self.time + 1.0
-        keep = np.ones(self.n, dtype=bool)
-        if start is not None:
-            keep &= key >= start
-        if stop is not None:
-            keep &= key <= stop
+        keep = np.zeros(self.n, dtype=bool)
+        for start, stop in ranges:
+            inside = np.ones(self.n, dtype=bool)
+            if start is not None:
+                inside &= key >= start
+            if stop is not None:
+                inside &= key <= stop
+            keep |= inside
         unit = "s" if self.timed else "(data rows)"
+        text = ",".join(f"{_bound(start)}:{_bound(stop)}" for start, stop in ranges)
         if int(keep.sum()) < MIN_ROWS:
             lo, hi = float(key[0]), float(key[-1])
             raise DynoDataError(
-                f"{self.source}: --window {_bound(start)}:{_bound(stop)} keeps {int(keep.sum())} rows, expected at "
+                f"{self.source}: --window {text} keeps {int(keep.sum())} rows, expected at "
                 f"least {MIN_ROWS}; the log spans {lo:.6g} to {hi:.6g} {unit}",
                 option="--window",
             )
         arrays: dict[str, Any] = {
             name: (None if getattr(self, name) is None else getattr(self, name)[keep]) for name in CANONICAL
         }
+        kept = ", ".join(
+            f"{'the start' if start is None else f'{start:g}'} to {'the end' if stop is None else f'{stop:g}'}"
+            for start, stop in ranges
+        )
         note = CleaningNote(
-            "window",
-            int(self.n - keep.sum()),
-            f"kept {'the start' if start is None else f'{start:g}'} to {'the end' if stop is None else f'{stop:g}'} "
-            f"{unit} (--window): {int(keep.sum())} of {self.n} rows",
+            "window", int(self.n - keep.sum()), f"kept {kept} {unit} (--window): {int(keep.sum())} of {self.n} rows"
         )
         return dataclasses.replace(self, **arrays, notes=(*self.notes, note))
 
@@ -370,6 +402,25 @@ def parse_window(text: str | None) -> tuple[float | None, float | None]:
     if start is not None and stop is not None and start >= stop:
         raise DynoDataError(f"--window: start {start:g} is not before stop {stop:g}", option="--window")
     return start, stop
+
+
+def parse_windows(text: str | None) -> list[tuple[float | None, float | None]]:
+    """Read ``--window START:STOP[,START:STOP...]``: the ranges in order (none given: one open range).
+
+    Raises:
+        DynoDataError: A range that :func:`parse_window` refuses, or ranges out of order or overlapping.
+    """
+    if text is None:
+        return [(None, None)]
+    ranges = [parse_window(part) for part in text.split(",")]
+    for (_, a1), (b0, _) in zip(ranges[:-1], ranges[1:], strict=True):
+        if a1 is None or b0 is None or b0 <= a1:
+            raise DynoDataError(
+                f"--window: found {text!r}; several ranges must be in order and apart, for example "
+                "--window 0:14.5,15.2:27",
+                option="--window",
+            )
+    return ranges
 
 
 def parse_mapping(text: str | None, option: str) -> dict[str, str]:

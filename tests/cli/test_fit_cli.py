@@ -242,13 +242,26 @@ def test_window_option_and_its_errors(tmp_path):
     flagged = run_cli("fit-current", str(log), "--columns", COLUMNS, "--json")
     assert flagged.returncode == 0
     data = json.loads(flagged.stdout)
-    assert not data["at_noise_floor"] and any("--window 0:" in f for f in data["flags"])
-    window = next(f for f in data["flags"] if "--window" in f).split("--window ")[1]
+    # the headline leaves the motor-off end out and names the window that repeats it; the whole log is beside it
+    assert data["whole_log"]["flags"] and not data["whole_log"]["at_noise_floor"]
+    assert not any(f.startswith("blocks") for f in data["flags"])
+    assert data["left_out"][0]["kind"] == "current frozen" and "--whole-log" in data["headline"]["sentence"]
+    window = data["headline"]["option"].split("--window ")[1]
+    assert window.startswith(":")  # from the log's start
     good = json.loads(
         run_cli("fit-current", str(log), "--columns", COLUMNS, "--json", "--auto", "--window", window).stdout
     )
-    assert not any(f.startswith("blocks") for f in good["flags"])
+    assert not any(f.startswith("blocks") for f in good["flags"]) and "headline" not in good
     assert good["parameters"]["kt"]["value"] == pytest.approx(1.15, rel=0.01)
+    whole = json.loads(run_cli("fit-current", str(log), "--columns", COLUMNS, "--json", "--whole-log").stdout)
+    assert "headline" not in whole and any(f.startswith("blocks") for f in whole["flags"])
+    two = json.loads(run_cli("fit-current", str(log), "--columns", COLUMNS, "--json", "--window", "0:15,20:30").stdout)
+    assert two["rows"]["fitted"] < good["rows"]["fitted"] and "kept 0 to 15, 20 to 30 s" in " ".join(
+        c["message"] for c in two["cleaning"]
+    )
+    assert_one_line_error(
+        run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "0:15,10:30"), "in order and apart"
+    )
     assert_one_line_error(run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "x"), "START:STOP")
     assert_one_line_error(run_cli("fit-current", str(log), "--columns", COLUMNS, "--window", "5:1"), "not before")
     assert_one_line_error(

@@ -55,6 +55,7 @@ from hound_id.dyno.current.fit import (
     solve_normal,
 )
 from hound_id.dyno.current.noise import NoiseFloor, estimate, white_floor
+from hound_id.dyno.current.stretch import read
 from hound_id.dyno.identify.engine import (
     ALPHA,
     MAX_STEPS,
@@ -146,6 +147,8 @@ class Diagnosis:
     """Each block's RMSE under the model fitted to the agreeing half of the blocks [N m]."""
     noise: NoiseFloor | None = None
     """How :attr:`noise_floor` was found (its method and both estimates)."""
+    kt_agreeing: float | None = None
+    """Kt of the fit to the agreeing half of the blocks [N m/A] (None without a ``linear`` term)."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -390,7 +393,7 @@ def diagnose(
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
     agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
     disagreeing = _disagreeing(agreeing, floor, block_floor)
-    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals))
+    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals, design.torque))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
     return Diagnosis(
         fit.model,
@@ -405,7 +408,14 @@ def diagnose(
         disagreeing,
         agreeing.rmse,
         noise,
+        _kt(fit, agreeing),
     )
+
+
+def _kt(fit: FitResult, agreeing: _Agreeing) -> float | None:
+    """Kt of the fit to the agreeing half of the blocks [N m/A], None without a ``linear`` term."""
+    names = [par.name for _, par in parameters_of(fit.model)]
+    return float(agreeing.beta[names.index("kt")]) if "kt" in names else None
 
 
 def _share(part: float, whole: float) -> str:
@@ -418,13 +428,6 @@ def _span(signals: Signals, start: int, stop: int) -> str:
         return f"t = {signals.time[start]:.4g}-{signals.time[stop - 1]:.4g} s"
     # a steady-state table's time is its 0-based data row
     return f"data rows {int(signals.time[start]) + 1}-{int(signals.time[stop - 1]) + 1}"
-
-
-def _window(signals: Signals, start: int, stop: int) -> str:
-    """The --window option that keeps rows start..stop-1."""
-    if signals.timed:
-        return f"--window {signals.time[start]:.4g}:{signals.time[stop - 1]:.4g}"
-    return f"--window {int(signals.time[start]) + 1}:{int(signals.time[stop - 1]) + 1}"
 
 
 @dataclass(frozen=True)
@@ -448,19 +451,15 @@ class _Agreeing:
         return float(np.median(self.rmse))
 
 
-def _runs_of(mask: np.ndarray) -> list[tuple[int, int]]:
-    """(start, stop) of the runs of True in a boolean array."""
-    edges = np.flatnonzero(np.diff(np.concatenate(([0], mask.astype(np.int8), [0]))))
-    return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
-
-
 def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.ndarray:
     r = agreeing.rmse
     own = np.where(np.isfinite(block_floor), np.maximum(block_floor, floor), floor)
     return (r > BLOCK_FACTOR * agreeing.typical) & (r > BLOCK_FACTOR * own)  # type: ignore[no-any-return]
 
 
-def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, signals: Signals) -> list[str]:
+def _flags(
+    fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, signals: Signals, torque: Array
+) -> list[str]:
     """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out."""
     r = agreeing.rmse
     edges = fit.blocks.edges
@@ -475,27 +474,13 @@ def _flags(fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, s
         while j + 1 < bad.size and bad[j + 1]:
             j += 1
         worst = float(r[k : j + 1].max())
+        stretch = read(signals, torque, np.asarray(fit.residual), int(edges[k]), int(edges[j + 1]), _kt(fit, agreeing))
         out.append(
             f"blocks {k + 1}-{j + 1} of {bad.size} ({_span(signals, int(edges[k]), int(edges[j + 1]))}) disagree with "
             f"the rest: RMSE up to {worst:.3g} N m under the model fitted to the agreeing half of the blocks, against "
-            f"{ref:.3g} N m for the median block; the log changes there (a motor switched off, a current running away, "
-            "another regime) or an effect acting only there is missing"
+            f"{ref:.3g} N m for the median block; {stretch.kind}: {stretch.reading}"
         )
         k = j + 1
-    if out:
-        # a block next to a disagreeing one may hold the start of the change: leave it out of the advice
-        margin = ~bad & ~np.concatenate(([False], bad[:-1])) & ~np.concatenate((bad[1:], [False]))
-        good_runs = _runs_of(margin) or _runs_of(~bad)
-        if good_runs:
-            a, b = max(good_runs, key=lambda ab: int(edges[ab[1]] - edges[ab[0]]))
-            names = [par.name for _, par in parameters_of(fit.model)]
-            kt_note = ""
-            if "kt" in names:
-                kt_note = f"fitted to the agreeing blocks alone, Kt = {agreeing.beta[names.index('kt')]:.4g} N m/A; "
-            out.append(
-                f"{kt_note}to fit the longest agreeing stretch ({_span(signals, int(edges[a]), int(edges[b]))}) "
-                f"alone, pass {_window(signals, int(edges[a]), int(edges[b]))}"
-            )
     kt = fit.parameters.get("kt")
     if kt is not None and not kt.stderr <= KT_UNDETERMINED * abs(kt.value):
         out.insert(

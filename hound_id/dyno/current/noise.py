@@ -61,6 +61,12 @@ CHUNK_ROWS = 100
 #: values, a standard deviation known to about 11 %. Calibrated on
 #: test_noise::test_the_still_floor_of_filtered_noise_is_its_standard_deviation.
 MIN_STILL_ROWS = 200
+#: A channel is rounded when this share of its values lie within ON_GRID_TOLERANCE steps of its grid (a real ADC
+#: puts every value there; noise puts a tenth of them there by chance). Calibrated on
+#: test_noise::test_a_coarsely_rounded_torque_channel_sets_the_floor and
+#: test_noise::test_the_smallest_step_of_a_table_is_no_resolution.
+ON_GRID_SHARE = 0.9
+ON_GRID_TOLERANCE = 0.05
 #: Pieces' deviations beyond this many robust sigmas are left out of the still floor (a glitch or an unsettled step).
 #: Calibrated on test_noise::test_white_noise_gives_both_estimates_alike.
 TRIM_SIGMAS = 5.0
@@ -139,6 +145,21 @@ def white_floor(residual: Array) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
+def resolution(x: Array) -> float:
+    """The step a rounded channel takes (its ADC count or printed digit) [its unit], 0 when it is not rounded.
+
+    A channel is rounded to q when at least :data:`ON_GRID_SHARE` of its values lie within
+    :data:`ON_GRID_TOLERANCE` q of a multiple of q, with q the smallest gap between its distinct values (1st
+    percentile); the gaps between the operating points of a table, or between noisy samples, make no such grid.
+    """
+    gaps = np.diff(np.unique(np.asarray(x, float)))
+    q = float(np.percentile(gaps, 1)) if gaps.size else 0.0
+    if not q > 0:
+        return 0.0
+    k = x / q
+    return q if float(np.mean(np.abs(k - np.round(k)) <= ON_GRID_TOLERANCE)) >= ON_GRID_SHARE else 0.0
+
+
 def _tolerance(x: Array, floor: float = 0.0) -> float:
     """How far a channel may move and still hold still: its own noise, its quantum, or a share of its range."""
     return max(STILL_SIGMAS * noise_sigma(x), 2.0 * quantum(x), floor)
@@ -205,7 +226,7 @@ def estimate(
         pieces: The still pieces (:func:`still_segments`), when already found.
     """
     white = white_floor(residual)
-    q = quantum(np.asarray(torque, float)) / math.sqrt(12.0)
+    q = resolution(np.asarray(torque, float)) / math.sqrt(12.0)
     if pieces is None:
         pieces = still_segments(signals)
     found = still_scatter(residual, pieces)
@@ -225,6 +246,7 @@ __all__ = [
     "NoiseFloor",
     "SETTLE_ROWS",
     "estimate",
+    "resolution",
     "still_scatter",
     "still_segments",
     "white_floor",

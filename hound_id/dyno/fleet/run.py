@@ -76,12 +76,12 @@ class FleetResult:
 def check_fit_options(options: FitCurrentOptions) -> None:
     """Fail once, before any work, on a model, window or column option every log would fail on."""
     from hound_id.dyno.current.effects import parse_model
-    from hound_id.dyno.logs import parse_mapping, parse_window
+    from hound_id.dyno.logs import parse_mapping, parse_windows
 
     parse_model(options.model)
     for extra in options.add:
         parse_model(extra)
-    parse_window(options.window)
+    parse_windows(options.window)
     for value, option in ((options.columns, "--columns"), (options.units, "--units")):
         if value is None or isinstance(value, str):
             parse_mapping(value, option)

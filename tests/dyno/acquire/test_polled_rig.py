@@ -225,11 +225,14 @@ def test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted(tmp_path)
 
 
 @pytest.mark.parametrize(
-    ("rig", "start", "seen"),
-    [(Rig(truth=FRICTION, motor_off_at=40.0), 40.0, 0.5), (Rig(truth=FRICTION, runaway_from=35.0), 35.0, 2.0)],
+    ("rig", "start", "seen", "kind"),
+    [
+        (Rig(truth=FRICTION, motor_off_at=40.0), 40.0, 0.5, "current frozen"),
+        (Rig(truth=FRICTION, runaway_from=35.0), 35.0, 2.0, "torque ignores the current"),
+    ],
     ids=["motor-off", "current-runs-away"],
 )
-def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start, seen):
+def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start, seen, kind):
     """Flagged from the block where it breaks (a runaway shows once it has run `seen` seconds)."""
     log = load(tmp_path, rig)
     signals, ladder = ladder_of(log)
@@ -240,13 +243,21 @@ def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start
     t0 = float(first.split("t = ")[1].split("-")[0])
     assert start - 1.5 < t0 <= start + seen, first
     assert d.disagreeing[-1] and not d.disagreeing[0]
-    window = next(f for f in d.flags if "--window" in f)
-    stop = float(window.split("--window ")[1].split(":")[1])
-    assert stop <= start + seen
-    kept = log.window(None, stop)
-    s2, ladder2 = ladder_of(kept)
-    assert not ladder2[-1].diagnosis.flags
-    assert ladder2[-1].fit.value("kt") == pytest.approx(1.15, rel=0.005)
+    # the headline leaves the broken end out, says what it is from the channels, and repeats with an accepted option
+    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
+
+    path = write(frame(rig), tmp_path / "again.csv")
+    result = fit_current(path, FitCurrentOptions(columns=MAP, auto=True))
+    report = result.report
+    assert report["whole_log"]["flags"] and not report["flags"]
+    left = sorted(report["left_out"], key=lambda s: s["time"][0])
+    assert start - 1.5 < left[0]["time"][0] <= start + seen and left[-1]["time"][1] > 59
+    assert left[-1]["kind"] == kind  # the stretch to the end; its onset may read as another regime
+    assert result.fit.value("kt") == pytest.approx(1.15, rel=0.005)
+    option = report["headline"]["option"]
+    assert option.startswith("--window ")
+    again = fit_current(path, FitCurrentOptions(columns=MAP, auto=True, window=option.split(" ", 1)[1]))
+    assert again.fit.value("kt") == pytest.approx(result.fit.value("kt"), rel=1e-9) and not again.report["flags"]
 
 
 def test_a_flagged_training_fold_is_not_hidden_by_a_good_held_out_error(tmp_path):

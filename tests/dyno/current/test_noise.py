@@ -111,6 +111,15 @@ def test_a_coarsely_rounded_torque_channel_sets_the_floor():
     assert floor.quantisation == pytest.approx(q / math.sqrt(12))
 
 
+def test_the_smallest_step_of_a_table_is_no_resolution():
+    from hound_id.dyno.current.noise import resolution
+
+    points = np.random.default_rng(9).uniform(-5, 5, 40)  # operating points: their smallest step is no ADC count
+    assert resolution(points) == 0.0
+    assert resolution(np.round(points / 0.25) * 0.25) == pytest.approx(0.25)
+    assert resolution(np.round(points, 1)) == pytest.approx(0.1)
+
+
 def test_white_floor_needs_ten_rows():
     assert math.isnan(white_floor(np.zeros(9)))
     assert white_floor(np.zeros(50)) == 0.0
