@@ -28,7 +28,7 @@ from hound_id.mor.current_curve import PEAK_DEVIATION, CurrentCurve, polynomial,
 
 __all__ = [
     "EXTRAPOLATION_LIMIT", "PEAK_DEVIATION", "TABLE_POINTS", "Compensation", "PeakTorque", "compensation",
-    "curve_torque", "fitted_curve", "peak_torque",
+    "curve_torque", "fitted_curve", "peak_torque", "SATURATION_SIGMAS",
 ]  # fmt: skip
 
 #: How far past the measured current the peak may be extrapolated before giving up: ten times, beyond which the fitted
@@ -62,11 +62,11 @@ def fitted_curve(fit: FitResult, max_measured_current: float) -> CurrentCurve:
     return table_of(lambda i: curve_torque(fit, i), kt, top, TABLE_POINTS, source)
 
 
-def curve_torque(fit: FitResult, current: ArrayLike) -> Array:
-    """Torque of the fitted current-torque curve [N m] at the given currents [A]."""
+def curve_torque(fit: FitResult, current: ArrayLike, values: dict[str, float] | None = None) -> Array:
+    """Torque of the fitted current-torque curve [N m] at the given currents [A] (``values`` in place of the fit's)."""
     i = np.atleast_1d(np.asarray(current, float))
     s = Signals(time=np.zeros_like(i), current=i)
-    values = fit.values()
+    values = fit.values() if values is None else values
     total = np.zeros_like(i)
     for name in fit.model:
         e = get(name)
@@ -91,6 +91,9 @@ class PeakTorque:
     """Whether the peak lies beyond the measured current."""
     note: str
     """One sentence for the user."""
+    at_least: tuple[float, float] | None = None
+    """When the log shows no significant saturation: (torque [N m], current [A]) the peak lies beyond, from the
+    saturation terms at their upper 95 % limits (value + 2 standard errors); ``torque`` is then None."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -98,8 +101,38 @@ class PeakTorque:
             "current": self.current,
             "extrapolated": self.extrapolated,
             "max_measured_current": self.max_measured_current,
+            "at_least": None if self.at_least is None else {"torque": self.at_least[0], "current": self.at_least[1]},
             "note": self.note,
         }
+
+
+#: A saturation term is seen when its value is this many standard errors from zero (two-sided 5 %); its upper limit,
+#: value + this many standard errors, bounds the peak torque when none is seen. Calibrated on
+#: test_curve::test_a_peak_torque_needs_a_significant_saturation_term.
+SATURATION_SIGMAS = 2.0
+
+
+def _saturation_seen(fit: FitResult) -> tuple[bool, dict[str, float] | None]:
+    """(whether any saturation term of the curve is significant, the values with every saturation term at its upper
+    95 % limit, or None when a term has no standard error). A curve without saturation terms counts as seen: its
+    straight line is what the model says, and the advice is to add one."""
+    values = fit.values()
+    upper = dict(values)
+    seen = not any(get(name).shape and name != "linear" for name in fit.model)
+    for name in fit.model:
+        e = get(name)
+        if not e.shape:
+            continue
+        for par in e.parameters:
+            if par.name == "kt":
+                continue
+            est = fit.parameters[par.name]
+            if est.stderr > 0 and abs(est.value) >= SATURATION_SIGMAS * est.stderr and not est.at_bound:
+                seen = True
+            if est.at_bound or not est.stderr > 0:  # held at zero, or no error: no interval to bound it with
+                return seen, None
+            upper[par.name] = est.value + SATURATION_SIGMAS * est.stderr
+    return seen, upper
 
 
 def peak_torque(
@@ -121,15 +154,13 @@ def peak_torque(
         return PeakTorque(None, None, max_measured_current, False, "no positive Kt in the model")
     top = EXTRAPOLATION_LIMIT * max_measured_current
     grid = np.linspace(top / 4000, top, 4000)
+    seen, upper = _saturation_seen(fit)
+    if not seen:
+        return _bound(fit, kt, grid, upper, max_measured_current, deviation, _advice(current_limit, "test"))
     dev = 1.0 - curve_torque(fit, grid) / (kt * grid)
     above = np.flatnonzero(dev >= deviation)
     if above.size == 0:
-        advice = (
-            f"the driver held the current at its limit of {current_limit:.3g} A, so this drive cannot test higher "
-            "current: raise the driver's current limit or test on a stronger driver"
-            if current_limit is not None
-            else "add a saturation effect or test at higher current"
-        )
+        advice = _advice(current_limit, "add a saturation effect or test")
         return PeakTorque(
             None,
             None,
@@ -148,6 +179,54 @@ def peak_torque(
         f" (extrapolated beyond the measured currents, |i| <= {max_measured_current:.3g} A)" if extrapolated else ""
     )
     return PeakTorque(tau, i_peak, max_measured_current, extrapolated, note)
+
+
+def _advice(current_limit: float | None, test: str) -> str:
+    """What to do for a peak torque the log cannot show: test at higher current, or use a stronger driver."""
+    if current_limit is not None:
+        return (
+            f"the driver held the current at its limit of {current_limit:.3g} A, so this drive cannot test higher "
+            "current: raise the driver's current limit or test on a stronger driver"
+        )
+    return f"{test} at higher current"
+
+
+def _bound(
+    fit: FitResult,
+    kt: float,
+    grid: Array,
+    upper: dict[str, float] | None,
+    max_measured_current: float,
+    deviation: float,
+    advice: str,
+) -> PeakTorque:
+    """No significant saturation: the peak torque is not a number the log shows, only a bound (module docs)."""
+    head = f"no saturation seen up to {max_measured_current:.3g} A (no saturation term is {SATURATION_SIGMAS:g} "
+    head += "standard errors from zero)"
+    if upper is None:
+        return PeakTorque(None, None, max_measured_current, False, f"{head}; {advice}")
+    dev = 1.0 - curve_torque(fit, grid, upper) / (kt * grid)
+    above = np.flatnonzero(dev >= deviation)
+    if above.size == 0:
+        return PeakTorque(
+            None,
+            None,
+            max_measured_current,
+            False,
+            f"{head}: even with its saturation at the upper 95 % limit the curve stays within {deviation:.0%} of "
+            f"linear up to {grid[-1]:.3g} A; {advice}",
+        )
+    i_bound = float(grid[above[0]])
+    tau_bound = float(curve_torque(fit, i_bound, upper)[0])
+    return PeakTorque(
+        None,
+        None,
+        max_measured_current,
+        False,
+        f"{head}: the peak torque (where the curve is {deviation:.0%} below Kt i) lies beyond {tau_bound:.4g} N m at "
+        f"{i_bound:.4g} A (95 %: the saturation at its upper limit); not a number this log shows: {advice}",
+        (tau_bound, i_bound),
+    )
 
 
 @dataclass(frozen=True)

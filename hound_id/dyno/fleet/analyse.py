@@ -392,10 +392,14 @@ def values_of(report: Mapping[str, Any]) -> tuple[dict[str, Value], float | None
     """Every metric of one fit report, and its cogging order (None: not identified)."""
     out = {"kt": _parameter(report, "kt")}
     peak = report["peak_torque"]
-    if peak["torque"] is None:
+    if peak.get("at_least") is not None:
+        out["peak_torque"] = Value(None, None, "no saturation seen: only a bound")
+    elif peak["torque"] is None:
         out["peak_torque"] = Value(None, None, "not reached by the fitted curve")
+    elif peak["extrapolated"]:  # beyond the measured current: the fit's shape, not what the log shows
+        out["peak_torque"] = Value(None, None, "extrapolated beyond the measured current: not judged")
     else:
-        out["peak_torque"] = Value(float(peak["torque"]), None, "extrapolated" if peak["extrapolated"] else "")
+        out["peak_torque"] = Value(float(peak["torque"]), None)
     for name in FRICTION:
         out[name] = _parameter(report, name)
     out["cogging_amplitude"], order = _cogging(report)

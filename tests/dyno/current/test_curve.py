@@ -66,3 +66,35 @@ def test_a_cubic_fit_gets_a_table_curve_with_its_error():
     i = np.linspace(0.0, curve.top_current, 5001)
     err = np.max(np.abs(curve.current(curve_torque(fit, i)) - i))
     assert err <= curve.table_error * 1.5 + 1e-9 and curve.table_error < 0.01
+
+
+def test_a_peak_torque_needs_a_significant_saturation_term():
+    """A log whose current stays far below saturation: the quadratic term is not significant, so the peak torque is a
+    bound (the 20 % point with k_sat at its upper 95 % limit), never a number; the same log driven into saturation
+    gives a number."""
+    from dataclasses import replace
+
+    from hound_id.dyno.current.curve import SATURATION_SIGMAS
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.logs import log_from_frame
+    from hound_id.dyno.simulate.current import TestPlan, simulate
+
+    plan = replace(TestPlan(), overdrive=0.1, hold_time=0.0)  # a tenth of the current where the curve bends 20 %
+    low = simulate(("linear", "saturation"), plan=plan, seed=2, noise_std=0.1)
+    log = log_from_frame(low.frame, source="low")
+    signals, torque = Signals.from_log(log), log.torque
+    fit = fit_model(signals, torque, ("linear", "saturation"))
+    k = fit.parameters["k_sat"]
+    assert not (abs(k.value) >= SATURATION_SIGMAS * k.stderr and not k.at_bound)
+    i_max = float(np.abs(signals.current).max())
+    peak = peak_torque(fit, i_max)
+    assert peak.torque is None and peak.current is None and not peak.extrapolated
+    assert peak.note.startswith(f"no saturation seen up to {i_max:.3g} A")
+    tau_b, i_b = peak.at_least
+    kt, k_up = fit.value("kt"), k.value + SATURATION_SIGMAS * k.stderr
+    assert i_b == pytest.approx(0.2 * kt / k_up, rel=2e-3) and tau_b == pytest.approx(0.8 * kt * i_b, rel=2e-3)
+    assert peak.to_dict()["at_least"] == {"torque": tau_b, "current": i_b}
+
+    signals, torque, _ = simulated(("linear", "saturation"), 3)
+    full = peak_torque(fit_model(signals, torque, ("linear", "saturation")), float(np.abs(signals.current).max()))
+    assert full.torque is not None and full.at_least is None
