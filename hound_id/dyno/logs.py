@@ -134,11 +134,14 @@ NOTE_KINDS: tuple[str, ...] = (
     "wrap",
     "clamp",
     "current_limit",
+    "duplicate_rows",
 )
 
-#: Fewest rows a cleaned log may have: two fit blocks' worth (hound_id.dyno.current.fit.MIN_BLOCK_ROWS each), the least
-#: that blocked cross-validation can hold out. Calibrated on test_logs::test_too_few_rows_are_refused.
-MIN_ROWS = 50
+#: Fewest rows a cleaned log may have: ten operating points of a steady-state table, or a burst of ten samples, each a
+#: block of their own (hound_id.dyno.current.fit.Blocks), the least that blocked cross-validation over ten folds can
+#: hold out. Calibrated on test_logs::test_too_few_rows_are_refused and
+#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+MIN_ROWS = 10
 #: An optional channel with non-finite values in at least this share of rows is dropped instead of its rows (5 %: a few
 #: gaps cost a few rows, a channel that is often missing would cost the log). Calibrated on
 #: test_logs::test_a_few_nans_in_an_optional_channel_drop_their_rows and
@@ -547,6 +550,7 @@ def log_from_frame(
         )
     _beyond_reason(data, found, source, notes)
     good = _finite_rows(data, bad_cells, notes)
+    good &= ~_repeated_rows(data, found, timed, notes)
     # The cleaning steps carry only the core channels and the 1-based file row of each sample; the optional
     # channels are gathered once at the end (copying seven 1M-row arrays at every step is most of the run time).
     rows = np.flatnonzero(good).astype(np.int64) + 1
@@ -926,6 +930,37 @@ def _check_enough(n: int, rows_read: int, notes: list[CleaningNote], source: str
         "record a longer log or fix the rows reported",
         rows=n,
     )
+
+
+def _repeated_rows(
+    data: dict[str, NDArray[np.float64]], found: Mapping[str, str], timed: bool, notes: list[CleaningNote]
+) -> NDArray[np.bool_]:
+    """Rows that repeat the row before in every column read (a logger that writes each sample several times): each
+    sample counts once. Marked, with a note; an operating point measured twice has some column that differs."""
+    names = [name for name in found if name in data]
+    n = data[names[0]].size if names else 0
+    same = np.zeros(n, dtype=bool)
+    if n < 2:
+        return same
+    same[1:] = True
+    for name in names:
+        x = data[name]
+        same[1:] &= (x[1:] == x[:-1]) | (np.isnan(x[1:]) & np.isnan(x[:-1]))
+    count = int(same.sum())
+    if count:
+        # how many times the most repeated row was written
+        starts = np.flatnonzero(~same)
+        times = int(np.max(np.diff(np.concatenate((starts, [n])))))
+        what = "sample" if timed else "row"
+        notes.append(
+            CleaningNote(
+                "duplicate_rows",
+                count,
+                f"collapsed {_plural(count, 'row')} that repeat the row before in every column (each {what} written "
+                f"up to {times} times): each counts once, at rows {_row_list(np.flatnonzero(same) + 1)}",
+            )
+        )
+    return same
 
 
 def _finite_rows(

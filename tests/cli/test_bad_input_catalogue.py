@@ -243,7 +243,7 @@ for key in ("name_traversal", "missing_joints", "binary"):
 DYNO_BAD = {
     "empty": (text(""), ("IN.csv",)),
     "header_only": (rows(DYNO, 1), ("IN.csv",)),
-    "few_rows": (rows(DYNO, 20), ("IN.csv", "rows")),
+    "few_rows": (rows(DYNO, 8), ("IN.csv", "rows")),
     "binary": (binary, ("IN.csv",)),
     "no_torque": (table(DYNO, drop("adc_torque[mN*m]")), ("IN.csv", "torque")),
     "torque_text": (table(DYNO, set_column("adc_torque[mN*m]", "high")), ("IN.csv", "adc_torque", "numeric")),

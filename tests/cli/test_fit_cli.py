@@ -59,7 +59,7 @@ def test_sample_auto_finds_every_hidden_effect(tmp_path):
     assert data["compensation_polynomial"]["powers"] == [1, 3, 5] and data["current_curve"]["form"] == "quadratic"
     assert data["compensation"]["method"].startswith("closed form") and data["compensation"]["max_error"] == 0.0
     kinds = {n["kind"] for n in data["cleaning"]}
-    assert {"nan_rows", "glitch", "duplicate_time", "unit"} <= kinds
+    assert {"nan_rows", "glitch", "duplicate_rows", "unit"} <= kinds  # the duplicated row is a repeated sample
     assert plot.read_bytes().startswith(PNG_MAGIC)
     # the fitted motor is a spec that `hound-id mor` reads, with the fitted Kt and peak torque
     fitted = yaml.safe_load(out.read_text())

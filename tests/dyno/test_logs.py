@@ -33,7 +33,7 @@ from hound_id.errors import DynoDataError, TableError
 KT = 0.1  # N m/A
 RATE = 1000.0  # Hz
 # Note kinds whose rows are removed from the log.
-REMOVING = ("nan_rows", "glitch", "duplicate_time", "adc_saturation")
+REMOVING = ("nan_rows", "glitch", "duplicate_time", "duplicate_rows", "adc_saturation")
 
 
 def truth(n: int = 2000, seed: int = 0, current: np.ndarray | None = None, amplitude: float = 13.0) -> pd.DataFrame:
@@ -529,7 +529,7 @@ def test_duplicated_column_names_are_refused():
         log_from_frame(frame)
 
 
-@pytest.mark.parametrize(("n", "spoil", "match"), [(40, 0, r"only 40 of 40 rows"), (60, 20, r"only 40 of 60 rows")])
+@pytest.mark.parametrize(("n", "spoil", "match"), [(60, 51, r"only 9 of 60 rows"), (20, 11, r"only 9 of 20 rows")])
 def test_too_few_rows_are_refused(n, spoil, match):
     frame = truth(n=n)
     frame.loc[: spoil - 1, "current"] = np.nan
@@ -655,3 +655,56 @@ def test_an_envelope_log_needs_envelope_min_rows(tmp_path):
     path.write_text("torque,velocity\nnan,0\n" + "\n".join(rows.splitlines()[2:]) + "\n")
     with pytest.raises(DynoDataError, match=rf"{ENVELOPE_MIN_ROWS - 1} usable rows; .* at least {ENVELOPE_MIN_ROWS}"):
         load_envelope_log(path)
+
+
+def test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read(tmp_path):
+    """Small data: a test stand's steady-state table (note lines above the header, one averaged row per operating
+    point) and a burst whose logger wrote every sample 16 times, with and without its time column; a noiseless table
+    (its noise floor is zero). Each is fitted from the command line, with no traceback."""
+    import json
+
+    from tests.conftest import run_cli
+
+    rng = np.random.default_rng(0)
+    i = np.linspace(-20, 20, 26)
+    w = np.tile([-5.0, 5.0], 13)
+    tau = 0.8 * i - 0.002 * i * np.abs(i) - 0.25 * np.tanh(w / 0.01) + rng.normal(0, 0.02, 26)
+    table = tmp_path / "table.csv"
+    lines = ["Test stand XY-200, averaged over 2 s per point", "operator: someone", "current_A,torque_Nm,speed_rad_s"]
+    table.write_text("\n".join(lines + [f"{a:.4f},{b:.5f},{c:.3f}" for a, b, c in zip(i, tau, w, strict=True)]) + "\n")
+    proc = run_cli(
+        "fit-current", str(table), "--columns", "current=current_A,torque=torque_Nm,velocity=speed_rad_s", "--auto",
+        "--json",
+    )  # fmt: skip
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["rows"]["fitted"] == 26 and data["rows"]["blocks"] == 26  # each operating point its own block
+    p = data["parameters"]
+    assert abs(p["kt"]["value"] - 0.8) < 4 * p["kt"]["stderr"] + 0.002
+    assert abs(p["coulomb"]["value"] - 0.25) < 4 * p["coulomb"]["stderr"] + 0.005
+    # five rows per parameter: the ladder stops where 26 rows cannot carry more
+    assert len(data["model"]) <= 26 // 5
+    assert any("rows cannot carry its parameters" in s for s in data["skipped"]) or data["at_noise_floor"]
+
+    t = np.arange(40) / 1000.0
+    ib = 8 * np.sin(2 * np.pi * 25 * t)
+    yb = 0.8 * ib + rng.normal(0, 0.01, 40)
+    burst = [f"{a:.6f},{b:.5f},{c:.5f}" for a, b, c in zip(t, ib, yb, strict=True) for _ in range(16)]
+    (tmp_path / "burst.csv").write_text("time,current,torque\n" + "\n".join(burst) + "\n")
+    (tmp_path / "burst_notime.csv").write_text(
+        "current,torque\n" + "\n".join(line.split(",", 1)[1] for line in burst) + "\n"
+    )
+    for name in ("burst.csv", "burst_notime.csv"):
+        proc = run_cli("fit-current", str(tmp_path / name), "--auto", "--json")
+        assert proc.returncode == 0, proc.stderr
+        data = json.loads(proc.stdout)
+        note = next(c for c in data["cleaning"] if c["kind"] == "duplicate_rows")
+        assert note["rows"] == 600 and "up to 16 times" in note["message"]
+        assert data["rows"]["fitted"] == 40
+        assert data["parameters"]["kt"]["value"] == pytest.approx(0.8, abs=0.005)
+
+    exact = tmp_path / "exact.csv"
+    exact.write_text("current,torque\n" + "\n".join(f"{a:.3f},{0.5 * a:.4f}" for a in np.linspace(-10, 10, 30)) + "\n")
+    proc = run_cli("fit-current", str(exact), "--auto", "--json")
+    assert proc.returncode == 0, proc.stderr  # a zero noise floor divides nothing
+    assert json.loads(proc.stdout)["parameters"]["kt"]["value"] == pytest.approx(0.5, abs=1e-4)  # 4 printed digits

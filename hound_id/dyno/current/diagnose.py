@@ -111,6 +111,10 @@ KT_UNDETERMINED = 1.0 / 3.0
 OUTLIER_SIGMAS = 8.0
 OUTLIER_SHARE = 0.01
 OUTLIER_WEIGHT = 0.5
+#: An effect is tried only while the log has this many rows per parameter of the grown model (its hypers and the
+#: offset the identifiability check allows for included): a table of 26 operating points carries five. Calibrated on
+#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+ROWS_PER_PARAMETER = 5
 #: Effective number of values an order search scans (the residual's angular spectrum bins), and of a continuous search
 #: (grid points plus bounded refinement evaluations, an upper bound): the Bonferroni factors of a searched effect.
 #: Calibrated on test_diagnose::test_noise_only_data_has_nothing_significant.
@@ -210,8 +214,11 @@ def _trials(name: str) -> int:
 
 
 def candidates_for(model: Sequence[str], signals: Signals) -> tuple[list[str], list[str]]:
-    """Effects to try (not in the model, channels present) and those skipped with the reason."""
+    """Effects to try (not in the model, channels present, rows enough for their parameters) and those skipped with
+    the reason."""
     tried, skipped = [], []
+    rows = int(signals.current.size)
+    count = 1 + sum(len(get(m).parameters) + len(get(m).hypers) for m in model)  # and the offset always allowed for
     for name, effect in REGISTRY.items():
         if name in model:
             continue
@@ -221,6 +228,13 @@ def candidates_for(model: Sequence[str], signals: Signals) -> tuple[list[str], l
             continue
         if missing:
             skipped.append(f"{name} (no {', '.join(missing)} channel)")
+            continue
+        needed = ROWS_PER_PARAMETER * (count + len(effect.parameters) + len(effect.hypers))
+        if rows < needed:
+            skipped.append(
+                f"{name} ({rows} rows cannot carry its parameters beside the model's: it needs {needed}, "
+                f"{ROWS_PER_PARAMETER} per parameter)"
+            )
             continue
         tried.append(name)
     return tried, skipped

@@ -50,6 +50,12 @@ Array = NDArray[np.float64]
 MAX_BLOCKS = 50
 MIN_BLOCK_ROWS = 25
 FOLDS = 10
+#: Fewest rows a fit takes (ten operating points; fewer cannot hold out ten folds). Calibrated on
+#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+MIN_FIT_ROWS = 10
+#: Blocks of a log shorter than two ordinary blocks (a burst): ten, as many as folds. Calibrated on
+#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+SMALL_BLOCKS = 10
 #: Rows used to evaluate hyper-parameter candidates (a strided subset of the log): a 100 s log at 1 kHz is searched
 #: whole; a million-row log every tenth row, which keeps its fit within the benchmark's time target while 100,000 rows
 #: still place a hyper-parameter far inside its standard error. Calibrated on benchmarks/fit_current.py and
@@ -118,8 +124,16 @@ class Blocks:
     """Fold of each block."""
 
     @classmethod
-    def of(cls, n: int) -> Blocks:
-        count = max(2, min(MAX_BLOCKS, n // MIN_BLOCK_ROWS))
+    def of(cls, n: int, timed: bool = True) -> Blocks:
+        """Contiguous blocks of a log of ``n`` rows: MIN_BLOCK_ROWS or more each, at most MAX_BLOCKS; a steady-state
+        table of up to MAX_BLOCKS operating points puts each in a block of its own (its rows are independent), a short
+        burst is cut into up to SMALL_BLOCKS blocks of two rows or more."""
+        if not timed and n <= MAX_BLOCKS:
+            count = n
+        elif n < 2 * MIN_BLOCK_ROWS:
+            count = max(2, min(SMALL_BLOCKS, n // 2))
+        else:
+            count = max(2, min(MAX_BLOCKS, n // MIN_BLOCK_ROWS))
         edges = (np.arange(count + 1) * n) // count
         folds = min(FOLDS, count)
         fold = (np.arange(count) * folds) // count
@@ -496,9 +510,9 @@ class Design:
         self.signals = signals
         self.torque = np.asarray(torque, float)
         n = self.torque.shape[0]
-        if n < 20:
-            raise FitError(f"only {n} rows; a fit needs at least 20")
-        self.blocks = Blocks.of(n)
+        if n < MIN_FIT_ROWS:
+            raise FitError(f"only {n} rows; a fit needs at least {MIN_FIT_ROWS}")
+        self.blocks = Blocks.of(n, signals.timed)
         stride = max(1, n // SEARCH_ROWS)
         self.search = np.arange(0, n, stride)
 
