@@ -37,6 +37,10 @@ from hound_id.parameter import Parameter
 EPS_SPEED = 0.01
 #: Reference temperature of the fitted torque constant [degC].
 T_REF = 20.0
+#: Samples the acceleration is averaged over (odd, centred): enough to tame the differentiated speed noise, short
+#: against a speed change of a rig (tens of samples). Calibrated on
+#: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise.
+ACCELERATION_ROWS = 5
 
 Array = NDArray[np.float64]
 
@@ -69,6 +73,17 @@ class Signals:
             temperature=None if log.temperature is None else np.asarray(log.temperature, float),
             timed=bool(getattr(log, "timed", True)),
         )
+
+    @cached_property
+    def acceleration(self) -> Array:
+        """d velocity / dt [rad/s^2]: central differences over the sample times, averaged over
+        :data:`ACCELERATION_ROWS` samples (a derivative amplifies the speed channel's noise)."""
+        w = self.channel("velocity")
+        if w.size < 3:
+            return np.zeros_like(w)
+        a = np.gradient(w, self.time)
+        k = min(ACCELERATION_ROWS, a.size)
+        return np.convolve(np.pad(a, (k // 2, k - 1 - k // 2), mode="edge"), np.full(k, 1.0 / k), mode="valid")
 
     @cached_property
     def velocity_sign(self) -> Array:
@@ -400,6 +415,14 @@ def _evidence_thermal(p: Mapping[str, float], s: Signals) -> str:
     return f"Kt drifts by {p['kt_temp_coeff']:+.3g} N m/A per K{rel} over a {span:.3g} K temperature swing: thermal"
 
 
+def _evidence_inertia(p: Mapping[str, float], s: Signals) -> str:
+    a = float(np.percentile(np.abs(s.acceleration), 99))
+    return (
+        f"the residual falls by {p['inertia'] * a:.3g} N m where the rotor accelerates at {a:.3g} rad/s^2: the inertia "
+        f"between the motor and the torque sensor, {p['inertia']:.3g} kg m^2"
+    )
+
+
 def _evidence_delay(p: Mapping[str, float], s: Signals) -> str:
     d = p["delay"]
     if d >= 0:
@@ -577,6 +600,27 @@ def _builtin() -> None:
             regressors=lambda s, h: s.current * (s.channel("temperature") - T_REF),
             requires=("temperature",),
             evidence=_evidence_thermal,
+        )
+    )
+    register(
+        Effect(
+            name="inertia",
+            physics=(
+                "the rotor, coupling and sensor flange between the air gap and the torque sensor take J dw/dt to "
+                "accelerate, so the sensor reads that much less while the rotor speeds up"
+            ),
+            parameters=(
+                Parameter(
+                    "inertia",
+                    "kg m^2",
+                    "inertia between the motor's air gap and the torque sensor",
+                    0.0,
+                    bound_reason="an inertia is positive",
+                ),
+            ),
+            regressors=lambda s, h: -s.acceleration,
+            requires=("velocity", "time"),
+            evidence=_evidence_inertia,
         )
     )
     register(

@@ -19,6 +19,7 @@ and ``eps = SIGN_EPS = 0.01 rad/s``::
           + sum_{h=1,2} cogging_sin_h sin(h N theta) + cogging_cos_h cos(h N theta)
                                                                  cogging, N = cogging_order
           + i (ripple_sin sin(M theta) + ripple_cos cos(M theta))  ripple, M = ripple_order
+          - inertia dw/dt                                        inertia (rotor and coupling before the sensor)
 
 ``offset`` is the effect "offset" and ``delay`` the effect "delay": the torque channel
 lags the current channel, so the torque logged at time t is the physical torque at
@@ -73,6 +74,7 @@ EFFECTS: tuple[str, ...] = (
     "cogging",
     "ripple",
     "thermal",
+    "inertia",
     "delay",
 )
 
@@ -91,6 +93,7 @@ EFFECT_PARAMETERS: Mapping[str, tuple[str, ...]] = MappingProxyType(
         "cogging": ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2"),
         "ripple": ("ripple_sin", "ripple_cos"),
         "thermal": ("kt_temp_coeff",),
+        "inertia": ("inertia",),
         "delay": ("delay",),
     }
 )
@@ -135,6 +138,7 @@ PARAMETER_UNITS: Mapping[str, str] = MappingProxyType(
         "ripple_cos": "N m/A",
         "ripple_order": "1/rev",
         "kt_temp_coeff": "N m/A/K",
+        "inertia": "kg m^2",
         "delay": "s",
         "noise_std": "N m",
     }
@@ -170,6 +174,8 @@ _RIPPLE_PHASE = 0.9  # rad
 _RIPPLE_ORDER = 42
 _TEMP_COEFF = -0.0011  # 1/K, NdFeB (notes: -0.09..-0.12 %/K)
 _DELAY = 0.005  # s (notes: 1-15 ms)
+_INERTIA_FRACTION = 1.3e-4  # kg m^2 per N m of peak torque: rotor, coupling and transducer flange before the sensor,
+# 1e-3 kg m^2 for the default 7.7 N m motor (assumed)
 _KNEE_FRACTION = 0.4  # knee current / max_current
 _SATURATIONS = ("saturation", "saturation_cubic", "saturation_knee")
 
@@ -385,7 +391,7 @@ def typical_truth(effects: Sequence[str], motor: SimMotor = SimMotor()) -> dict[
     With P the motor's peak torque (:attr:`SimMotor.peak_torque`): noise_std 0.2 % P; offset 0.3 % P;
     coulomb 1 % P; stribeck 0.4 coulomb with stribeck_speed 3 rad/s; viscous 1 % P at 40 rad/s;
     gear_friction 0.04 kt; cogging order 24 with harmonics of 0.8 % and 0.24 % P; ripple order 42 with
-    amplitude 0.5 % kt per amp; kt_temp_coeff -0.0011 kt per K (NdFeB); delay 5 ms. The chosen
+    amplitude 0.5 % kt per amp; kt_temp_coeff -0.0011 kt per K (NdFeB); inertia 1.3e-4 kg m^2 per N m of P; delay 5 ms. The chosen
     saturation forms together make the torque at max_current 20 % below kt max_current, shared
     equally (the knee sits at 0.4 max_current). Parameters of effects not chosen are 0; shape
     parameters (knee_current, stribeck_speed, cogging_order, ripple_order) keep their nominal value.
@@ -424,6 +430,7 @@ def typical_truth(effects: Sequence[str], motor: SimMotor = SimMotor()) -> dict[
         "ripple_sin": ripple * math.cos(_RIPPLE_PHASE),
         "ripple_cos": ripple * math.sin(_RIPPLE_PHASE),
         "kt_temp_coeff": _TEMP_COEFF * kt,
+        "inertia": _INERTIA_FRACTION * peak,
         "delay": _DELAY,
     }
     truth = {p: (values[p] if e in chosen else 0.0) for e in EFFECTS for p in EFFECT_PARAMETERS[e]}
@@ -476,6 +483,7 @@ def physical_torque(
     position: ArrayLike,
     temperature: ArrayLike,
     truth: Mapping[str, float],
+    acceleration: ArrayLike = 0.0,
 ) -> NDArray[np.float64]:
     """The shaft torque tau of the module formula, without offset, delay and noise [N m].
 
@@ -485,6 +493,7 @@ def physical_torque(
         position: Rotor angle [rad].
         temperature: Winding temperature [degC].
         truth: Parameters by name (``PARAMETERS``); a missing effect parameter counts as 0.
+        acceleration: Rotor acceleration [rad/s^2] (for ``inertia``).
 
     Returns:
         tau, broadcast over the inputs.
@@ -527,6 +536,8 @@ def physical_torque(
     if get("ripple_sin") or get("ripple_cos"):
         angle = get("ripple_order") * theta
         tau += i * (get("ripple_sin") * np.sin(angle) + get("ripple_cos") * np.cos(angle))
+    if get("inertia"):
+        tau -= get("inertia") * np.asarray(acceleration, dtype=np.float64)
     return tau
 
 
@@ -546,6 +557,14 @@ class _Schedule:
     def current(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
         """Piecewise-linear current at times ``t`` [A] (0 outside the plan)."""
         return np.interp(t, self.knot_time, self.knot_current, left=0.0, right=0.0)
+
+    def acceleration(self, t: NDArray[np.float64]) -> NDArray[np.float64]:
+        """d speed / dt at times ``t`` [rad/s^2]: (b - a) pi / (2 T) sin(pi u) inside a transition, else 0."""
+        k = np.clip(np.searchsorted(self.seg_start, t, side="right") - 1, 0, self.seg_start.size - 1)
+        dur, a, b = self.seg_duration[k], self.seg_from[k], self.seg_to[k]
+        u = (t - self.seg_start[k]) / dur
+        inside = (u > 0.0) & (u < 1.0)
+        return np.where(inside, (b - a) * np.pi / (2.0 * dur) * np.sin(np.pi * np.clip(u, 0.0, 1.0)), 0.0)
 
     def speed_and_position(self, t: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
         """Speed [rad/s] and its exact integral from 0 [rad] at times ``t``, constant speed outside the plan."""
@@ -735,9 +754,9 @@ def simulate(
         lagged = time - delay
         w_lag, theta_lag = sched.speed_and_position(lagged)
         temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
-        tau = physical_torque(sched.current(lagged), w_lag, theta_lag, temp_lag, params)
+        tau = physical_torque(sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged))
     else:
-        tau = physical_torque(current, velocity, position, temperature, params)
+        tau = physical_torque(current, velocity, position, temperature, params, sched.acceleration(time))
 
     rng = np.random.default_rng(int(seed))
     torque = tau + params["offset"]

@@ -14,10 +14,12 @@ follows the public actuator logs described in ``physics-notes.md``:
 * an opposing motor imposes the speed, by default through all four quadrants; the regimes that
   cannot identify a parameter (one quadrant, one speed sign, one constant current) are options;
 * the CSV may have a title line, a units row, ``, `` separators, a trailing constant field and
-  columns in ms, mA or N.mm, with or without a units row saying so.
+  columns in ms, mA or N.mm, with or without a units row saying so;
+* options: the inertia of rotor and coupling between motor and sensor (seen while the opposing motor changes speed
+  in steps), a torque ADC of coarse counts, and a logger that writes every sample several times.
 
 The truth (:class:`Truth`) is the model the fit should recover: measured torque =
-kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w, with the transducer's filter and lag.
+kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w - inertia dw/dt, with the transducer's filter and lag.
 """
 
 from __future__ import annotations
@@ -38,6 +40,7 @@ class Truth:
     coulomb: float = 0.25  # N m
     gear_friction: float = 0.0  # N m/A
     viscous: float = 0.0  # N m s/rad
+    inertia: float = 0.0  # kg m^2, output side: rotor (through the gearbox) and coupling before the sensor
 
 
 @dataclass(frozen=True)
@@ -63,6 +66,9 @@ class Rig:
     motor_off_at: float | None = None  # s
     runaway_from: float | None = None  # s
     runaway_rate: float = 1.5  # A/s
+    speed_steps: bool = False  # the opposing motor steps between speed levels (0.25 s raised-cosine changes)
+    torque_quantum: float = 0.0  # N m per count of the torque ADC (0: not rounded)
+    repeat: int = 1  # the logger writes every sample this many times
     seed: int = 0
 
 
@@ -82,6 +88,14 @@ def run(rig: Rig) -> pd.DataFrame:
     steps = 0.25 * np.sign(np.sin(2 * np.pi * 0.7 * t + 0.3))
     command = rig.current_amplitude * np.clip(sweep + steps, -1.0, 1.0)
     speed = rig.speed_amplitude * np.sin(2 * np.pi * 0.17 * t + 0.5)
+    accel = rig.speed_amplitude * 2 * np.pi * 0.17 * np.cos(2 * np.pi * 0.17 * t + 0.5)
+    if rig.speed_steps:  # levels every 1.5 s, joined by raised cosines of 0.25 s
+        levels = rig.speed_amplitude * np.array([1.0, -0.4, 0.7, -1.0, 0.3, -0.7])
+        k_lvl = (t // 1.5).astype(int)
+        start, end = levels[k_lvl % levels.size], levels[(k_lvl + 1) % levels.size]
+        u = np.clip((t - k_lvl * 1.5 - 1.25) / 0.25, 0.0, 1.0)
+        speed = start + (end - start) * (1 - np.cos(np.pi * u)) / 2
+        accel = (end - start) * np.pi / (2 * 0.25) * np.sin(np.pi * u) * ((u > 0) & (u < 1))
     if rig.quadrants == "motoring":
         command, speed = np.abs(command) + 0.5, np.abs(speed) + 0.3
     elif rig.quadrants == "one_speed_sign":
@@ -107,6 +121,7 @@ def run(rig: Rig) -> pd.DataFrame:
         - tr.k_sat * current * np.abs(current)
         - sgn * (tr.coulomb + tr.gear_friction * np.abs(current))
         - tr.viscous * speed
+        - tr.inertia * accel
     )
     sensed = _butter2(torque, rig.torque_filter_hz, FINE_HZ)
 
@@ -122,6 +137,8 @@ def run(rig: Rig) -> pd.DataFrame:
     for j in range(1, n):
         ar[j] = rig.torque_noise_rho * ar[j - 1] + e[j]
     torque_read = sensed[k] + ar
+    if rig.torque_quantum > 0:
+        torque_read = np.round(torque_read / rig.torque_quantum) * rig.torque_quantum
     measured = current[k] + rng.normal(0.0, rig.current_noise, n)
     if rig.runaway_from is not None:
         measured = measured + rig.runaway_rate * np.clip(polls - rig.runaway_from, 0.0, None)
@@ -137,7 +154,7 @@ def run(rig: Rig) -> pd.DataFrame:
     if rig.wrap_period is not None:
         p = rig.wrap_period
         reply = np.mod(reply + p / 2, p) - p / 2
-    return pd.DataFrame(
+    out = pd.DataFrame(
         {
             "loop_time": polls - polls[0],
             "iq_meas": reply,
@@ -146,6 +163,7 @@ def run(rig: Rig) -> pd.DataFrame:
             "speed": speed[k],
         }
     )
+    return out.loc[out.index.repeat(rig.repeat)].reset_index(drop=True) if rig.repeat > 1 else out
 
 
 COLUMNS = "time=loop_time,current=iq_meas,torque=torque_adc,velocity=speed,current_cmd=iq_cmd"

@@ -413,3 +413,39 @@ def test_a_torque_channel_stuck_at_one_value_is_refused(tmp_path):
     f.to_csv(path, index=False)
     with pytest.raises(DynoDataError, match="torque channel holds one value .* on every row"):
         load_log(path, columns=MAP)
+
+
+# --- the rig's own dynamics and a logger's habits -----------------------------------------------------------------
+
+
+def test_the_inertia_before_the_sensor_is_found_and_measured(tmp_path):
+    """An opposing motor stepping the speed: the rotor and coupling between motor and sensor take J dw/dt; --auto
+    names it, with J within 15 %, and the error falls."""
+    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
+
+    rig = Rig(truth=Truth(coulomb=0.25, inertia=0.02), speed_steps=True, speed_amplitude=4.0)
+    result = fit_current(write(frame(rig), tmp_path / "inertia.csv"), FitCurrentOptions(columns=MAP, auto=True))
+    assert "inertia" in result.fit.model
+    est = result.fit.parameters["inertia"]
+    assert est.value == pytest.approx(0.02, rel=0.15) and abs(est.value - 0.02) < 4 * est.stderr + 0.003
+    step = next(s for s in result.ladder if s.added == "inertia")
+    before = result.ladder[result.ladder.index(step) - 1]
+    assert step.fit.rmse_test < 0.8 * before.fit.rmse_test
+    assert any("inertia between the motor and the torque sensor" in s.reason for s in before.suggestions)
+
+
+def test_a_logger_that_writes_each_sample_four_times_gives_the_same_fit(tmp_path):
+    plain = load(tmp_path, Rig(truth=FRICTION), "plain.csv")
+    repeated = load(tmp_path, Rig(truth=FRICTION, repeat=4), "repeated.csv")
+    note_text = note(repeated, "duplicate_rows")
+    assert f"collapsed {3 * plain.n} rows" in note_text and "up to 4 times" in note_text
+    assert repeated.n == plain.n and np.array_equal(repeated.torque, plain.torque)
+
+
+def test_a_coarse_torque_adc_sets_the_floor_at_its_rounding(tmp_path):
+    q = 0.2  # N m per count, against 0.03 N m of noise
+    log = load(tmp_path, Rig(truth=FRICTION, torque_quantum=q))
+    signals = Signals.from_log(log)
+    d = diagnose(signals, log.torque, fit_model(signals, log.torque, (*DEFAULT, "coulomb", "gear_friction")))
+    assert d.noise is not None and d.noise.quantisation == pytest.approx(q / math.sqrt(12), rel=1e-6)
+    assert d.noise_floor >= q / math.sqrt(12) - 1e-12

@@ -27,7 +27,7 @@ EPS = 0.01  # rad/s, sgn(w) = tanh(w / EPS)
 ALL_PARAMETERS = {
     "kt", "k_sat", "k_sat3", "k_knee", "knee_current", "offset", "coulomb", "viscous", "stribeck",
     "stribeck_speed", "gear_friction", "cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2",
-    "cogging_order", "ripple_sin", "ripple_cos", "ripple_order", "kt_temp_coeff", "delay", "noise_std",
+    "cogging_order", "ripple_sin", "ripple_cos", "ripple_order", "kt_temp_coeff", "inertia", "delay", "noise_std",
 }  # fmt: skip
 # a short plan for property tests (a few thousand rows)
 SHORT = TestPlan(speeds=(-5.0, 1.0, 8.0), current_levels=2, plateau_time=0.4, pause_time=0.2, hold_time=0.1,
@@ -84,10 +84,11 @@ def column(log, name):
 def test_effect_names():
     assert EFFECTS == (
         "linear", "saturation", "saturation_cubic", "saturation_knee", "offset", "coulomb", "viscous", "stribeck",
-        "gear_friction", "cogging", "ripple", "thermal", "delay",
+        "gear_friction", "cogging", "ripple", "thermal", "inertia", "delay",
     )  # fmt: skip
     assert set(EFFECT_PARAMETERS) == set(EFFECTS)
-    assert set(CONTRIBUTION) == set(EFFECTS) - {"linear", "delay"}  # every additive effect is checked below
+    # every additive effect is checked below; inertia, whose formula needs the speed's derivative, in its own test
+    assert set(CONTRIBUTION) == set(EFFECTS) - {"linear", "delay", "inertia"}
 
 
 def test_truth_has_every_parameter():
@@ -263,7 +264,7 @@ def test_fractional_delay_interpolates():
 
 
 def test_physical_torque_matches_the_log():
-    log = simulate(tuple(e for e in EFFECTS if e != "delay"), noise_std=0.0)
+    log = simulate(tuple(e for e in EFFECTS if e not in ("delay", "inertia")), noise_std=0.0)  # inertia: own test
     f = log.frame
     tau = physical_torque(f.current, f.velocity, f.position, f.temperature, log.truth)
     assert np.allclose(f.torque.to_numpy(), tau + log.truth["offset"], rtol=0.0, atol=1e-12)
@@ -491,3 +492,17 @@ def test_bad_motor_and_scale():
         SimMotor(kt=0.0)
     with pytest.raises(HoundIdError, match=r"scale factor"):
         SimMotor().scaled(-1.0)
+
+
+def test_inertia_takes_j_times_the_acceleration_during_speed_changes():
+    """The shaft torque less J dw/dt, with dw/dt the exact derivative of the plan's raised-cosine speed changes
+    (checked against a finite difference of the logged speed), and nothing at constant speed."""
+    a = simulate(("linear", "inertia"), seed=3, noise_std=0.0, truth={"delay": 0.0})
+    b = simulate(("linear",), seed=3, noise_std=0.0, truth={"delay": 0.0})
+    t, w = a.frame["time"].to_numpy(), a.frame["velocity"].to_numpy()
+    diff = a.frame["torque"].to_numpy() - b.frame["torque"].to_numpy()
+    rate = np.gradient(w, t)
+    J = a.truth["inertia"]
+    inner = slice(2, -2)
+    assert np.allclose(diff[inner], -J * rate[inner], atol=J * 0.05 * np.abs(rate).max())
+    assert np.abs(rate).max() > 10 and np.all(diff[np.abs(rate) < 1e-9] == 0.0)
