@@ -73,6 +73,7 @@ def line(report: dict[str, Any]) -> dict[str, str]:
         value = est["value"]
         shown.append(f"{name} {value:.3g}{' (bound)' if est.get('at_bound') else ''}")
     floor = report["noise_floor"]
+    method = (report.get("noise") or {}).get("method", "sample-to-sample")
     cv = report["rmse"]["test"]
     if report["at_noise_floor"]:
         verdict = "at the noise floor"
@@ -84,9 +85,18 @@ def line(report: dict[str, Any]) -> dict[str, str]:
         "rows": f"{report['rows']['fitted']}/{report['rows']['read']}",
         "kt": f"{kt['value']:.4g} +- {err:.2g}" if err is not None else f"{kt['value']:.4g}",
         "effects": ("+" + "+".join(added) + ": " if added else "") + ", ".join(shown),
-        "cv": f"{cv:.3g} / {floor:.3g}",
-        "verdict": ("(flipped) " if report.get("flipped") else "") + verdict,
+        "cv": f"{cv:.3g} / {floor:.3g} ({method})",
+        "verdict": ("(flipped) " if report.get("flipped") else "") + _left_out(report) + verdict,
     }
+
+
+def _left_out(report: dict[str, Any]) -> str:
+    """'[left out: 2 another regime, motor off] ' when the headline leaves part of the log out, else ''."""
+    kinds = [s["kind"] for s in report.get("left_out", [])]
+    if not kinds:
+        return ""
+    counted = [f"{kinds.count(k)} {k}" if kinds.count(k) > 1 else k for k in dict.fromkeys(kinds)]
+    return f"[left out: {', '.join(counted)}] "
 
 
 def main() -> int:
@@ -114,7 +124,7 @@ def main() -> int:
         return 2
     results = []
     if args.markdown:
-        print("| log | rows used/read | Kt [N m/A] | effects added, values (SI) | CV RMSE / noise [N m] | verdict |")
+        print("| log | rows used/read | Kt [N m/A] | effects added, values (SI) | CV RMSE / floor [N m] | verdict |")
         print("|---|---|---|---|---|---|")
     for path in paths:
         report = run_one(exe, path, extra)

@@ -391,8 +391,8 @@ def typical_truth(effects: Sequence[str], motor: SimMotor = SimMotor()) -> dict[
     With P the motor's peak torque (:attr:`SimMotor.peak_torque`): noise_std 0.2 % P; offset 0.3 % P;
     coulomb 1 % P; stribeck 0.4 coulomb with stribeck_speed 3 rad/s; viscous 1 % P at 40 rad/s;
     gear_friction 0.04 kt; cogging order 24 with harmonics of 0.8 % and 0.24 % P; ripple order 42 with
-    amplitude 0.5 % kt per amp; kt_temp_coeff -0.0011 kt per K (NdFeB); inertia 1.3e-4 kg m^2 per N m of P; delay 5 ms. The chosen
-    saturation forms together make the torque at max_current 20 % below kt max_current, shared
+    amplitude 0.5 % kt per amp; kt_temp_coeff -0.0011 kt per K (NdFeB); inertia 1.3e-4 kg m^2 per N m of P;
+    delay 5 ms. The chosen saturation forms together make the torque at max_current 20 % below kt max_current, shared
     equally (the knee sits at 0.4 max_current). Parameters of effects not chosen are 0; shape
     parameters (knee_current, stribeck_speed, cogging_order, ripple_order) keep their nominal value.
 
