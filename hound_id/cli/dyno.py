@@ -142,11 +142,17 @@ def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
     return ""
 
 
+def _table(report: dict) -> bool:  # type: ignore[type-arg]
+    """Whether the log is a steady-state table (no time column)."""
+    return any(c["kind"] == "steady_state" for c in report["cleaning"])
+
+
 def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
     rows = report["rows"]
     console.print(
         f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, {rows['fitted']} rows in "
-        f"{rows['blocks']} time blocks; cross-validated over {rows['folds']} folds (each held out once)",
+        f"{rows['blocks']} {'blocks of rows' if _table(report) else 'time blocks'}; cross-validated over "
+        f"{rows['folds']} folds (each held out once)",
         highlight=False,
     )
     table = Table(title="parameters", title_justify="left")
