@@ -22,6 +22,7 @@ TUNED = (
     "hound_id/dyno/current/diagnose.py",
     "hound_id/dyno/current/noise.py",
     "hound_id/dyno/current/stretch.py",
+    "hound_id/dyno/fleet/scale.py",
     "hound_id/dyno/identify/engine.py",
     "hound_id/dyno/current/fit.py",
     "hound_id/dyno/current/curve.py",

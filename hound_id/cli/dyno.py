@@ -25,6 +25,9 @@ def fit_current(
     columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
     units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
     flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensor mounted reversed)."),
+    auto_sign: bool = typer.Option(
+        False, "--auto-sign", help="Negate the torque when it falls as current rises (a note says which was done)."
+    ),
     window: Optional[str] = typer.Option(
         None,
         "--window",
@@ -66,6 +69,7 @@ def fit_current(
         window,
         robust,
         whole_log=whole_log,
+        auto_sign=auto_sign,
         effects_files=tuple(effects_file or ()),
         spec=spec,
         plot=plot,

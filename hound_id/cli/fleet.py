@@ -32,6 +32,11 @@ def fleet(
     columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
     units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
     flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensors mounted reversed)."),
+    auto_sign: bool = typer.Option(
+        False,
+        "--auto-sign",
+        help="Each log's torque sign from its own slope (sensors mounted either way); stated per log.",
+    ),
     window: Optional[str] = typer.Option(None, "--window", help="Fit only START:STOP seconds of every log."),
     robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares."),
     whole_log: bool = typer.Option(
@@ -61,7 +66,9 @@ def fleet(
     from hound_id.dyno.fleet.run import FleetOptions, write_outputs
     from hound_id.dyno.fleet.run import fleet as run
 
-    fit = fit_options(model, add, auto, columns, units, flip_torque, window, robust, whole_log=whole_log)
+    fit = fit_options(
+        model, add, auto, columns, units, flip_torque, window, robust, whole_log=whole_log, auto_sign=auto_sign
+    )
     options = FleetOptions(scheduler, workers, z, tolerance, csv, plot, reports)
     with Progress(
         TextColumn("{task.description}"),
@@ -119,7 +126,9 @@ def _log_line(fit: ActuatorFit) -> str:
     kt = r["parameters"]["kt"]
     err = f" +- {kt['stderr']:.2g}" if kt.get("stderr") is not None else ""
     verdict = "at the noise floor" if r["at_noise_floor"] else "not at the noise floor"
-    return f"ok     {fit.name}: Kt {kt['value']:.5g}{err} N m/A, {verdict} ({fit.seconds:.2f} s)"
+    sign = ", torque negated" if any(c["kind"] == "flipped_torque" for c in r["cleaning"]) else ""
+    left = f", {len(r['left_out'])} stretch(es) left out" if r.get("left_out") else ""
+    return f"ok     {fit.name}: Kt {kt['value']:.5g}{err} N m/A{sign}{left}, {verdict} ({fit.seconds:.2f} s)"
 
 
 #: Short column names of the table (the CSV and JSON use the metric keys).

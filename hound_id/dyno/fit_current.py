@@ -48,6 +48,8 @@ class FitCurrentOptions:
     """Units of columns, ``velocity=rpm,position=deg`` (or a mapping)."""
     flip_torque: bool = False
     """Negate torque (sensor mounted reversed)."""
+    auto_sign: bool = False
+    """Negate the torque when the log's own slope says its sensor is mounted reversed (a note says which)."""
     window: str | None = None
     """``START:STOP`` seconds (data rows of a steady-state table); ends optional."""
     robust: bool = False
@@ -231,6 +233,7 @@ def fit_current(
         columns=_mapping(options.columns, "--columns"),
         units=_mapping(options.units, "--units"),
         flip_torque=options.flip_torque,
+        auto_sign=options.auto_sign,
     )
     if options.window is not None:
         log = log.windows(ranges)
@@ -256,6 +259,7 @@ def fit_current(
         current_limit=log.current_limit,
         time=signals.time if signals.timed else None,
     )
+    report["current_range"] = log.current_range
     if left_out:
         report["headline"], report["whole_log"] = _headline_report(whole, left_out, option)
         report["left_out"] = [s.to_dict(whole.signals) for s in left_out]

@@ -50,7 +50,8 @@ ambiguous, as in :mod:`hound_id.units`.
    its flat steps are data.
    Every row at the extreme is removed.
 6. A torque that falls as current rises (least-squares slope < 0, correlation < -0.5)
-   means a reversed sensor. That is an error unless ``flip_torque`` negates the torque.
+   means a reversed sensor. That is an error unless ``flip_torque`` negates the torque, or ``auto_sign`` lets each
+   log's own slope decide (and says so in a note).
 
 At least :data:`MIN_ROWS` rows must remain.
 """
@@ -251,6 +252,10 @@ class DynoLog:
     """False for a steady-state table without a time column: each row is an operating point."""
     current_limit: float | None = None
     """The driver's current limit [A] where the log shows the current held at a level while the command rose."""
+    current_range: float | None = None
+    """The range the current channel is encoded in [A], where the log shows it: half the period of a wrap-around,
+    the level a reply is clamped at, or else the level it is held at (a driver limit, or a clamp the log cannot tell
+    from one). Logs of one actuator on different current scales show it in different ranges."""
 
     def __post_init__(self) -> None:
         n = None
@@ -470,6 +475,7 @@ def load_log(
     columns: Mapping[str, str] | None = None,
     units: Mapping[str, str] | None = None,
     flip_torque: bool = False,
+    auto_sign: bool = False,
 ) -> DynoLog:
     """Read a dyno log from CSV or Parquet and clean it (see :func:`log_from_frame`).
 
@@ -482,7 +488,13 @@ def load_log(
     table = read_table_info(path)
     found = tuple(CleaningNote("format", 0, message) for message in table.notes)
     return log_from_frame(
-        table.frame, source=str(path), columns=columns, units=units, flip_torque=flip_torque, format_notes=found
+        table.frame,
+        source=str(path),
+        columns=columns,
+        units=units,
+        flip_torque=flip_torque,
+        format_notes=found,
+        auto_sign=auto_sign,
     )
 
 
@@ -493,6 +505,7 @@ def log_from_frame(
     units: Mapping[str, str] | None = None,
     flip_torque: bool = False,
     format_notes: tuple[CleaningNote, ...] = (),
+    auto_sign: bool = False,
 ) -> DynoLog:
     """Find the channels of a table, convert them to SI and clean the rows.
 
@@ -502,6 +515,8 @@ def log_from_frame(
         columns: Channel name -> file column (``--columns``), for columns not named after the channel.
         units: Channel name -> unit (``--units``), overriding any ``[unit]`` header suffix.
         flip_torque: Negate the torque (a dyno torque sensor mounted reversed).
+        auto_sign: Negate the torque when it falls as current rises (this log's sensor is mounted reversed), with
+            a note either way; ``flip_torque`` is then ignored.
         format_notes: Notes made before (by the file reader), kept first.
 
     Returns:
@@ -560,19 +575,20 @@ def log_from_frame(
         core, rows = _clean_time(core, rows, notes)
         _check_enough(rows.size, rows_read, notes, source)
     command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
-    core, rows, current_limit = _undo_wraps(core, rows, command, notes)
+    ranges: list[float] = []
+    core, rows, current_limit = _undo_wraps(core, rows, command, notes, ranges)
     _check_enough(rows.size, rows_read, notes, source)
     noise: dict[str, float] = {}
     if timed:  # a glitch is a spike in time; the rows of a steady-state table are separate operating points
         # before clamps are cut out: a row next to a removed stretch is no spike
         core, rows, noise = _remove_glitches(core, rows, notes)
-    core, rows, limit = _current_plateaus(core, rows, command, notes)
+    core, rows, limit = _current_plateaus(core, rows, command, notes, ranges)
     current_limit = limit if current_limit is None else max(current_limit, limit or 0.0)
     _check_enough(rows.size, rows_read, notes, source)
     core, rows = _remove_clipping(core, rows, noise, notes)
     _check_enough(rows.size, rows_read, notes, source)
     _check_varies(core, source)
-    torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source)
+    torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source, auto_sign)
     positions = rows - 1
     optional = {name: np.take(values, positions) for name, values in data.items() if name not in CORE}
     for array, name in ((core["time"], "time"), (core["current"], "current"), (torque, "torque")):
@@ -595,6 +611,7 @@ def log_from_frame(
         rows_read=rows_read,
         timed=timed,
         current_limit=current_limit,
+        current_range=ranges[0] if ranges else current_limit,
     )
 
 
@@ -1226,14 +1243,18 @@ def _undo_wraps(
     rows: NDArray[np.int64],
     command: NDArray[np.float64] | None,
     notes: list[CleaningNote],
+    ranges: list[float] | None = None,
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
-    """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); a limit when the command asks past it."""
+    """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); a limit when the command asks past it.
+    The encoding range found (half the period) is appended to ``ranges``."""
     time = data["time"]
     unwrapped, wrap = find_wraps(data["current"], data["torque"])
     if wrap is None:
         return data, rows, None
     data = {**data, "current": unwrapped}
     half = wrap.period / 2.0
+    if ranges is not None:
+        ranges.append(half)
     head = (
         f"the current channel wraps around: {wrap.jumps} jumps of +-{wrap.period:.4g} A (an encoding range of "
         f"+-{half:.4g} A) that the torque does not share, first at row {int(rows[wrap.first])} "
@@ -1281,8 +1302,10 @@ def _current_plateaus(
     rows: NDArray[np.int64],
     command: NDArray[np.float64] | None,
     notes: list[CleaningNote],
+    ranges: list[float] | None = None,
 ) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
-    """Remove clamped rows and find a driver current limit (:mod:`hound_id.dyno.artefacts`)."""
+    """Remove clamped rows and find a driver current limit (:mod:`hound_id.dyno.artefacts`); the level of a clamped
+    reply is appended to ``ranges``."""
     current, torque = data["current"], data["torque"]
     limit: float | None = None
     cmd = None if command is None else command[rows - 1]
@@ -1292,6 +1315,8 @@ def _current_plateaus(
         count = int(plateau.rows.size)
         if plateau.kind == "clamp":
             keep[plateau.rows] = False
+            if ranges is not None:
+                ranges.append(abs(plateau.level))
             notes.append(
                 CleaningNote(
                     "clamp",
@@ -1410,7 +1435,10 @@ def _orient_torque(
     flip_torque: bool,
     notes: list[CleaningNote],
     source: str,
+    auto_sign: bool = False,
 ) -> NDArray[np.float64]:
+    if auto_sign:
+        flip_torque = False
     if flip_torque:
         torque = -torque
     # Centred sums from raw dot products: no 1M-row temporaries; the cancellation is harmless for dyno magnitudes.
@@ -1425,6 +1453,17 @@ def _orient_torque(
     slope = sxy / sxx if sxx > 0 else 0.0
     if sxx > 0 and syy > 0 and slope < 0 and sxy / math.sqrt(sxx * syy) < FLIP_CORRELATION:
         correlation = sxy / math.sqrt(sxx * syy)
+        if auto_sign:
+            notes.append(
+                CleaningNote(
+                    "flipped_torque",
+                    int(torque.size),
+                    f"negated the torque: it falls as current rises (slope {slope:.3g} N m/A, correlation "
+                    f"{correlation:.2f}), so this log's sensor is mounted the other way round (--auto-sign)",
+                    "torque",
+                )
+            )
+            return -torque
         if flip_torque:
             raise DynoDataError(
                 f"{source}: torque falls as current rises after --flip-torque negated it (slope {slope:.3g} N m/A, "
@@ -1445,6 +1484,15 @@ def _orient_torque(
                 "flipped_torque",
                 int(torque.size),
                 f"negated the torque as asked by --flip-torque (slope now {slope:.3g} N m/A)",
+                "torque",
+            )
+        )
+    elif auto_sign:
+        notes.append(
+            CleaningNote(
+                "format",
+                0,
+                f"kept the torque's sign: it rises with the current (slope {slope:.3g} N m/A; --auto-sign)",
                 "torque",
             )
         )

@@ -28,6 +28,7 @@ from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
 from typing import Any
 
+from hound_id.dyno.fleet.scale import ScaleGroup, scale_groups, sentence
 from hound_id.errors import FleetError
 
 SCHEMA = "hound-id/fleet/1"
@@ -135,6 +136,8 @@ METRICS: tuple[Metric, ...] = (
     ),
 )
 METRIC_BY_KEY: Mapping[str, Metric] = {m.key: m for m in METRICS}
+#: Quantities per amp of current: compared within a current-scale group (:mod:`hound_id.dyno.fleet.scale`).
+PER_AMP = ("kt", "gear_friction")
 #: The friction parameters of the effects library that become fleet columns.
 FRICTION = ("coulomb", "viscous", "stribeck", "gear_friction")
 COGGING_PARAMETERS = ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2")
@@ -262,6 +265,8 @@ class FleetReport:
     """The z-score limit used."""
     notes: tuple[str, ...] = field(default=())
     """What the fleet cannot show, and why."""
+    scale_groups: tuple[ScaleGroup, ...] = field(default=())
+    """Groups of logs whose Kt differ by a fixed ratio (another current scale), when the fleet has two or more."""
 
     @property
     def fitted(self) -> tuple[ActuatorFit, ...]:
@@ -320,6 +325,16 @@ class FleetReport:
             "failed": [{"name": a.name, "source": a.source, "error": a.error, "bug": a.bug} for a in self.failed],
             "z_threshold": self.z,
             "notes": list(self.notes),
+            "scale_groups": [
+                {
+                    "members": list(g.members),
+                    "kt": g.kt,
+                    "ratio": g.ratio,
+                    "reading": g.reading or None,
+                    "current_range": g.current_range,
+                }
+                for g in self.scale_groups
+            ],
             "units": {s.metric.key: s.metric.unit for s in self.stats},
         }
 
@@ -495,9 +510,16 @@ def analyse(
         assert a.report is not None
         values[a.name], orders[a.name] = values_of(a.report)
     notes: list[str] = []
+    kts = {n: v["kt"].value for n, v in values.items() if v["kt"].value is not None}
+    groups = scale_groups(kts, {n: r.get("current_range") for n, r in reports.items()})  # type: ignore[misc]
+    ratio = {n: g.ratio for g in groups for n in g.members}
+    if groups:
+        notes.append(sentence(groups))
     stats, flags = [], []
     for metric in metrics:
         present = {n: v[metric.key] for n, v in values.items()}
+        if metric.key in PER_AMP and ratio:  # within its current-scale group: divided by the group's ratio
+            present = {n: _scaled(v, ratio.get(n, 1.0)) for n, v in present.items()}
         if present and all(v.why == "not in the model" for v in present.values()):
             continue  # a friction or cogging term the fleet's model does not have
         known = {n: v for n, v in present.items() if v.value is not None}
@@ -526,7 +548,9 @@ def analyse(
             zscore = abs(dev) / scale if scale > 0 else math.inf
             if zscore > limit and abs(dev) > metric.tolerance * abs(median):
                 reading = metric.high if side == "high" else metric.low
-                percent = f"{dev / median:+.0%} against the fleet's median" if median else ""
+                scaled = metric.key in PER_AMP and ratio.get(name, 1.0) != 1.0
+                against = "its current-scale group's median" if scaled else "the fleet's median"
+                percent = f"{dev / median:+.0%} against {against}" if median else ""
                 flags.append(
                     Flag(
                         name,
@@ -586,7 +610,15 @@ def analyse(
         model=tuple(model),
         z=z,
         notes=tuple(notes),
+        scale_groups=groups,
     )
+
+
+def _scaled(v: Value, ratio: float) -> Value:
+    """A per-amp value on its current-scale group's reference scale."""
+    if v.value is None or ratio == 1.0:
+        return v
+    return replace(v, value=v.value / ratio, stderr=None if v.stderr is None else v.stderr / ratio)
 
 
 #: Longest quotation of a log's own flag in a reading [characters].

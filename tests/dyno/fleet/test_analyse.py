@@ -256,3 +256,44 @@ def test_a_fleet_with_no_spread_gives_valid_json_and_notes_what_it_cannot_flag()
     json.loads(json.dumps(result.to_dict(), allow_nan=False))
     assert any("run again with --auto" in n for n in result.notes)
     assert any("above the 2 asked for" in n for n in result.notes)
+
+
+def test_current_scale_groups_are_named_and_not_flagged():
+    """Twelve healthy logs, four of them with the current logged as an amplitude where the rest log RMS: Kt is
+    sqrt(2) lower there. The two groups are named, nothing is flagged for Kt, and a weak magnet inside the smaller
+    group is still found against its own group."""
+    from hound_id.dyno.fleet.scale import scale_groups
+
+    rms = {f"a{i:02d}": {"kt": 0.14 * (1 + 0.01 * ((i - 5.5) / 12)) / math.sqrt(2)} for i in (0, 3, 6, 9)}
+    result = analyse(fleet(12, **rms))
+    assert not [f for f in result.flags if f.metric == "kt"]
+    names = [g.reading for g in result.scale_groups]
+    assert len(result.scale_groups) == 2 and "an amplitude against an RMS current (sqrt 2)" in names
+    small = next(g for g in result.scale_groups if g.reading)
+    assert sorted(small.members) == ["a00", "a03", "a06", "a09"] and small.ratio == pytest.approx(2**-0.5, rel=0.01)
+    assert any("Kt falls into 2 groups" in n for n in result.notes)
+    assert result.to_dict()["scale_groups"][0]["members"]
+
+    weak = dict(rms, a06={"kt": 0.9 * 0.14 / math.sqrt(2)})  # a weak magnet in the smaller group
+    flags = [f for f in analyse(fleet(12, **weak)).flags if f.metric == "kt"]
+    assert [f.actuator for f in flags] == ["a06"] and "current-scale group" in flags[0].reading
+
+    # a ratio that is no convention is another current scale; two outliers make no group; one group is none
+    assert "another current scale in the logging (x0.808)" in {
+        g.reading
+        for g in scale_groups(
+            {**{f"x{i}": 1.0 + 0.001 * i for i in range(5)}, "y0": 0.81, "y1": 0.81, "y2": 0.811}
+        )  # fmt: skip
+    }
+    assert scale_groups({**{f"x{i}": 1.0 for i in range(5)}, "y0": 0.7, "y1": 0.71}) == ()
+    # logs that show their current's encoding range: grouped by it when Kt x range is one value (a scale change)
+    kt = {"a": 1.06, "b": 1.07, "c": 1.09, "d": 0.78, "e": 0.79, "f": 0.75, "k": 0.76, "g": 0.62, "h": 0.61, "i": 0.62}
+    kt["j"] = 0.77  # shows no range
+    rng = {"a": 12.95, "b": 12.94, "c": 12.97, "d": 18.0, "e": 18.01, "f": 18.0, "k": 17.99}
+    rng |= {"g": 21.94, "h": 21.93, "i": 21.95}
+    groups = scale_groups(kt, rng)
+    assert len(groups) == 3 and {round(g.current_range, 2) for g in groups} == {12.95, 18.0, 21.94}
+    ref = next(g for g in groups if not g.reading)
+    assert "j" in ref.members and ref.current_range == pytest.approx(18.0, rel=1e-3)  # j shows no range: nearest Kt
+    assert all("another current scale" in g.reading and "Kt x range" in g.reading for g in groups if g.reading)
+    assert scale_groups({**kt, "a": 2.0, "b": 2.0, "c": 2.0}, rng) != groups  # Kt x range no longer one value
