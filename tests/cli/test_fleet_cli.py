@@ -158,3 +158,24 @@ def test_when_no_log_fits_each_reason_is_given_and_the_exit_is_2(tmp_path):
     lines = proc.stderr.strip().splitlines()
     assert lines[-1] == "hound-id: error: none of the 2 logs could be fitted (each one's reason is above)"
     assert sum(line.startswith(("FAILED a:", "FAILED b:")) for line in lines) == 2 and "Traceback" not in proc.stderr
+
+
+def test_auto_sign_lets_each_log_of_a_fleet_decide_its_torque_sign(tmp_path):
+    """Two actuators' sensors mounted the other way: without --auto-sign they fail with the reason, with it every log
+    is fitted, the two say 'torque negated', and the fleet flags what it flagged before."""
+    folder = tmp_path / "fleet"
+    shutil.copytree(SAMPLE, folder, ignore=shutil.ignore_patterns("*.py", "*.json"))
+    for name in ("FL_hip", "RR_knee"):
+        path = folder / f"{name}.csv"
+        frame = pd.read_csv(path)
+        frame["torque"] = -frame["torque"]
+        frame.to_csv(path, index=False, float_format="%.6g")
+    model = "linear+saturation+offset+coulomb+viscous+gear_friction+cogging"
+    plain = run_cli("fleet", str(folder), "--model", model, "--workers", "1", "--json")
+    assert plain.returncode == 1 and len(json.loads(plain.stdout)["failed"]) == 2
+    proc = run_cli("fleet", str(folder), "--model", model, "--auto-sign", "--workers", "1", "--json")
+    assert proc.returncode == 0, proc.stderr
+    data = json.loads(proc.stdout)
+    assert data["fitted"] == 12 and {(f["actuator"], f["metric"]) for f in data["flags"]} == PLANTED
+    negated = {line.split()[1].rstrip(":") for line in proc.stderr.splitlines() if "torque negated" in line}
+    assert negated == {"FL_hip", "RR_knee"}

@@ -433,6 +433,17 @@ def test_flip_torque_fixes_a_reversed_sensor(tmp_path):
     assert note.message == "negated the torque as asked by --flip-torque (slope now 0.1 N m/A)"
 
 
+def test_auto_sign_lets_each_log_decide_and_says_so():
+    reversed_frame = truth().assign(torque=lambda f: -f["torque"])
+    flipped = log_from_frame(reversed_frame, auto_sign=True)
+    note = next(n for n in flipped.notes if n.kind == "flipped_torque")
+    assert "negated the torque: it falls as current rises (slope -0.1 N m/A" in note.message
+    assert "--auto-sign" in note.message and np.allclose(flipped.torque, truth()["torque"])
+    kept = log_from_frame(truth(), auto_sign=True, flip_torque=True)  # --flip-torque yields to the log's own slope
+    assert np.array_equal(kept.torque, truth()["torque"]) and not any(n.kind == "flipped_torque" for n in kept.notes)
+    assert any("kept the torque's sign" in n.message for n in kept.notes)
+
+
 def test_flip_torque_on_a_sensor_mounted_the_right_way_is_refused():
     with pytest.raises(DynoDataError, match=r"after --flip-torque negated it .*rerun without --flip-torque"):
         log_from_frame(truth(), flip_torque=True)
