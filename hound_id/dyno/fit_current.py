@@ -215,6 +215,11 @@ def fit_current(
             f"compare them, run 'hound-id fleet {data}'",
             path=str(data),
         )
+    if options.flip_torque and options.auto_sign:
+        raise FitError(
+            "--flip-torque and --auto-sign: found both; pass --flip-torque to negate every log's torque, or "
+            "--auto-sign to let each log's own slope decide"
+        )
     sources = (data, spec, *options.effects_files)
     io.check_output(plot, (".png",), "plot", inputs=sources)
     ranges = parse_windows(options.window)
@@ -377,8 +382,10 @@ def _narrow(
     on_progress: Callable[[str], None] | None,
     budget: int,
 ) -> tuple[Fitted, DynoLog, Any, list[Stretch], int] | None:
-    """One narrowing of :func:`_headline`: leave out the disagreeing stretches (only the rows just after the current
-    steps of a step transient), else keep the longest stretch that agrees and exercises the current. ``rows`` are the
+    """One narrowing of :func:`_headline`: leave out the disagreeing stretches whose channels show a fault of the log
+    (:data:`~hound_id.dyno.current.stretch.FAULTS`); or, when the agreeing blocks show no torque per amp (a motor off
+    most of the log), keep the longest stretch that exercises the current; else nothing (a stretch the channels do
+    not explain may be a missing effect, and stays in, flagged). ``rows`` are the
     whole log's rows of ``log``; the result's stretches are in the whole log's rows too, and the last value is how
     many rows that show torque per amp it left out (at most ``budget``)."""
     import dataclasses
@@ -386,15 +393,7 @@ def _narrow(
     import numpy as np
 
     from hound_id.dyno.current.effects import Signals
-    from hound_id.dyno.current.stretch import (
-        STEP_ROWS,
-        UNINFORMATIVE,
-        candidates,
-        read,
-        runs,
-        transient_rows,
-        varies_rows,
-    )
+    from hound_id.dyno.current.stretch import FAULTS, UNINFORMATIVE, candidates, read, runs
     from hound_id.dyno.logs import MIN_ROWS
 
     signals = fitted.signals
@@ -421,18 +420,26 @@ def _narrow(
 
     kt = fitted.diagnosis.kt_agreeing
     flagged = [read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(bad)]
-    keep = np.ones(signals.current.size, dtype=bool)
-    for s in flagged:
-        keep[transient_rows(signals, s) if s.kind == "step transient" else slice(s.start, s.stop)] = False
-    if varies_rows(signals, keep):
+    faults = [s for s in flagged if s.kind in FAULTS]
+    if faults:  # the log is broken there (read from its channels): leave those stretches out
+        keep = np.ones(signals.current.size, dtype=bool)
+        for s in faults:
+            keep[s.start : s.stop] = False
         if on_progress is not None:
-            on_progress("fitting the log without its disagreeing stretches")
-        what = ", ".join(f"{_span(signals, s.start, s.stop)} ({s.kind})" for s in flagged)
-        steps = any(s.kind == "step transient" for s in flagged)
-        note = f" (of a step transient, the rows within {STEP_ROWS} samples after its current steps)" if steps else ""
-        done = attempt(keep, f"left out {int((~keep).sum())} rows of {what}{note}", flagged)
+            on_progress("fitting the log without its broken stretches")
+        what = ", ".join(f"{_span(signals, s.start, s.stop)} ({s.kind})" for s in faults)
+        done = attempt(keep, f"left out {int((~keep).sum())} rows of {what}", faults)
         if done is not None:
             return done  # type: ignore[return-value]
+    good = runs(~bad)
+    n_blocks = bad.size
+    if len(good) != 1 or (good[0][0] != 0 and good[0][1] != n_blocks):
+        return None  # the disagreeing stretches may be a missing effect: they stay in, flagged
+    a0, b0 = int(edges[good[0][0]]), int(edges[good[0][1]])
+    if read(signals, log.torque, fitted.fit.residual, a0, b0, kt).kind != "motor off":
+        return None
+    # the motor is off from some point to the end (or until late): the agreeing part shows no torque per amp; keep the
+    # longest stretch that does
     for a, b in candidates(signals, edges, bad, MIN_ROWS)[:HEADLINE_TRIES]:
         if on_progress is not None:
             on_progress(f"fitting the stretch {_span(signals, a, b)} on its own")
@@ -463,8 +470,8 @@ def _window_option(signals: Signals, rows: Any) -> str | None:
     # the log's own ends stay open, so that a bound printed to 6 digits cannot cut a row
     n = signals.current.size
     text = []
-    for (lo, hi), a, b in zip(keys, starts, stops, strict=True):
-        text.append(f"{'' if a == 0 else f'{lo:.6g}'}:{'' if b == n - 1 else f'{hi:.6g}'}")
+    for (lo, hi), a, b in zip(keys, starts, stops, strict=True):  # 10 digits: a printed bound cuts no row
+        text.append(f"{'' if a == 0 else f'{lo:.10g}'}:{'' if b == n - 1 else f'{hi:.10g}'}")
     return "--window " + ",".join(text)
 
 

@@ -356,15 +356,21 @@ class DynoLog:
         """
         key = self.time if self.timed else self.time + 1.0
         keep = np.zeros(self.n, dtype=bool)
+        unit = "s" if self.timed else "(data rows)"
+        text = ",".join(f"{_bound(start)}:{_bound(stop)}" for start, stop in ranges)
         for start, stop in ranges:
             inside = np.ones(self.n, dtype=bool)
             if start is not None:
                 inside &= key >= start
             if stop is not None:
                 inside &= key <= stop
+            if len(ranges) > 1 and not inside.any():
+                raise DynoDataError(
+                    f"{self.source}: --window {text}: the range {_bound(start)}:{_bound(stop)} holds no row; the log "
+                    f"spans {float(key[0]):.6g} to {float(key[-1]):.6g} {unit}",
+                    option="--window",
+                )
             keep |= inside
-        unit = "s" if self.timed else "(data rows)"
-        text = ",".join(f"{_bound(start)}:{_bound(stop)}" for start, stop in ranges)
         if int(keep.sum()) < MIN_ROWS:
             lo, hi = float(key[0]), float(key[-1])
             raise DynoDataError(
@@ -403,6 +409,8 @@ def parse_window(text: str | None) -> tuple[float | None, float | None]:
         if len(parts) != 2:
             raise ValueError
         start, stop = (float(p) if p.strip() else None for p in parts)
+        if any(v is not None and not math.isfinite(v) for v in (start, stop)):
+            raise ValueError
     except ValueError:
         raise DynoDataError(
             f"--window: found {text!r}, expected START:STOP, for example {example}", option="--window"
@@ -576,7 +584,9 @@ def log_from_frame(
         _check_enough(rows.size, rows_read, notes, source)
     command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
     ranges: list[float] = []
-    core, rows, current_limit = _undo_wraps(core, rows, command, notes, ranges)
+    current_limit: float | None = None
+    if timed:  # a wrap is a jump in time; the rows of a steady-state table are separate operating points
+        core, rows, current_limit = _undo_wraps(core, rows, command, notes, ranges)
     _check_enough(rows.size, rows_read, notes, source)
     noise: dict[str, float] = {}
     if timed:  # a glitch is a spike in time; the rows of a steady-state table are separate operating points
@@ -973,8 +983,9 @@ def _repeated_rows(
             CleaningNote(
                 "duplicate_rows",
                 count,
-                f"collapsed {_plural(count, 'row')} that repeat the row before in every column (each {what} written "
-                f"up to {times} times): each counts once, at rows {_row_list(np.flatnonzero(same) + 1)}",
+                f"collapsed {_plural(count, 'row')} that {'repeats' if count == 1 else 'repeat'} the row before in "
+                f"every column (each {what} written up to {times} times): each counts once, at "
+                f"{'row' if count == 1 else 'rows'} {_row_list(np.flatnonzero(same) + 1)}",
             )
         )
     return same

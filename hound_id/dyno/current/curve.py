@@ -218,6 +218,11 @@ def _bound(
         )
     i_bound = float(grid[above[0]])
     tau_bound = float(curve_torque(fit, i_bound, upper)[0])
+    if i_bound <= max_measured_current:  # the log reaches there: its saturation is not determined, not unseen
+        advice = (
+            f"the log reaches {max_measured_current:.3g} A but its saturation is too uncertain to place the peak: a "
+            "longer or cleaner test at high current would"
+        )
     return PeakTorque(
         None,
         None,

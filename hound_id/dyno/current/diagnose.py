@@ -111,6 +111,9 @@ KT_UNDETERMINED = 1.0 / 3.0
 OUTLIER_SIGMAS = 8.0
 OUTLIER_SHARE = 0.01
 OUTLIER_WEIGHT = 0.5
+#: The floor is never below this share of the torque's RMS (the rounding of the fit's own arithmetic, far below any
+#: sensor). Calibrated on test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+NUMERICAL_FLOOR = 1e-6
 #: An effect is tried only while the log has this many rows per parameter of the grown model (its hypers and the
 #: offset the identifiability check allows for included): a table of 26 operating points carries five. Calibrated on
 #: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
@@ -345,7 +348,8 @@ def diagnose(
     base_sse = cross_validate(stats, stats, cols, lower, upper).sse
     residual_search = np.asarray(fit.residual)[design.search]
     noise = estimate(signals, design.torque, np.asarray(fit.residual))
-    floor = noise.value
+    # never below the arithmetic's own noise: a noiseless log's residual is rounding, not a missing effect
+    floor = max(noise.value, NUMERICAL_FLOOR * float(np.sqrt(np.mean(design.torque**2))))
     clusters = design.blocks.count
 
     suggestions = []

@@ -37,6 +37,10 @@ from hound_id.parameter import Parameter
 EPS_SPEED = 0.01
 #: Reference temperature of the fitted torque constant [degC].
 T_REF = 20.0
+#: Share of rows a Stribeck speed needs within twice itself to be searched. Calibrated on
+#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read and
+#: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise.
+STRIBECK_SEEN = 0.02
 #: Samples the acceleration is averaged over (odd, centred): enough to tame the differentiated speed noise, short
 #: against a speed change of a rig (tens of samples). Calibrated on
 #: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise.
@@ -287,9 +291,15 @@ def _knee_loss(i: Array, knee: float) -> Array:
 
 
 def _speed_grid(signals: Signals, residual: Array) -> Array:
+    """Stribeck speeds to search; only those with STRIBECK_SEEN of the rows within twice the speed (Stribeck friction
+    shows near rest: a log with no samples there cannot tell it from Coulomb friction with any amplitude)."""
     w = np.abs(signals.channel("velocity"))
     top = float(np.percentile(w, 99)) if w.size else 1.0
-    return np.geomspace(max(top * 1e-3, 0.05), max(top / 2, 0.1), 14)
+    grid = np.geomspace(max(top * 1e-3, 0.05), max(top / 2, 0.1), 14)
+    if not w.size:
+        return grid
+    seen = np.array([np.mean(w < 2.0 * ws) for ws in grid])
+    return grid[seen >= STRIBECK_SEEN]  # type: ignore[no-any-return]
 
 
 def _knee_grid(signals: Signals, residual: Array) -> Array:

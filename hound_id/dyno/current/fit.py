@@ -53,8 +53,9 @@ FOLDS = 10
 #: Fewest rows a fit takes (ten operating points; fewer cannot hold out ten folds). Calibrated on
 #: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
 MIN_FIT_ROWS = 10
-#: Blocks of a log shorter than two ordinary blocks (a burst): ten, as many as folds. Calibrated on
-#: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
+#: Blocks of a log shorter than ten ordinary blocks (a table of tens of operating points, a burst): ten, as many as
+#: folds. Calibrated on test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read and
+#: test_logs::test_clean_small_tables_keep_every_row.
 SMALL_BLOCKS = 10
 #: Rows used to evaluate hyper-parameter candidates (a strided subset of the log): a 100 s log at 1 kHz is searched
 #: whole; a million-row log every tenth row, which keeps its fit within the benchmark's time target while 100,000 rows
@@ -125,12 +126,10 @@ class Blocks:
 
     @classmethod
     def of(cls, n: int, timed: bool = True) -> Blocks:
-        """Contiguous blocks of a log of ``n`` rows: MIN_BLOCK_ROWS or more each, at most MAX_BLOCKS; a steady-state
-        table of up to MAX_BLOCKS operating points puts each in a block of its own (its rows are independent), a short
-        burst is cut into up to SMALL_BLOCKS blocks of two rows or more."""
-        if not timed and n <= MAX_BLOCKS:
-            count = n
-        elif n < 2 * MIN_BLOCK_ROWS:
+        """Contiguous blocks of a log of ``n`` rows (in time, or in row order for a steady-state table): a log shorter
+        than SMALL_BLOCKS ordinary blocks is cut into up to SMALL_BLOCKS blocks of two rows or more (a block of one row
+        would be judged on one residual); longer ones into blocks of MIN_BLOCK_ROWS or more, at most MAX_BLOCKS."""
+        if n < SMALL_BLOCKS * MIN_BLOCK_ROWS:
             count = max(2, min(SMALL_BLOCKS, n // 2))
         else:
             count = max(2, min(MAX_BLOCKS, n // MIN_BLOCK_ROWS))

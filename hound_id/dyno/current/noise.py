@@ -67,6 +67,9 @@ MIN_STILL_ROWS = 200
 #: test_noise::test_the_smallest_step_of_a_table_is_no_resolution.
 ON_GRID_SHARE = 0.9
 ON_GRID_TOLERANCE = 0.05
+#: The rounding sets the floor only where the residual's standard deviation reaches this share of q / sqrt(12).
+#: Calibrated on test_noise::test_a_coarsely_rounded_torque_channel_sets_the_floor.
+QUANTISATION_SHOWS = 0.3
 #: Pieces' deviations beyond this many robust sigmas are left out of the still floor (a glitch or an unsettled step).
 #: Calibrated on test_noise::test_white_noise_gives_both_estimates_alike.
 TRIM_SIGMAS = 5.0
@@ -90,6 +93,8 @@ class NoiseFloor:
     """Pieces (still stretches, cut at :data:`CHUNK_ROWS`) it used."""
     quantisation: float = 0.0
     """The torque channel's rounding, q / sqrt(12) [N m]."""
+    timed: bool = True
+    """False for a steady-state table (no still stretches there: its rows are operating points)."""
 
     @property
     def correlation(self) -> float | None:
@@ -105,11 +110,16 @@ class NoiseFloor:
                 f"noise floor {self.value:.3g} N m: the torque channel's rounding (q / sqrt(12)), above the "
                 f"sample-to-sample noise ({self.white:.3g} N m)"
             )
+        if self.still is None and not self.timed:
+            return (
+                f"noise floor {self.value:.3g} N m from differences between neighbouring operating points of the table"
+            )
         if self.still is None:
             return (
-                f"noise floor {self.value:.3g} N m from sample-to-sample differences (the log never holds its inputs "
-                f"still for {MIN_PIECE_ROWS + SETTLE_ROWS} samples, {MIN_STILL_ROWS} in all); it reads low if the "
-                "transducer filters its noise: hold the current and speed still now and then to measure it"
+                f"noise floor {self.value:.3g} N m from sample-to-sample differences (the log has fewer than "
+                f"{MIN_STILL_ROWS} rows in stretches of {MIN_PIECE_ROWS + SETTLE_ROWS} samples or more where current "
+                "and speed hold still); it reads low if the transducer filters its noise: hold the current and speed "
+                "still now and then to measure it"
             )
         ratio = self.correlation
         head = (
@@ -230,14 +240,18 @@ def estimate(
     if pieces is None:
         pieces = still_segments(signals)
     found = still_scatter(residual, pieces)
-    candidates = [("sample-to-sample", white if math.isfinite(white) else 0.0), ("quantisation", q)]
+    # the rounding counts only where it shows in the residual (a model that matches values on the grid exactly has none)
+    r = np.asarray(residual, float)
+    spread = float(np.std(r)) if r.size else 0.0
+    visible = q if spread >= QUANTISATION_SHOWS * q else 0.0
+    candidates = [("sample-to-sample", white if math.isfinite(white) else 0.0), ("quantisation", visible)]
     still, rows = (None, 0) if found is None else found
     if still is not None:
         candidates.append(("still", still))
     method, value = max(candidates, key=lambda mv: mv[1])
     if not value > 0:
         value, method = (white if not math.isfinite(white) else 0.0), "sample-to-sample"
-    return NoiseFloor(value, method, white, still, rows, len(pieces) if still is not None else 0, q)
+    return NoiseFloor(value, method, white, still, rows, len(pieces) if still is not None else 0, q, signals.timed)
 
 
 __all__ = [

@@ -31,7 +31,8 @@ from hound_id.dyno.current.effects import Signals
 Array = NDArray[np.float64]
 
 #: A channel is frozen over a stretch when at least this share of its steps there are exactly zero (a repeated
-#: reply), and the torque moves by more than FROZEN_TORQUE_SIGMAS of its noise meanwhile. Calibrated on
+#: reply), and the model of the repeated current misses the torque there by more than FROZEN_TORQUE_SIGMAS of its
+#: noise (RMS): a held zero of a pulse test, which the model explains, is no frozen reply. Calibrated on
 #: test_stretch::test_each_kind_of_stretch_is_read_from_its_channels.
 FROZEN_SHARE = 0.8
 FROZEN_TORQUE_SIGMAS = 4.0
@@ -46,6 +47,9 @@ SATURATED_SHARE = 0.3
 SATURATED_BAND = 0.005
 #: Kinds of stretch that show no torque per amp (leaving them out of a fit loses nothing).
 UNINFORMATIVE = ("replies frozen", "current frozen", "motor off")
+#: Kinds of stretch whose channels show a fault of the log (not of the model): the headline leaves them out. A motor
+#: switched off, a step transient or another regime may be what a missing effect looks like, and stay in.
+FAULTS = ("replies frozen", "current frozen", "torque saturated", "torque ignores the current")
 #: A step is a change of current by this share of its span between two samples; the rows up to STEP_ROWS after it
 #: are its transient, which must hold TRANSIENT_SHARE of the stretch's squared error. Calibrated on
 #: test_stretch::test_each_kind_of_stretch_is_read_from_its_channels.
@@ -83,6 +87,12 @@ class Stretch:
         return out
 
 
+def _repeats(x: Array) -> bool:
+    """Whether a channel repeats its value on half as many steps as a frozen one does (it has no noise to speak of)."""
+    d = np.diff(x)
+    return bool(d.size > 0 and np.mean(d == 0) >= FROZEN_SHARE / 2)
+
+
 def _frozen(x: Array) -> bool:
     d = np.diff(x)
     return bool(d.size > 0 and np.mean(d == 0) >= FROZEN_SHARE)
@@ -94,8 +104,15 @@ def read(signals: Signals, torque: Array, residual: Array, start: int, stop: int
     i = signals.current
     rows = slice(start, stop)
     y = np.asarray(torque, float)
-    moves = float(np.ptp(y[rows])) > FROZEN_TORQUE_SIGMAS * max(noise_sigma(y), 1e-300)
-    if _frozen(i[rows]) and moves:
+    # frozen: the current repeats and the model of it misses the torque there (a held pulse-test zero does not)
+    repeats = np.concatenate(([False], np.diff(i[rows]) == 0))
+    r_rows = np.asarray(residual, float)[rows]
+    missed = bool(repeats.any()) and float(np.sqrt(np.mean(r_rows[repeats] ** 2))) > FROZEN_TORQUE_SIGMAS * max(
+        noise_sigma(y), 1e-300
+    )
+    # ... in a channel that does not repeat elsewhere (a noise-free channel, a simulation, repeats at every hold)
+    elsewhere = np.concatenate((i[:start], i[stop:]))
+    if _frozen(i[rows]) and missed and not _repeats(elsewhere):
         level = float(np.median(i[rows]))
         if signals.velocity is not None and _frozen(signals.velocity[rows]):
             return Stretch(

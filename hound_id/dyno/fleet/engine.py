@@ -135,6 +135,8 @@ def fit_log(name: str, source: str, data: bytes, options: FitCurrentOptions) -> 
             error, bug = None, False
         except HoundIdError as err:
             report, error, bug = None, relabel(str(err)), False
+            if "rerun with --flip-torque" in error:  # --flip-torque would negate every log of the fleet
+                error += " (in a fleet, --auto-sign lets each log's own slope decide)"
         except Exception as err:  # a fault in hound-id: reported with its traceback, and the fleet goes on
             report, bug = None, True
             error = relabel(f"{type(err).__name__}: {err} (a bug in hound-id; please report it)\n") + relabel(

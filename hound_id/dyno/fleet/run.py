@@ -78,6 +78,13 @@ def check_fit_options(options: FitCurrentOptions) -> None:
     from hound_id.dyno.current.effects import parse_model
     from hound_id.dyno.logs import parse_mapping, parse_windows
 
+    if options.flip_torque and options.auto_sign:
+        from hound_id.errors import FitError
+
+        raise FitError(
+            "--flip-torque and --auto-sign: found both; pass --flip-torque to negate every log's torque, or "
+            "--auto-sign to let each log's own slope decide"
+        )
     parse_model(options.model)
     for extra in options.add:
         parse_model(extra)

@@ -249,15 +249,18 @@ def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start
     path = write(frame(rig), tmp_path / "again.csv")
     result = fit_current(path, FitCurrentOptions(columns=MAP, auto=True))
     report = result.report
-    assert report["whole_log"]["flags"] and not report["flags"]
+    assert report["whole_log"]["flags"]
     left = sorted(report["left_out"], key=lambda s: s["time"][0])
-    assert start - 1.5 < left[0]["time"][0] <= start + seen and left[-1]["time"][1] > 59
-    assert left[-1]["kind"] == kind  # the stretch to the end; its onset may read as another regime
+    assert start - 1.5 < left[0]["time"][0] <= start + seen + 1.0 and left[-1]["time"][1] > 59
+    assert {s["kind"] for s in left} == {kind}
+    # what stays flagged in the headline is the onset (the channels look ordinary there, so it is not left out)
+    for flag in (f for f in report["flags"] if f.startswith("blocks")):
+        assert float(flag.split("t = ")[1].split("-")[0]) > start - 1.5, flag
     assert result.fit.value("kt") == pytest.approx(1.15, rel=0.005)
     option = report["headline"]["option"]
     assert option.startswith("--window ")
     again = fit_current(path, FitCurrentOptions(columns=MAP, auto=True, window=option.split(" ", 1)[1]))
-    assert again.fit.value("kt") == pytest.approx(result.fit.value("kt"), rel=1e-9) and not again.report["flags"]
+    assert again.fit.value("kt") == pytest.approx(result.fit.value("kt"), rel=1e-9) and "headline" not in again.report
 
 
 def test_a_flagged_training_fold_is_not_hidden_by_a_good_held_out_error(tmp_path):
