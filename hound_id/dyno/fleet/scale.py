@@ -31,6 +31,7 @@ from __future__ import annotations
 import math
 from collections.abc import Mapping
 from dataclasses import dataclass
+from statistics import median as _median
 
 #: Neighbouring Kt values (sorted) more than this ratio apart start a new group. Calibrated on
 #: test_analyse::test_current_scale_groups_are_named_and_not_flagged.
@@ -68,12 +69,6 @@ class ScaleGroup:
     """What the ratio is ("" for the reference group)."""
     current_range: float | None = None
     """The range the group's current channels are encoded in [A] (median), when the logs show one."""
-
-
-def _median(xs: list[float]) -> float:
-    s = sorted(xs)
-    n = len(s)
-    return s[n // 2] if n % 2 else 0.5 * (s[n // 2 - 1] + s[n // 2])
 
 
 def _reading(ratio: float) -> str:
