@@ -180,21 +180,6 @@ def read(signals: Signals, torque: Array, residual: Array, start: int, stop: int
     )
 
 
-def transient_rows(signals: Signals, stretch: Stretch) -> NDArray[np.intp]:
-    """The rows of a stretch within :data:`STEP_ROWS` samples after its current steps (from the step on)."""
-    i = signals.current
-    a, b = stretch.start, stretch.stop
-    steps = np.flatnonzero(np.abs(np.diff(i[a:b])) > STEP_SHARE * max(float(np.ptp(i)), 1e-300)) + 1 + a
-    rows = (steps[:, None] + np.arange(STEP_ROWS)[None, :]).ravel()
-    return np.unique(rows[rows < b]).astype(np.intp)
-
-
-def varies_rows(signals: Signals, keep: NDArray[np.bool_]) -> bool:
-    """Whether the rows in ``keep`` exercise the current over :data:`VARIES_SHARE` of the log's span."""
-    i = signals.current
-    return bool(keep.any() and float(np.ptp(i[keep])) >= VARIES_SHARE * float(np.ptp(i)))
-
-
 def varies(signals: Signals, start: int, stop: int) -> bool:
     """Whether rows ``start:stop`` exercise the current enough to show torque per amp on their own."""
     i = signals.current
@@ -227,4 +212,4 @@ def candidates(
     return out
 
 
-__all__ = ["UNINFORMATIVE", "Stretch", "candidates", "read", "runs", "transient_rows", "varies", "varies_rows"]
+__all__ = ["FAULTS", "UNINFORMATIVE", "Stretch", "candidates", "read", "runs", "varies"]

@@ -4,7 +4,7 @@ import numpy as np
 import pytest
 
 from hound_id.dyno.current.effects import Signals
-from hound_id.dyno.current.stretch import candidates, read, transient_rows, varies, varies_rows
+from hound_id.dyno.current.stretch import candidates, read, varies
 
 RATE = 100.0
 KT = 0.8
@@ -56,8 +56,6 @@ def test_each_kind_of_stretch_is_read_from_its_channels():
         ring[s : s + 3] = [3.0, -2.0, 1.0]  # a transducer ringing after each step
     stretch = kind_of(t, steps_i, w, KT * steps_i + ring, 1000, 1500)
     assert stretch.kind == "step transient" and "4 current step(s)" in stretch.reading  # 1100, ..., 1400
-    rows = transient_rows(Signals(time=t, current=steps_i), stretch)
-    assert set(rows.tolist()) == {s + k for s in range(1100, 1500, 100) for k in range(5)}
 
 
 def test_candidates_vary_the_current_and_are_longest_first():
@@ -76,9 +74,7 @@ def test_candidates_vary_the_current_and_are_longest_first():
     bad = np.zeros(20, dtype=bool)
     bad[:6] = True
     assert candidates(s_off, edges, bad, 50) == [(0, 600)]
-    keep = np.zeros(N, dtype=bool)
-    keep[700:] = True
-    assert not varies_rows(s_off, keep) and varies_rows(s, keep)
+    assert not varies(s_off, 700, N) and varies(s, 700, N)
 
 
 @pytest.mark.parametrize("kind", ["replies frozen", "another regime"])
