@@ -419,8 +419,7 @@ def _narrow(
         return fitted, part, rows[keep], [whole_rows(s) for s in stretches], cost
 
     kt = fitted.diagnosis.kt_agreeing
-    flagged = [read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(bad)]
-    faults = [s for s in flagged if s.kind in FAULTS]
+    faults = [s for s in fitted.diagnosis.stretches if s.kind in FAULTS]
     if faults:  # the log is broken there (read from its channels): leave those stretches out
         keep = np.ones(signals.current.size, dtype=bool)
         for s in faults:
@@ -450,7 +449,7 @@ def _narrow(
         left = [
             read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(outside)
         ]
-        message = f"kept {_span(signals, a, b)}, the longest stretch that agrees and exercises the current"
+        message = f"kept {_span(signals, a, b)}, the longest stretch that exercises the current"
         done = attempt(keep, message, left)
         if done is not None:
             return done  # type: ignore[return-value]
@@ -467,7 +466,7 @@ def _window_option(signals: Signals, rows: Any) -> str | None:
     if starts.size > 4:
         return None
     keys = [_window_keys(signals, int(a), int(b) + 1) for a, b in zip(starts, stops, strict=True)]
-    # the log's own ends stay open, so that a bound printed to 6 digits cannot cut a row
+    # the log's own ends stay open, so that a printed bound cannot cut a row
     n = signals.current.size
     text = []
     for (lo, hi), a, b in zip(keys, starts, stops, strict=True):  # 10 digits: a printed bound cuts no row

@@ -55,7 +55,7 @@ from hound_id.dyno.current.fit import (
     solve_normal,
 )
 from hound_id.dyno.current.noise import NoiseFloor, estimate, white_floor
-from hound_id.dyno.current.stretch import read
+from hound_id.dyno.current.stretch import Stretch, read, runs
 from hound_id.dyno.identify.engine import (
     ALPHA,
     MAX_STEPS,
@@ -156,6 +156,8 @@ class Diagnosis:
     """How :attr:`noise_floor` was found (its method and both estimates)."""
     kt_agreeing: float | None = None
     """Kt of the fit to the agreeing half of the blocks [N m/A] (None without a ``linear`` term)."""
+    stretches: tuple[Stretch, ...] = ()
+    """Each run of disagreeing blocks, read from its channels (rows of the diagnosed log), in log order."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -411,7 +413,13 @@ def diagnose(
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
     agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
     disagreeing = _disagreeing(agreeing, floor, block_floor)
-    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals, design.torque))
+    kt = _kt(fit, agreeing)
+    residual = np.asarray(fit.residual)
+    edges = design.blocks.edges
+    stretches = tuple(
+        read(signals, design.torque, residual, int(edges[a]), int(edges[b]), kt) for a, b in runs(disagreeing)
+    )
+    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals, stretches))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
     return Diagnosis(
         fit.model,
@@ -426,7 +434,8 @@ def diagnose(
         disagreeing,
         agreeing.rmse,
         noise,
-        _kt(fit, agreeing),
+        kt,
+        stretches,
     )
 
 
@@ -476,13 +485,19 @@ def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.nd
 
 
 def _flags(
-    fit: FitResult, agreeing: _Agreeing, floor: float, bad: np.ndarray, signals: Signals, torque: Array
+    fit: FitResult,
+    agreeing: _Agreeing,
+    floor: float,
+    bad: np.ndarray,
+    signals: Signals,
+    stretches: Sequence[Stretch],
 ) -> list[str]:
     """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out."""
     r = agreeing.rmse
     edges = fit.blocks.edges
     ref = agreeing.typical
-    out = []
+    out: list[str] = []
+    runs_seen = 0
     k = 0
     while k < bad.size:
         if not bad[k]:
@@ -492,7 +507,8 @@ def _flags(
         while j + 1 < bad.size and bad[j + 1]:
             j += 1
         worst = float(r[k : j + 1].max())
-        stretch = read(signals, torque, np.asarray(fit.residual), int(edges[k]), int(edges[j + 1]), _kt(fit, agreeing))
+        stretch = stretches[runs_seen]  # one per run of disagreeing blocks, in order
+        runs_seen += 1
         out.append(
             f"blocks {k + 1}-{j + 1} of {bad.size} ({_span(signals, int(edges[k]), int(edges[j + 1]))}) disagree with "
             f"the rest: RMSE up to {worst:.3g} N m under the model fitted to the agreeing half of the blocks, against "
