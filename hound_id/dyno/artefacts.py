@@ -15,6 +15,17 @@ Seen on public actuator logs (``physics-notes.md``, "What real logs look like"):
 * **A clamped reply.** The reported current sits at its extreme (the reply's encoding range
   or a saturated ADC) while the torque keeps moving: the true current there is unknown, so
   those rows are removed.
+* **A reply held at the top of its range.** The command asks for more than the level, the
+  torque does not go past what the level makes, and the reply piles up on exactly one value
+  at the channel's extreme, nothing beyond it: the reply's encoding range (a protocol clamp)
+  ends there. A current loop holding a driver limit scatters its readings about the limit, on
+  both sides. The torque says the current is at the level, so the rows are kept as data; the
+  advice names the reply's range rather than the driver.
+* **A reply that flips sign at the end of its range.** Where a reply's range is known to end
+  at +-L (clamped or held there), a row whose current sits within a per cent of the boundary
+  with the opposite sign of a torque beyond half of what L makes has crossed the boundary and
+  come back from the other end (a value just past the range, read one loop as it passed):
+  its sign is wrong and its size unknown, so those rows are removed too.
 * **A driver current limit.** The current sits at one level while the command keeps rising,
   and the torque stays with the current: the motor really is at the limit. Those rows are
   kept (they are data) and the limit is reported, so the peak-torque advice names the driver
@@ -68,6 +79,11 @@ WRAP_MANY = 10
 #: test_polled_rig::test_a_current_wrapped_past_its_range_is_restored_from_the_torque and
 #: test_polled_rig::test_a_current_sitting_at_the_edge_of_its_range_flips_sign_and_is_named_a_wrap.
 WRAP_BETTER = 0.02
+#: Restoring from the torque adds at most this many whole periods to a row: a reply past its range comes back from the
+#: other end once; a torque that asks for more (a current of 216 A from a +-18 A reply) is itself broken there.
+#: Calibrated on test_polled_rig::test_a_wrap_is_not_restored_from_a_torque_that_flips and
+#: test_polled_rig::test_a_current_wrapped_past_its_range_is_restored_from_the_torque.
+WRAP_MAX_PERIODS = 1
 #: Plateaus (a clamped reply, a driver current limit): the shortest run at a plateau that counts [samples] (five: no
 #: glitch lasts that long); a plateau is within this many noise sigmas of its level (4 sigma keeps 99.99 % of the noise
 #: about it) and at least PLATEAU_FLOOR of the level (a noise-free reply). Calibrated on
@@ -112,6 +128,25 @@ COMMAND_EXCESS = 0.05
 #: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice and
 #: test_polled_rig::test_a_held_current_that_the_command_asks_for_is_not_a_clamp.
 COMMAND_R2 = 0.9
+#: A plateau is a reply held at the top of its range when this share of its rows sit on exactly one value (a pile at
+#: the ceiling) ...: a current loop at a driver limit scatters its readings about the limit over several quanta.
+#: Calibrated on
+#: test_polled_rig::test_a_reply_held_at_the_top_of_its_range_is_a_protocol_clamp_not_the_driver and
+#: test_polled_rig::test_a_driver_current_limit_is_named_kept_and_changes_the_advice.
+CEILING_SHARE = 0.3
+#: ... and at most this share of them lie beyond that value (a reply read as it crossed the end and restored from the
+#: torque; a driver limit's scatter puts half of them beyond its most common value). Calibrated on
+#: test_polled_rig::test_a_reply_held_at_the_top_of_its_range_is_a_protocol_clamp_not_the_driver.
+BEYOND_CEILING = 0.05
+#: A reply clamp's rows are data when their median torque exceeds what the level makes by at most this share of it:
+#: the drive then gives the level, not more (a current 2.5 % past a clamp shows as 2.5 % more torque). Past it, the
+#: current there is unknown and the rows are removed. Calibrated on
+#: test_polled_rig::test_a_reply_held_at_the_top_of_its_range_is_a_protocol_clamp_not_the_driver.
+CEILING_EXCESS = 0.01
+#: A row sits at the boundary of a reply's range when its |current| is within this share of the range's end (or
+#: PLATEAU_SIGMAS noise sigmas): a value read as it crosses the boundary lands just inside the other end. Calibrated on
+#: test_polled_rig::test_a_reply_held_at_the_top_of_its_range_is_a_protocol_clamp_not_the_driver.
+BOUNDARY_SHARE = 0.01
 
 
 @dataclass(frozen=True)
@@ -135,7 +170,9 @@ class Plateau:
     """Rows where the current sits at one extreme level."""
 
     kind: str
-    """``clamp`` (the reported value is cut off; rows unusable) or ``driver_limit`` (real; rows kept)."""
+    """``clamp`` (the reported value is cut off while the torque moves on; rows unusable), ``reply_clamp`` (the reply
+    held at the top of its range while the command asks for more and the torque stays with the level; rows kept) or
+    ``driver_limit`` (real; rows kept)."""
     level: float
     """The level [A], signed."""
     rows: NDArray[np.intp]
@@ -147,7 +184,17 @@ class Plateau:
     longest: int
     """Longest run [samples]."""
     asked: float | None = None
-    """For a driver limit, the current the command asked for there (median) [A]."""
+    """For a driver limit or a reply clamp, the current the command asked for there (median) [A]."""
+    excess: float | None = None
+    """For a reply clamp, the median torque there beyond what the level makes (a line through the ramp up to it), as a
+    share of that torque; None without a ramp to compare with."""
+
+    @property
+    def usable(self) -> bool:
+        """Whether the rows are data: a driver limit, or a reply clamp whose torque stays with its level."""
+        if self.kind == "reply_clamp":
+            return self.excess is not None and self.excess <= CEILING_EXCESS
+        return self.kind == "driver_limit"
 
 
 def noise_sigma(x: Array) -> float:
@@ -196,7 +243,8 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     3. When the channel as read fills its range end to end (a reply that wraps), the whole number of
        periods that puts each row nearest torque / Kt restores a current that went past the range, or sat
        at its edge, on every row: that is kept when it follows the torque on all rows as well as folding
-       does on the rows off the boundary. Otherwise the encoded
+       does on the rows off the boundary, and no row needs more than WRAP_MAX_PERIODS periods (a torque
+       that asks for more is broken there and cannot choose). Otherwise the encoded
        current lies within +-P/2, whatever the host added: the channel is folded into +-P/2 (whole periods
        taken out).
     4. It is a wrap-around only if the wraps left the range at its boundary, the folded channel spends time
@@ -243,11 +291,15 @@ def find_wraps(current: Array, torque: Array) -> tuple[Array, Wrap | None]:
     # reaches; the choice is discrete, so a rough Kt and a torque off by friction do not matter).
     k_inner = torque_per_amp(folded[inner], y[inner]) if inner.sum() >= 10 else 0.0
     if k_inner != 0.0 and fills:
-        continuous = x + period * np.round((y / k_inner - x) / period)
+        added = np.round((y / k_inner - x) / period)
+        continuous = x + period * added
         # the torque's choice keeps every row: take it when it follows the torque on all rows as well as folding
         # does on the rows off the boundary (a torque that hardly follows the current cannot choose)
         folding = _follows(folded[clear], y[clear])
-        if _follows(continuous, y) >= max(folding - WRAP_BETTER, _follows(x, y) + WRAP_BETTER):
+        # a value past the range wraps once: a torque that asks for more periods is not this current's torque there
+        # (a torque channel that flips or runs away), so it cannot choose
+        believable = float(np.max(np.abs(added))) <= WRAP_MAX_PERIODS
+        if believable and _follows(continuous, y) >= max(folding - WRAP_BETTER, _follows(x, y) + WRAP_BETTER):
             return continuous, Wrap(period, int(jumps.size), int(jumps[0]) + 1, unwrapped=True)
     if _follows(folded[clear], y[clear]) < _follows(x[clear], y[clear]):
         return x, None
@@ -313,7 +365,12 @@ def find_plateaus(current: Array, torque: Array, command: Array | None = None) -
             found.append(Plateau("clamp", level, rows, (lo, hi), cmd_span, longest))
             continue
         if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
-            found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
+            ceiling = _ceiling(x[rows], level)
+            if ceiling is not None:
+                excess = _excess(x, y, rows, ceiling)
+                found.append(Plateau("reply_clamp", ceiling, rows, (lo, hi), cmd_span, longest, asked, excess))
+            else:
+                found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
             continue
         stuck = x == level
         exact = max((b - a for a, b in _runs(stuck)), default=0)
@@ -321,6 +378,44 @@ def find_plateaus(current: Array, torque: Array, command: Array | None = None) -
             # finely resolved and noisy elsewhere, yet exactly one value for whole runs: a saturated ADC
             found.append(Plateau("clamp", level, np.flatnonzero(stuck), (lo, hi), cmd_span, exact))
     return found
+
+
+def _excess(current: Array, torque: Array, rows: NDArray[np.intp], level: float) -> float | None:
+    """Median torque on a plateau beyond a line through the ramp up to it (rows on the same side between 30 % and 95 %
+    of the level), as a share of the line's torque at the level; None without such a ramp."""
+    sign = 1.0 if level > 0 else -1.0
+    ramp = (sign * current > 0.3 * abs(level)) & (sign * current < 0.95 * abs(level))
+    if np.count_nonzero(ramp) < 10 or np.ptp(current[ramp]) <= 0.3 * abs(level):
+        return None
+    a, b = np.polyfit(current[ramp], torque[ramp], 1)
+    made = a * level + b
+    if made == 0:
+        return None
+    return float((np.median(torque[rows]) - made) / made)
+
+
+def _ceiling(values: Array, level: float) -> float | None:
+    """The value a plateau's readings pile up on, when they pile at its top (CEILING_SHARE of them on it, at most
+    BEYOND_CEILING beyond it in the level's direction): a reply's range ending there. None for a scatter about a
+    level."""
+    held, counts = np.unique(values, return_counts=True)
+    top = float(held[int(np.argmax(counts))])
+    sign = 1.0 if level > 0 else -1.0
+    beyond = np.count_nonzero(sign * (values - top) > 0)
+    if counts.max() >= CEILING_SHARE * values.size and beyond <= BEYOND_CEILING * values.size:
+        return top
+    return None
+
+
+def flipped_at_boundary(current: Array, torque: Array, end: float) -> NDArray[np.bool_]:
+    """Rows whose current sits at the boundary +-``end`` of the reply's range with the sign opposite to the torque's
+    (the torque beyond half of what ``end`` makes): the reply crossed the boundary and came back from the other end."""
+    x, y = np.asarray(current, float), np.asarray(torque, float)
+    k = torque_per_amp(x, y)
+    if k == 0 or end <= 0:
+        return np.zeros(x.shape, dtype=bool)
+    tol = max(PLATEAU_SIGMAS * noise_sigma(x), BOUNDARY_SHARE * end)
+    return (np.abs(x) >= end - tol) & (np.sign(x) != np.sign(y / k)) & (np.abs(y) > 0.5 * abs(k) * end)  # type: ignore[no-any-return]
 
 
 def _torque_goes_past(
@@ -374,6 +469,7 @@ __all__ = [
     "at_boundary",
     "find_plateaus",
     "find_wraps",
+    "flipped_at_boundary",
     "noise_sigma",
     "torque_per_amp",
 ]

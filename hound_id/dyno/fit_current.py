@@ -30,6 +30,8 @@ if TYPE_CHECKING:
 
 #: Cleaning notes that are information, not warnings (shown as ``note:`` outside ``--json``).
 NOTE_KINDS = ("unit", "format", "window")
+#: Cleaning notes that show the current reply cut off at the end of its range (the peak-torque advice names the reply).
+REPLY_CUT = ("clamp", "reply_clamp")
 
 
 @dataclass(frozen=True)
@@ -263,6 +265,7 @@ def fit_current(
         log.rows_read,
         current_limit=log.current_limit,
         time=signals.time if signals.timed else None,
+        reply_range=log.current_range if any(n.kind in REPLY_CUT for n in log.notes) else None,
     )
     report["current_range"] = log.current_range
     if left_out:

@@ -71,7 +71,14 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
-from hound_id.dyno.artefacts import asked_at_boundary, at_boundary, find_plateaus, find_wraps, quantum
+from hound_id.dyno.artefacts import (
+    asked_at_boundary,
+    at_boundary,
+    find_plateaus,
+    find_wraps,
+    flipped_at_boundary,
+    quantum,
+)
 from hound_id.errors import DynoDataError, SpecError
 
 Array = NDArray[np.float64]
@@ -135,6 +142,8 @@ NOTE_KINDS: tuple[str, ...] = (
     "wrap",
     "clamp",
     "current_limit",
+    "reply_clamp",
+    "reply_flip",
     "duplicate_rows",
 )
 
@@ -1321,10 +1330,41 @@ def _current_plateaus(
     limit: float | None = None
     cmd = None if command is None else command[rows - 1]
     keep = np.ones(rows.size, dtype=bool)
-    for plateau in find_plateaus(current, torque, cmd):
+    plateaus = find_plateaus(current, torque, cmd)
+    for plateau in plateaus:
         lo, hi = plateau.torque_span
         count = int(plateau.rows.size)
-        if plateau.kind == "clamp":
+        if plateau.kind == "reply_clamp":
+            exact = int(np.count_nonzero(current[plateau.rows] == plateau.level))
+            if ranges is not None:
+                ranges.append(abs(plateau.level))
+            head = (
+                f"the current reply is held at {plateau.level:.4g} A, the top of its range, in {_plural(count, 'row')} "
+                f"({exact} on exactly that value) while the command asks for {plateau.asked:.3g} A (median there, from "
+                "the command-current relation elsewhere in the log): the reply's encoding range ends there (a protocol "
+                "clamp), not the driver; "
+            )
+            beyond = "" if plateau.excess is None else f" ({100 * plateau.excess:+.2g} % of what the level makes)"
+            if plateau.usable:
+                tail = f"the torque there ({lo:.3g} to {hi:.3g} N m) stays with the level{beyond}, so the rows are data"
+                tail += " and kept"
+            else:
+                keep[plateau.rows] = False
+                tail = (
+                    f"the torque there ({lo:.3g} to {hi:.3g} N m) goes past what the level makes"
+                    f"{beyond or ' (no ramp to compare with)'}, so the current there is unknown and those rows were "
+                    "removed"
+                )
+            notes.append(
+                CleaningNote(
+                    "reply_clamp",
+                    0 if plateau.usable else count,
+                    f"{head}{tail}; to test beyond {abs(plateau.level):.3g} A, widen the reply's current range or log "
+                    "the current from a sensor of its own",
+                    "current",
+                )
+            )
+        elif plateau.kind == "clamp":
             keep[plateau.rows] = False
             if ranges is not None:
                 ranges.append(abs(plateau.level))
@@ -1349,6 +1389,25 @@ def _current_plateaus(
                     f"command-current relation elsewhere in the log) and the torque stays at {lo:.3g} to {hi:.3g} N m; "
                     f"the rows are data and kept, and a peak torque beyond {abs(plateau.level):.3g} A needs a higher "
                     "driver limit",
+                    "current",
+                )
+            )
+    ends = [abs(p.level) for p in plateaus if p.kind in ("clamp", "reply_clamp")]
+    if ends:
+        end = min(ends)
+        flipped = flipped_at_boundary(current, torque, end) & keep
+        count = int(np.count_nonzero(flipped))
+        if count:
+            keep &= ~flipped
+            first = int(np.argmax(flipped))
+            notes.append(
+                CleaningNote(
+                    "reply_flip",
+                    count,
+                    f"{_plural(count, 'row')} read the current at the other end of the reply's range (+-{end:.4g} A) "
+                    f"from the torque, first at row {int(rows[first])} (t = {data['time'][first]:.4g} s): the reply "
+                    "crossed the end of its range and came back from the other, so its sign is wrong and its size "
+                    "unknown; those rows were removed",
                     "current",
                 )
             )

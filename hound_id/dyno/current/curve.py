@@ -140,12 +140,15 @@ def peak_torque(
     max_measured_current: float,
     deviation: float = PEAK_DEVIATION,
     current_limit: float | None = None,
+    reply_range: float | None = None,
 ) -> PeakTorque:
     """Peak torque where (Kt i - tau(i)) / (Kt i) reaches ``deviation``.
 
     Args:
         current_limit: The driver's current limit seen in the log [A], if any: the advice then
             says that this drive cannot test higher currents.
+        reply_range: Where the current reply's range ends [A], when the log shows the reply cut off
+            there (clamped, held at its top, wrapped): the advice then names the reply.
     """
     from scipy.optimize import brentq
 
@@ -156,11 +159,13 @@ def peak_torque(
     grid = np.linspace(top / 4000, top, 4000)
     seen, upper = _saturation_seen(fit)
     if not seen:
-        return _bound(fit, kt, grid, upper, max_measured_current, deviation, _advice(current_limit, "test"))
+        return _bound(
+            fit, kt, grid, upper, max_measured_current, deviation, _advice(current_limit, "test", reply_range)
+        )
     dev = 1.0 - curve_torque(fit, grid) / (kt * grid)
     above = np.flatnonzero(dev >= deviation)
     if above.size == 0:
-        advice = _advice(current_limit, "add a saturation effect or test")
+        advice = _advice(current_limit, "add a saturation effect or test", reply_range)
         return PeakTorque(
             None,
             None,
@@ -181,8 +186,15 @@ def peak_torque(
     return PeakTorque(tau, i_peak, max_measured_current, extrapolated, note)
 
 
-def _advice(current_limit: float | None, test: str) -> str:
-    """What to do for a peak torque the log cannot show: test at higher current, or use a stronger driver."""
+def _advice(current_limit: float | None, test: str, reply_range: float | None = None) -> str:
+    """What to do for a peak torque the log cannot show: test at higher current, widen the reply's range, or use a
+    stronger driver."""
+    if reply_range is not None:
+        return (
+            f"the current reading cannot say more than {reply_range:.3g} A (the end of its range), so this log cannot "
+            "show higher current: widen the reply's current range or log the current from a sensor of its own, and "
+            "test at higher current"
+        )
     if current_limit is not None:
         return (
             f"the driver held the current at its limit of {current_limit:.3g} A, so this drive cannot test higher "

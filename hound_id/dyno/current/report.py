@@ -28,18 +28,20 @@ def summarize(
     rows_read: int | None = None,
     current_limit: float | None = None,
     time: Any = None,
+    reply_range: float | None = None,
 ) -> tuple[PeakTorque, Compensation, dict[str, Any]]:
     """Peak torque, current compensation (up to the peak, or the measured range) and the report of a fit.
 
     Args:
         current: The log's current [A]; its largest magnitude bounds the measured range.
         current_limit: The driver's current limit the log shows [A], if any.
+        reply_range: Where the current reply's range ends [A], when the log shows it cut off there.
         time: Sample times [s] for the per-block table (None for a steady-state table).
     """
     from hound_id.dyno.current.curve import compensation, fitted_curve, peak_torque
 
     current_max = float(abs(current).max())
-    peak = peak_torque(fit, current_max, current_limit=current_limit)
+    peak = peak_torque(fit, current_max, current_limit=current_limit, reply_range=reply_range)
     comp = compensation(fit, peak.current if peak.current is not None else current_max)
     curve = fitted_curve(fit, current_max) if fit.value("kt") > 0 else None
     report = fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read, time, curve)

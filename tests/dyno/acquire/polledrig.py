@@ -8,7 +8,9 @@ follows the public actuator logs described in ``physics-notes.md``:
   describes the previous loop (``current_late``), so the current lags the torque by one loop;
 * the torque transducer is a second-order (Butterworth) low-pass, and its noise is AR(1);
 * the current reply is quantised, encoded in a fixed range (clamped, or wrapped around);
-* the driver limits the current while the command keeps rising;
+* the driver limits the current while the command keeps rising; the reply's range may end below
+  the driver's limit, and the first reply past it may come back from the other end;
+* the torque amplifier may break midway (its gain jumps, sign and all);
 * the drive may be switched off midway (its last reply repeats while the torque falls to the
   friction), or the current reading may run away while the torque does not follow;
 * an opposing motor imposes the speed, by default through all four quadrants; the regimes that
@@ -61,11 +63,14 @@ class Rig:
     current_quantum: float = 0.01  # A
     current_late: bool = True
     current_clamp: float | None = None  # A: the reply's encoding range
+    flip_at_clamp: bool = False  # the first reply past the clamp comes back from the other end of the range
     wrap_period: float | None = None  # A: the reply wraps around
     driver_limit: float | None = None  # A
     motor_off_at: float | None = None  # s
     runaway_from: float | None = None  # s
     runaway_rate: float = 1.5  # A/s
+    torque_fault_from: float | None = None  # s: the torque amplifier's gain jumps (a broken transducer channel)
+    torque_fault_gain: float = -4.0
     speed_steps: bool = False  # the opposing motor steps between speed levels (0.25 s raised-cosine changes)
     torque_quantum: float = 0.0  # N m per count of the torque ADC (0: not rounded)
     repeat: int = 1  # the logger writes every sample this many times
@@ -137,6 +142,8 @@ def run(rig: Rig) -> pd.DataFrame:
     for j in range(1, n):
         ar[j] = rig.torque_noise_rho * ar[j - 1] + e[j]
     torque_read = sensed[k] + ar
+    if rig.torque_fault_from is not None:
+        torque_read = np.where(polls >= rig.torque_fault_from, rig.torque_fault_gain * torque_read, torque_read)
     if rig.torque_quantum > 0:
         torque_read = np.round(torque_read / rig.torque_quantum) * rig.torque_quantum
     measured = current[k] + rng.normal(0.0, rig.current_noise, n)
@@ -150,7 +157,11 @@ def run(rig: Rig) -> pd.DataFrame:
             measured[first:] = measured[first - 1]
     reply = np.round(measured / rig.current_quantum) * rig.current_quantum
     if rig.current_clamp is not None:
+        past = np.abs(reply) > rig.current_clamp
+        first_past = past & ~np.concatenate([[False], past[:-1]])
         reply = np.clip(reply, -rig.current_clamp, rig.current_clamp)
+        if rig.flip_at_clamp:  # read as it crosses the end of the range: a signed overflow, just inside the other end
+            reply[first_past] = -np.sign(reply[first_past]) * (rig.current_clamp - rig.current_quantum)
     if rig.wrap_period is not None:
         p = rig.wrap_period
         reply = np.mod(reply + p / 2, p) - p / 2

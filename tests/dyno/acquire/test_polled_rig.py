@@ -14,7 +14,7 @@ import numpy as np
 import pandas as pd
 import pytest
 
-from hound_id.dyno.artefacts import PLATEAU_SIGMAS, noise_sigma
+from hound_id.dyno.artefacts import PLATEAU_SIGMAS, flipped_at_boundary, noise_sigma
 from hound_id.dyno.current.curve import peak_torque
 from hound_id.dyno.current.diagnose import auto, diagnose
 from hound_id.dyno.current.effects import Signals
@@ -129,6 +129,37 @@ def test_a_driver_current_limit_is_named_kept_and_changes_the_advice(tmp_path):
     assert "driver" in peak.note and "test at higher current" not in peak.note
 
 
+def test_a_reply_held_at_the_top_of_its_range_is_a_protocol_clamp_not_the_driver(tmp_path):
+    # the drive gives 8.2 A, the reply's range ends at 8.0 A, and the first reply past it overflows to the other end
+    rig = Rig(driver_limit=8.2, current_clamp=8.0, flip_at_clamp=True)
+    reply = frame(rig)["iq_meas"].to_numpy()
+    flips = int(np.count_nonzero(np.abs(np.abs(reply) - 7.99) < 1e-9))
+    assert flips >= 5  # the rig made some
+    log = load(tmp_path, rig)
+    assert "reply_clamp" in kinds(log) and "current_limit" not in kinds(log) and "clamp" not in kinds(log)
+    text = note(log, "reply_clamp")
+    assert "held at 8 A, the top of its range" in text and "held at -8 A" in text and "not the driver" in text
+    assert log.current_limit is None and log.current_range == pytest.approx(8.0, abs=0.01)
+    # the drive gives 2.5 % more than the reply says: those rows are removed
+    assert "goes past what the level makes" in text and "rows were removed" in text
+    assert log.rows_read - log.n == sum(n.rows for n in log.notes)
+    # the overflowed replies are read as crossings of the range's end (a wrap at its edge, restored from the torque)
+    # or removed: none is left at the wrong end
+    assert "wrap" in kinds(log) or "reply_flip" in kinds(log)
+    assert not flipped_at_boundary(log.current, log.torque, 8.0).any()
+    assert flipped_at_boundary(reply, frame(rig)["torque_adc"].to_numpy(), 8.0).sum() >= 5  # there were, as read
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert_not_confidently_wrong(fit, ladder[-1].diagnosis, 1.15)
+    peak = peak_torque(fit, float(np.max(np.abs(signals.current))), reply_range=log.current_range)
+    assert "cannot say more than 8" in peak.note and "driver" not in peak.note
+    # the drive gives what the reply says (the clamp at the driver's limit, no friction to blur the torque there): the
+    # rows are data and kept; with friction the torque cannot show it within 1 %, and they go (tested above)
+    held = load(tmp_path, Rig(Truth(coulomb=0.0), driver_limit=8.0, current_clamp=8.0), name="held.csv")
+    assert "reply_clamp" in kinds(held) and "stays with the level" in note(held, "reply_clamp")
+    assert held.n == held.rows_read
+
+
 def test_a_clamped_reply_is_named_and_its_rows_removed(tmp_path):
     rig = Rig(current_clamp=7.5)
     log = load(tmp_path, rig)
@@ -149,6 +180,21 @@ def test_a_held_current_that_the_command_asks_for_is_not_a_clamp(tmp_path):
     # the command itself is clipped at +-10 A for long stretches while friction moves the torque
     log = load(tmp_path, Rig(truth=FRICTION))
     assert "clamp" not in kinds(log) and "current_limit" not in kinds(log)
+
+
+def test_a_wrap_is_not_restored_from_a_torque_that_flips(tmp_path):
+    # the reply wraps at +-7.5 A, and from 40 s the torque amplifier reads -4x: the torque there would ask for
+    # currents of several periods, so it does not choose the periods; the channel is folded back instead
+    rig = Rig(wrap_period=15.0, torque_fault_from=40.0)
+    log = load(tmp_path, rig)
+    text = note(log, "wrap")
+    assert "wraps around" in text and "folded back into +-7.5 A" in text and "went past" not in text
+    assert float(np.max(np.abs(log.current))) <= 7.5 + 0.05
+    # the fit names the broken stretch rather than trusting it
+    signals, ladder = ladder_of(log)
+    d = ladder[-1].diagnosis
+    assert d.flags and not d.at_noise_floor
+    assert any(signals.time[s.start] >= 38.0 for s in d.stretches)  # the broken stretch is the one flagged
 
 
 def test_a_current_wrapped_past_its_range_is_restored_from_the_torque(tmp_path):
