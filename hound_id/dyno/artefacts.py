@@ -33,6 +33,14 @@ Seen on public actuator logs (``physics-notes.md``, "What real logs look like"):
 
 Without a command channel a flat current with a flat torque is a hold, which is data, and
 nothing is said.
+
+And one that reaches every channel:
+
+* **A stale channel.** One channel updates at a lower rate than the log (a second ADC, a slower
+  bus, a reply refreshed every few loops): it holds each value for a few samples, the holds of
+  nearly one length (the update instants stagger against the log's), while the other channels
+  change at every sample. Its values are placed at their update instants and joined by straight
+  lines; what lag remains is the delay effect's to measure.
 """
 
 from __future__ import annotations
@@ -163,6 +171,70 @@ class Wrap:
     """True when the true current left the encoding range and the jumps were undone by continuity (the
     current then spans more than +-P/2); False when the channel was folded back into +-P/2 (a host that
     added periods to a current within the range)."""
+
+
+#: A channel is stale when at least this share of its samples repeat the one before exactly (a live channel with noise
+#: repeats few; the holds of a channel updated every k samples repeat (k - 1) / k of them) ... Calibrated on
+#: test_polled_rig::test_a_stale_channel_is_found_named_and_aligned and
+#: test_polled_rig::test_a_clean_polled_log_recovers_the_truth_and_names_the_late_current.
+STALE_SHARE = 0.45
+#: ... its holds (the runs of one value) have nearly one length: this share of them lie within one sample of the
+#: median hold (the instants stagger by a sample against the log's) ... Calibrated on
+#: test_polled_rig::test_a_stale_channel_is_found_named_and_aligned and
+#: test_logs::test_an_idle_stretch_at_exactly_zero_is_not_clipping.
+STALE_REGULAR = 0.8
+#: ... and another channel of the log repeats at most this share of its samples (a log written slower than its
+#: channels change repeats none; a logger that holds every channel is a duplicate-row log, not a stale channel).
+#: Calibrated on test_polled_rig::test_a_stale_channel_is_found_named_and_aligned.
+LIVE_SHARE = 0.2
+#: ... and its typical hold is at most this many samples (a second ADC or a slower bus runs a few to tens of times
+#: slower than the log; a value held for hundreds of samples is a commanded staircase, which is data). Calibrated on
+#: test_logs::test_a_current_reading_stuck_at_full_scale_is_clipping_but_a_flat_commanded_step_is_not.
+STALE_MAX_HOLD = 20
+
+
+def repeated_share(x: Array) -> float:
+    """Share of samples that repeat the one before exactly."""
+    d = np.diff(np.asarray(x, float))
+    return float(np.mean(d == 0)) if d.size else 0.0
+
+
+def _holds(x: Array) -> tuple[NDArray[np.intp], NDArray[np.intp]]:
+    """The first sample of each run of one value, and the runs' lengths."""
+    starts = np.flatnonzero(np.concatenate(([True], np.diff(x) != 0)))
+    return starts, np.diff(np.concatenate((starts, [x.size])))
+
+
+def stale_hold(x: Array) -> float | None:
+    """The mean number of samples a stale channel holds each value while it changes (module docstring), or None for a
+    live channel. Holds far longer than the typical one are the signal standing still, not the update rate."""
+    x = np.asarray(x, float)
+    if x.size < 20 or repeated_share(x) < STALE_SHARE:
+        return None
+    holds = _holds(x)[1][:-1]  # the last hold may be cut short by the log's end
+    if holds.size < 5:
+        return None
+    median = float(np.median(holds))
+    typical = np.abs(holds - median) <= 1
+    if not 2 <= median <= STALE_MAX_HOLD or np.mean(typical) < STALE_REGULAR:
+        return None
+    return float(np.mean(holds[typical]))
+
+
+def align_stale(time: Array, x: Array) -> Array:
+    """A stale channel placed at its update instants (the first sample of each hold) and joined by straight lines.
+
+    A hold far longer than the typical one is the signal standing still: it stays flat until one typical hold before
+    the next update, and only then moves to it."""
+    x = np.asarray(x, float)
+    t = np.asarray(time, float)
+    starts, holds = _holds(x)
+    typical = int(round(float(np.median(holds[:-1])))) if holds.size > 1 else 1
+    long = np.flatnonzero(holds[:-1] > 2 * typical + 1)
+    ends = starts[long] + holds[long] - typical  # still standing there, one typical hold before the next update
+    anchors = np.concatenate((starts, ends))
+    order = np.argsort(anchors, kind="stable")
+    return np.interp(t, t[anchors[order]], x[anchors[order]])
 
 
 @dataclass(frozen=True)
@@ -465,6 +537,9 @@ def _asked_current(current: Array, command: Array, rows: NDArray[np.intp], level
 
 __all__ = [
     "Plateau",
+    "align_stale",
+    "repeated_share",
+    "stale_hold",
     "Wrap",
     "at_boundary",
     "find_plateaus",

@@ -72,12 +72,16 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.dyno.artefacts import (
+    LIVE_SHARE,
+    align_stale,
     asked_at_boundary,
     at_boundary,
     find_plateaus,
     find_wraps,
     flipped_at_boundary,
     quantum,
+    repeated_share,
+    stale_hold,
 )
 from hound_id.errors import DynoDataError, SpecError
 
@@ -145,6 +149,7 @@ NOTE_KINDS: tuple[str, ...] = (
     "reply_clamp",
     "reply_flip",
     "duplicate_rows",
+    "stale",
 )
 
 #: Fewest rows a cleaned log may have: ten operating points of a steady-state table, or a burst of ten samples, each a
@@ -591,6 +596,7 @@ def log_from_frame(
     if timed:
         core, rows = _clean_time(core, rows, notes)
         _check_enough(rows.size, rows_read, notes, source)
+        core = _align_stale(core, rows, data, notes)
     command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
     ranges: list[float] = []
     current_limit: float | None = None
@@ -610,6 +616,8 @@ def log_from_frame(
     torque = _orient_torque(core["current"], core["torque"], flip_torque, notes, source, auto_sign)
     positions = rows - 1
     optional = {name: np.take(values, positions) for name, values in data.items() if name not in CORE}
+    if timed:
+        optional = _align_stale(optional, rows, {**data, **core}, notes, STALE_OPTIONAL, core["time"])
     for array, name in ((core["time"], "time"), (core["current"], "current"), (torque, "torque")):
         if array is not data[name]:  # made by the cleaning, so referenced nowhere else (not a view of the frame)
             array.setflags(write=False)
@@ -1062,6 +1070,48 @@ def _finite_rows(
                 )
             )
     return good
+
+
+#: Optional channels checked for staleness (temperature changes slowly by nature, and commands are held by design).
+STALE_OPTIONAL = ("velocity", "position")
+
+
+def _align_stale(
+    channels: dict[str, NDArray[np.float64]],
+    rows: NDArray[np.int64],
+    log: Mapping[str, NDArray[np.float64]],
+    notes: list[CleaningNote],
+    names: Sequence[str] = ("current", "torque"),
+    time: NDArray[np.float64] | None = None,
+) -> dict[str, NDArray[np.float64]]:
+    """Channels that update at a lower rate than the log, placed at their update instants (:mod:`.artefacts`), with a
+    note each; the others unchanged. A channel is stale only while another channel of the log is live."""
+    t = channels["time"] if time is None else time
+    out = dict(channels)
+    measured = [c for c in ("current", "torque", "velocity", "position") if c in log]
+    for name in names:
+        if name not in channels:
+            continue
+        hold = stale_hold(channels[name])
+        if hold is None:
+            continue
+        live = [c for c in measured if c != name and repeated_share(log[c]) <= LIVE_SHARE]
+        if not live:
+            continue
+        out[name] = align_stale(t, channels[name])
+        dt = float(np.median(np.diff(t))) if t.size > 1 else 0.0
+        rate = f" ({1.0 / (hold * dt):.3g} Hz in a {1.0 / dt:.3g} Hz log)" if dt > 0 else ""
+        notes.append(
+            CleaningNote(
+                "stale",
+                0,
+                f"the {name} channel updates every {hold:.3g} samples on average{rate} while {live[0]} changes at "
+                f"every sample: its held values were placed at their update instants and joined by straight lines "
+                f"(it may still lag by up to one update; the 'delay' effect measures what remains)",
+                name,
+            )
+        )
+    return out
 
 
 def _clean_time(

@@ -18,7 +18,8 @@ follows the public actuator logs described in ``physics-notes.md``:
 * the CSV may have a title line, a units row, ``, `` separators, a trailing constant field and
   columns in ms, mA or N.mm, with or without a units row saying so;
 * options: the inertia of rotor and coupling between motor and sensor (seen while the opposing motor changes speed
-  in steps), a torque ADC of coarse counts, and a logger that writes every sample several times.
+  in steps), a torque ADC of coarse counts, a logger that writes every sample several times, and one column
+  that updates on a slower clock of its own (a stale channel).
 
 The truth (:class:`Truth`) is the model the fit should recover: measured torque =
 kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w - inertia dw/dt, with the transducer's filter and lag.
@@ -74,6 +75,8 @@ class Rig:
     speed_steps: bool = False  # the opposing motor steps between speed levels (0.25 s raised-cosine changes)
     torque_quantum: float = 0.0  # N m per count of the torque ADC (0: not rounded)
     repeat: int = 1  # the logger writes every sample this many times
+    stale: str | None = None  # a column that updates at a lower rate, on its own jittered clock ("torque_adc", ...)
+    stale_every: float = 4.0  # polls per update of that column, on average
     seed: int = 0
 
 
@@ -165,13 +168,21 @@ def run(rig: Rig) -> pd.DataFrame:
     if rig.wrap_period is not None:
         p = rig.wrap_period
         reply = np.mod(reply + p / 2, p) - p / 2
+    columns = {"iq_meas": reply, "torque_adc": torque_read, "speed": speed[k]}
+    if rig.stale is not None:  # its own clock: each poll reads the value of the channel's latest update
+        clock = np.cumsum(rig.stale_every * period * (1.0 + 0.3 * rng.uniform(-1, 1, n)))
+        latest = np.searchsorted(polls, clock[clock < polls[-1]])
+        held = np.searchsorted(latest, np.arange(n), side="right") - 1
+        values = columns[rig.stale]
+        columns[rig.stale] = np.where(held >= 0, values[latest[np.maximum(held, 0)]], values[0])
+    reply, torque_read = columns["iq_meas"], columns["torque_adc"]
     out = pd.DataFrame(
         {
             "loop_time": polls - polls[0],
             "iq_meas": reply,
             "iq_cmd": command[k],
             "torque_adc": torque_read,
-            "speed": speed[k],
+            "speed": columns["speed"],
         }
     )
     return out.loc[out.index.repeat(rig.repeat)].reset_index(drop=True) if rig.repeat > 1 else out

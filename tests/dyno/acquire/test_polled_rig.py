@@ -197,6 +197,35 @@ def test_a_wrap_is_not_restored_from_a_torque_that_flips(tmp_path):
     assert any(signals.time[s.start] >= 38.0 for s in d.stretches)  # the broken stretch is the one flagged
 
 
+@pytest.mark.parametrize(
+    ("column", "channel"), [("torque_adc", "torque"), ("iq_meas", "current"), ("speed", "velocity")]
+)
+def test_a_stale_channel_is_found_named_and_aligned(tmp_path, column, channel):
+    # one column updates on its own clock, every 4 polls on average (37.5 Hz in a 150 Hz log), the instants staggered
+    rig = Rig(truth=FRICTION, speed_steps=True, stale=column, stale_every=4.0)
+    log = load(tmp_path, rig)
+    stale = [n for n in log.notes if n.kind == "stale"]
+    assert [n.channel for n in stale] == [channel]
+    hold = float(stale[0].message.split("every ")[1].split(" samples")[0])
+    assert hold == pytest.approx(4.0, rel=0.15)
+    assert stale[0].rows == 0 and log.n >= log.rows_read - 4  # aligned, not refused or cut (a glitch or two aside)
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert fit.value("kt") == pytest.approx(1.15, rel=0.01)
+    assert_not_confidently_wrong(fit, ladder[-1].diagnosis, 1.15)
+    # the error falls against the same model on the channel as read (held values); the speed enters only through
+    # friction's sign and the inertia, so there it need only not rise
+    raw = frame(rig)
+    held = Signals(
+        time=raw["loop_time"].to_numpy(), current=raw["iq_meas"].to_numpy(), velocity=raw["speed"].to_numpy()
+    )
+    before = fit_model(held, raw["torque_adc"].to_numpy(), fit.model)
+    factor = 1.05 if channel == "velocity" else 0.9
+    assert fit.rmse_test < factor * before.rmse_test, (fit.rmse_test, before.rmse_test)
+    # the same rig with every column live: nothing is called stale
+    assert "stale" not in kinds(load(tmp_path, Rig(truth=FRICTION, speed_steps=True), name="live.csv"))
+
+
 def test_a_current_wrapped_past_its_range_is_restored_from_the_torque(tmp_path):
     rig = Rig(wrap_period=15.0)
     log = load(tmp_path, rig)
