@@ -88,6 +88,12 @@ def not_held(ex: Export, uncoupled: str) -> list[str]:
             f"delay: the fitted delay of motors {', '.join(delay)} is the lag between the dyno's current and torque "
             "channels (a measurement lag), not the command-to-torque latency an actuator delay models; none is set"
         )
+    sensed = [m.name for m in ex.bundle.motors if {"lag_tau", "resonance_f0"} & set(m.effects or {})]
+    if sensed:
+        lines.append(
+            f"lag, resonance: the fitted filters of motors {', '.join(sensed)} are the dyno's torque transducer and "
+            "coupling (how the reading follows the shaft torque), not the actuator's; none is set"
+        )
     lines.append(
         "past overspeed a dcmotor holds the torque limit where the back-EMF forces more braking (hound-id's clip "
         "returns that braking torque)"

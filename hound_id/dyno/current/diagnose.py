@@ -31,14 +31,17 @@ the rows it holds out.
 from __future__ import annotations
 
 import math
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
 
+from hound_id.dyno.current import transducer
 from hound_id.dyno.current.effects import REGISTRY, Signals, get, requirements_missing
 from hound_id.dyno.current.fit import (
+    FILTERS,
+    SPECIAL,
     Array,
     Design,
     FitResult,
@@ -123,6 +126,16 @@ ROWS_PER_PARAMETER = 5
 #: Calibrated on test_diagnose::test_noise_only_data_has_nothing_significant.
 ORDER_TRIALS = 511
 SEARCH_TRIALS = 30
+#: Half-width of the differences that screen the residual for the torque channel's dynamics [samples]: two, so the
+#: current's sample-to-sample noise does not swamp the model torque's derivatives. Calibrated on
+#: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise and
+#: test_polled_rig::test_a_transducer_resonance_is_found_named_and_valued.
+DYNAMICS_ROWS = 2
+#: A filter whose frequency or damping lies within this share of the searched range's ends is at its edge: a
+#: resonance at 43 Hz in a 100 Hz log (the range ends at 45 Hz) is the sampling's limit, not a coupling the log
+#: resolves. Calibrated on test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise and
+#: test_polled_rig::test_a_transducer_resonance_is_found_named_and_valued.
+FILTER_EDGE = 0.1
 
 
 @dataclass(frozen=True)
@@ -210,7 +223,7 @@ def noise_floor(residual: Array) -> float:
 
 def _trials(name: str) -> int:
     e = get(name)
-    if not e.hypers:
+    if not e.hypers or name in FILTERS:  # a filter's test is on held-out blocks, not on the best value searched
         return 1
     h = e.hypers[0]
     if h.integer:
@@ -259,6 +272,8 @@ class _Trial:
     unphysical: str | None = None
     wald_free: float = 0.0
     """Wald statistic of the candidate fitted without bounds (to tell 'unphysical' from 'nothing there')."""
+    p_value: float | None = None
+    """The candidate's p-value when its test is not a Wald test (a filter's block-paired test), else None."""
 
 
 def _wald(stats: Stats, cols: list[int], beta: Array, active: np.ndarray, which: list[int]) -> float:
@@ -277,7 +292,7 @@ def _trial(
 ) -> _Trial | str:
     """Add one effect to the fitted model, reusing the model's per-block sums; a string says why not."""
     effect = get(name)
-    model = [m for m in fit.model if m != "delay"]
+    model = [m for m in fit.model if m not in SPECIAL]
     hypers = dict(fit.hypers)
     tried = 1
     rows = design.search
@@ -286,6 +301,9 @@ def _trial(
         found, tried = search_hyper(effect, base, design.torque[rows], shifted.take(rows), residual_search, hypers)
         hypers.update(found)
     C = effect.columns(shifted, hypers)
+    for f in fit.model:
+        if f in FILTERS:  # the candidate's torque reaches the reading through the same transducer
+            C = transducer.apply(f, hypers, shifted.time, C)
     ext = Stats.extended(stats, Z, C, design.torque)
     p, q = Z.shape[1] - 1, C.shape[1]
     cols = list(range(1, p + q + 1))
@@ -332,6 +350,78 @@ def _delay_trial(signals: Signals, torque: Array, fit: FitResult) -> _Trial | st
     return _Trial(trial.values(), dict(trial.hypers), trial.rmse_test**2 * trial.n_test, z2, 1, 1)
 
 
+def _dynamics_trace(signals: Signals, fit: FitResult, floor: float) -> str | None:
+    """Why no filter of the torque channel is worth a trial, or None when the residual shows a trace of one.
+
+    A filter H near unit gain changes the reading by about -a p' - b p'' (p the model's torque, its derivatives
+    smoothed over a few samples: a lag's a = tau, a resonance's a = 2 zeta / w0 and b = 1 / w0^2 less a's square).
+    When the residual's projection on those two columns lowers its mean square by less than half of
+    :data:`MATERIAL` of the noise variance, no filter near the log's can be material, and the costly trials (a
+    search on every row) are skipped with that reason."""
+    t = signals.time
+    p = np.asarray(fit.prediction, float)
+    r = np.asarray(fit.residual, float)
+    if p.size < 2 * DYNAMICS_ROWS + 3:
+        return None
+    k = DYNAMICS_ROWS
+    rate = np.zeros_like(p)
+    rate[k:-k] = (p[2 * k :] - p[: -2 * k]) / np.maximum(t[2 * k :] - t[: -2 * k], 1e-300)
+    curve = np.zeros_like(p)
+    curve[k:-k] = (rate[2 * k :] - rate[: -2 * k]) / np.maximum(t[2 * k :] - t[: -2 * k], 1e-300)
+    D = np.column_stack([rate, curve])
+    beta, _ = solve_normal(D.T @ D, D.T @ r)
+    gain = float(beta @ (D.T @ r)) / p.size
+    if math.isfinite(gain) and gain >= 0.5 * MATERIAL * floor**2:
+        return None
+    return (
+        f"the residual shows no trace of the torque channel's own dynamics: its part along the model torque's first "
+        f"and second derivatives is {_share(max(gain, 0.0), floor**2)} of the noise variance"
+    )
+
+
+def _filter_at_edge(name: str, hypers: Mapping[str, float], signals: Signals) -> str | None:
+    """A sentence when a filter fits only at the edge of the range the log can show (within FILTER_EDGE of a bound):
+    then it is not the transducer's dynamics but something else the filter's shape happens to smooth."""
+    lo, hi = transducer.frequency_range(signals.time)
+    if name == "lag":
+        f = 1.0 / (2 * math.pi * hypers["lag_tau"])
+        values = [("its bandwidth", f, lo, hi, "Hz")]
+    else:
+        d_lo, d_hi = transducer.DAMPING_RANGE
+        values = [
+            ("f0", hypers["resonance_f0"], lo, hi, "Hz"),
+            ("its damping", hypers["resonance_zeta"], d_lo, d_hi, ""),
+        ]
+    for what, value, low, high, unit in values:
+        if value <= low * (1 + FILTER_EDGE) or value >= high / (1 + FILTER_EDGE):
+            return (
+                f"fits only at the edge of what this log can show ({what} {value:.3g}{' ' + unit if unit else ''}, "
+                f"the range being {low:.3g} to {high:.3g}{' ' + unit if unit else ''}): not a transducer's dynamics "
+                "the log can resolve"
+            )
+    return None
+
+
+def _filter_trial(name: str, signals: Signals, torque: Array, fit: FitResult) -> _Trial | str:
+    """The model with a filter of the torque channel added, tested block by block: each time block's held-out sum of
+    squares falls by some amount, and a one-sided Wilcoxon signed-rank test over the blocks asks whether the falls
+    outweigh the rises. A filter has no parameter whose zero means "absent" (its frequency would go to infinity), so
+    no Wald test; ranks, because a filter helps most in the few blocks that hold the current's steps."""
+    from scipy.stats import wilcoxon
+
+    try:
+        trial = fit_model(signals, torque, (*fit.model, name), robust=fit.robust, hypers=fit.hypers)
+    except (FitError, DynoDataError) as err:
+        return str(err)
+    edge = _filter_at_edge(name, trial.hypers, signals)
+    if edge is not None:
+        return edge
+    sizes = np.diff(fit.blocks.edges)
+    gain = np.asarray(fit.block_rmse) ** 2 * sizes - np.asarray(trial.block_rmse) ** 2 * sizes
+    p = 1.0 if not np.any(gain != 0) else float(wilcoxon(gain, alternative="greater").pvalue)
+    return _Trial(trial.values(), dict(trial.hypers), trial.rmse_test**2 * trial.n_test, 0.0, 1, 1, p_value=p)
+
+
 def diagnose(
     signals: Signals, torque: Array, fit: FitResult, *, candidates: Sequence[str] | None = None, alpha: float = ALPHA
 ) -> Diagnosis:
@@ -342,7 +432,7 @@ def diagnose(
     design = Design(signals, torque)
     n = design.torque.size
     shifted = signals.shifted(fit.hypers.get("delay", 0.0))
-    X = design.columns([m for m in fit.model if m != "delay"], fit.hypers, shifted)
+    X = design.model_columns(fit.model, fit.hypers, shifted)
     Z = design.with_ones(X)
     stats = Stats(Z, design.torque, design.blocks)
     cols = list(range(1, Z.shape[1]))
@@ -355,10 +445,13 @@ def diagnose(
     clusters = design.blocks.count
 
     suggestions = []
+    dynamics = _dynamics_trace(signals, fit, floor) if any(n in FILTERS for n in names) and signals.timed else None
     for name in names:
         try:
             if name == "delay":
                 trial = _delay_trial(signals, torque, fit)
+            elif name in FILTERS:
+                trial = dynamics if dynamics is not None else _filter_trial(name, signals, torque, fit)
             else:
                 trial = _trial(name, fit, design, shifted, Z, stats, residual_search)
         except FitError as err:
@@ -370,12 +463,16 @@ def diagnose(
         gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
         material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2 and gain > 0)
         dfd = max(clusters - 1, 1)
-        p = f_pvalue(trial.wald, trial.q, dfd)
+        p = f_pvalue(trial.wald, trial.q, dfd) if trial.p_value is None else trial.p_value
         p_adj = corrected(p, _trials(name), len(names))
         rmse = math.sqrt(trial.cv_sse / n)
         effect = get(name)
         # unphysical only if the effect is there: the fit without bounds passes the same test
-        p_free = corrected(f_pvalue(trial.wald_free, trial.q, dfd), _trials(name), len(names))
+        p_free = (
+            p_adj
+            if trial.p_value is not None
+            else corrected(f_pvalue(trial.wald_free, trial.q, dfd), _trials(name), len(names))
+        )
         unphysical = trial.unphysical if p_free < alpha else None
         verdict = significant(p_adj, material=material, physical=trial.unphysical is None, alpha=alpha)
         if unphysical is not None:

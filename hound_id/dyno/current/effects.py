@@ -6,8 +6,10 @@ finds by search. The model of the measured torque is
 
     torque(t) = sum over effects of  X_e(signals(t - delay); hypers) @ beta_e
 
-``delay`` is the one effect that adds no column: it shifts every input channel,
-because the torque channel lags the current channel.
+``delay``, ``lag`` and ``resonance`` add no column: the delay shifts every input channel,
+because the torque channel lags the current channel; ``lag`` and ``resonance`` pass the
+model's torque through the transducer's own dynamics
+(:mod:`hound_id.dyno.current.transducer`), which filters every column alike.
 
 Conventions shared with :mod:`hound_id.dyno.simulate.current` (same names, same signs):
 eps = 0.01 rad/s and sgn(w) = tanh(w / eps); temperatures in degC relative to
@@ -30,6 +32,7 @@ from typing import Any
 import numpy as np
 from numpy.typing import NDArray
 
+from hound_id.dyno.current.transducer import DAMPING_RANGE, frequency_range, overshoot
 from hound_id.errors import FitError
 from hound_id.parameter import Parameter
 
@@ -433,6 +436,37 @@ def _evidence_inertia(p: Mapping[str, float], s: Signals) -> str:
     )
 
 
+def _filter_grid(count: int) -> Callable[[Signals, Array], Array]:
+    """Candidate frequencies [Hz] spread geometrically over the filter range the log can show."""
+
+    def grid(signals: Signals, residual: Array) -> Array:
+        lo, hi = frequency_range(signals.time)
+        return np.geomspace(lo, hi, count)
+
+    return grid
+
+
+def _evidence_lag(p: Mapping[str, float], s: Signals) -> str:
+    tau = p["lag_tau"]
+    return (
+        f"the torque channel follows the model through a first-order lag of {1e3 * tau:.3g} ms (a bandwidth of "
+        f"{1.0 / (2 * math.pi * tau):.3g} Hz): the transducer's filter smooths every step"
+    )
+
+
+def _evidence_resonance(p: Mapping[str, float], s: Signals) -> str:
+    f0, zeta = p["resonance_f0"], p["resonance_zeta"]
+    ring = (
+        f"a current step overshoots by {overshoot(zeta):.0%} and rings at {f0 * math.sqrt(max(1 - zeta**2, 0)):.3g} Hz"
+        if zeta < 1
+        else "a current step is smoothed without ringing"
+    )
+    return (
+        f"the torque channel follows the model through a second-order resonance at {f0:.3g} Hz with damping "
+        f"{zeta:.2g}: {ring} (the coupling and the transducer between the motor and the reading)"
+    )
+
+
 def _evidence_delay(p: Mapping[str, float], s: Signals) -> str:
     d = p["delay"]
     if d >= 0:
@@ -631,6 +665,38 @@ def _builtin() -> None:
             regressors=lambda s, h: -s.acceleration,
             requires=("velocity", "time"),
             evidence=_evidence_inertia,
+        )
+    )
+    register(
+        Effect(
+            name="lag",
+            physics=(
+                "the torque transducer's amplifier filters its reading: the sensor follows the shaft torque through a "
+                "first-order low-pass, 1 / (1 + s tau), so a step shows as an exponential approach"
+            ),
+            parameters=(),
+            regressors=None,
+            requires=("time",),
+            hypers=(Hyper("lag_tau", "s", lambda s, r: 1.0 / (2 * math.pi * _filter_grid(16)(s, r))[::-1]),),
+            evidence=_evidence_lag,
+        )
+    )
+    register(
+        Effect(
+            name="resonance",
+            physics=(
+                "the coupling between the motor and the torque sensor is a spring with inertia on both sides: the "
+                "sensor follows the shaft torque through a second-order low-pass w0^2 / (s^2 + 2 zeta w0 s + w0^2), "
+                "and a current step makes the reading overshoot and ring at f0"
+            ),
+            parameters=(),
+            regressors=None,
+            requires=("time",),
+            hypers=(
+                Hyper("resonance_f0", "Hz", _filter_grid(12)),
+                Hyper("resonance_zeta", "1", lambda s, r: np.geomspace(*DAMPING_RANGE, 6)),
+            ),
+            evidence=_evidence_resonance,
         )
     )
     register(

@@ -36,6 +36,7 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.dyno.artefacts import noise_sigma, quantum
+from hound_id.dyno.current import transducer
 from hound_id.dyno.current.effects import Effect, Signals, get, requirements_missing
 from hound_id.errors import DynoDataError, FitError
 
@@ -53,6 +54,10 @@ FOLDS = 10
 #: Fewest rows a fit takes (ten operating points; fewer cannot hold out ten folds). Calibrated on
 #: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
 MIN_FIT_ROWS = 10
+#: Filters of the torque channel (:mod:`.transducer`): effects that add no column but pass the others through.
+FILTERS = transducer.FILTERS
+#: Effects that add no column: fit_model handles them apart from the linear search.
+SPECIAL = ("delay", *FILTERS)
 #: Blocks of a log shorter than ten ordinary blocks (a table of tens of operating points, a burst): ten, as many as
 #: folds. Calibrated on test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read and
 #: test_logs::test_clean_small_tables_keep_every_row.
@@ -525,6 +530,15 @@ class Design:
     def with_ones(self, X: Array) -> Array:
         return np.hstack([np.ones((X.shape[0], 1)), X])
 
+    def model_columns(self, model: Sequence[str], hypers: Mapping[str, float], signals: Signals) -> Array:
+        """Columns of the model's linear parameters on every row of (delay-shifted) ``signals``, passed through the
+        model's filters of the torque channel (:mod:`.transducer`)."""
+        X = self.columns([m for m in model if m not in SPECIAL], hypers, signals)
+        for name in model:
+            if name in FILTERS:
+                X = transducer.apply(name, hypers, signals.time, X)
+        return X
+
 
 def parameters_of(model: Sequence[str]) -> list[tuple[Effect, Any]]:
     """(effect, parameter) of every linear parameter of a model, in column order."""
@@ -709,6 +723,139 @@ def estimate_delay(
     return delay, stderr
 
 
+def _filter_hypers(name: str, point: Array) -> dict[str, float]:
+    """The filter's hypers from a search point in log space."""
+    if name == "lag":
+        return {"lag_tau": float(np.exp(point[0]))}
+    return {"resonance_f0": float(np.exp(point[0])), "resonance_zeta": float(np.exp(point[1]))}
+
+
+def _filter_point(name: str, hypers: Mapping[str, float]) -> Array:
+    if name == "lag":
+        return np.log([hypers["lag_tau"]])
+    return np.log([hypers["resonance_f0"], hypers["resonance_zeta"]])
+
+
+def _filter_bounds(name: str, signals: Signals) -> tuple[Array, Array]:
+    """Bounds of the search point in log space: the frequencies the log can show (and the damping range)."""
+    lo, hi = transducer.frequency_range(signals.time)
+    if name == "lag":
+        return np.log([1.0 / (2 * math.pi * hi)]), np.log([1.0 / (2 * math.pi * lo)])
+    d_lo, d_hi = transducer.DAMPING_RANGE
+    return np.log([lo, d_lo]), np.log([hi, d_hi])
+
+
+def _filter_rss(design: Design, X: Array, name: str, hypers: Mapping[str, float]) -> float:
+    """Residual sum of squares of the torque on the filtered columns (and an offset), unbounded least squares."""
+    Z = design.with_ones(transducer.apply(name, hypers, design.signals.time, X))
+    beta, _ = solve(Z, design.torque)
+    r = design.torque - Z @ beta
+    return float(r @ r)
+
+
+class _FilterSearch:
+    """The residual of a model whose filter (and, with ``free_delay``, whose delay) are trial values: the point is
+    the filter's hypers in log space, then the delay [s]."""
+
+    def __init__(
+        self, design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, free_delay: bool
+    ) -> None:
+        self.design, self.model, self.hypers, self.name, self.free_delay = design, model, hypers, name, free_delay
+        signals = design.signals
+        lo, hi = _filter_bounds(name, signals)
+        if free_delay:
+            reach = 1.5 * delay_window(signals)
+            lo, hi = np.append(lo, -reach), np.append(hi, reach)
+        self.lo, self.hi = lo, hi
+        self._fixed_X = (
+            None if free_delay else design.model_columns(model, hypers, signals.shifted(hypers.get("delay", 0.0)))
+        )
+
+    def values(self, point: Array) -> dict[str, float]:
+        p = np.clip(point, self.lo, self.hi)
+        out = _filter_hypers(self.name, p[: p.size - int(self.free_delay)])
+        if self.free_delay:
+            out["delay"] = float(p[-1])
+        return out
+
+    def columns(self, point: Array) -> Array:
+        """The model's columns before this filter, at the point's delay."""
+        if self._fixed_X is not None:
+            return self._fixed_X
+        delay = float(np.clip(point, self.lo, self.hi)[-1])
+        return self.design.model_columns(self.model, self.hypers, self.design.signals.shifted(delay))
+
+    def rss(self, point: Array) -> float:
+        return _filter_rss(self.design, self.columns(point), self.name, {**self.hypers, **self.values(point)})
+
+
+def estimate_filter(
+    design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, *, free_delay: bool = False
+) -> dict[str, float]:
+    """The filter's hypers (``lag_tau``, or ``resonance_f0`` and ``resonance_zeta``) that fit the torque best with the
+    model's columns on every row (a filter needs the rows in sequence), and with ``free_delay`` the delay with them:
+    the candidates of its hypers on a grid (their product for a resonance) at the current delay, then a Nelder-Mead
+    refinement in log space (and the delay) within the range the log can show."""
+    from scipy.optimize import minimize
+
+    search = _FilterSearch(design, model, hypers, name, free_delay)
+    effect = get(name)
+    grids = [np.log(np.unique(h.candidates(design.signals, design.torque))) for h in effect.hypers]
+    if free_delay:
+        grids.append(np.array([float(hypers.get("delay", 0.0))]))
+    points = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(grids), -1).T
+    costs = [search.rss(p) for p in points]
+    start = points[int(np.argmin(costs))]
+    res = minimize(search.rss, start, method="Nelder-Mead", options={"xatol": 1e-3, "fatol": 1e-12, "maxiter": 150})
+    best = res.x if res.fun <= min(costs) else start
+    return search.values(best)
+
+
+def filter_stderr(
+    design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, *, with_delay: bool = False
+) -> dict[str, float]:
+    """Cluster-robust standard errors of a filter's hypers (and of the delay found with it): the prediction's
+    sensitivity to each (central differences, in log space for the filter), the linear parameters beside them, with
+    the time blocks as clusters."""
+    others = [m for m in model if m != name and m != "delay"]
+    search = _FilterSearch(design, others, hypers, name, with_delay)
+    point = _filter_point(name, hypers)
+    if with_delay:
+        point = np.append(point, hypers.get("delay", 0.0))
+    delay = hypers.get("delay", 0.0)
+    X = transducer.apply(name, hypers, design.signals.time, search.columns(point))
+    Z = design.with_ones(X)
+    beta, _ = solve(Z, design.torque)
+    resid = design.torque - Z @ beta
+    J = []
+    for j in range(point.size):
+        step = np.zeros_like(point)
+        step[j] = 1e-3 if j < point.size - int(with_delay) else 1e-2 * max(abs(delay), 1e-4)
+        pred = []
+        for sign in (1.0, -1.0):
+            trial = point + sign * step
+            cols = transducer.apply(
+                name, {**hypers, **search.values(trial)}, design.signals.time, search.columns(trial)
+            )
+            pred.append(design.with_ones(cols) @ beta)
+        J.append((pred[0] - pred[1]) / (2 * step[j]))
+    full = np.column_stack([Z, *J])
+    A = full.T @ full
+    meat = np.zeros_like(A)
+    for rows in design.blocks.slices():
+        score = full[rows].T @ resid[rows]
+        meat += np.outer(score, score)
+    _, A_inv = solve_normal(A, np.zeros(A.shape[0]))
+    cov = A_inv @ meat @ A_inv
+    values = search.values(point)
+    out = {}
+    for j, key in enumerate(values):
+        var = float(cov[Z.shape[1] + j, Z.shape[1] + j])
+        scale = 1.0 if key == "delay" else values[key]  # d value = value d log value
+        out[key] = scale * math.sqrt(var) if var >= 0 else float("nan")
+    return out
+
+
 def _check_model(model: Sequence[str], signals: Signals) -> list[Effect]:
     effects = [get(name) for name in model]
     for e in effects:
@@ -755,9 +902,9 @@ def fit_model(
     fixed = dict(hypers or {})
     delay_stderr = float("nan")
     linear_names = [
-        e.name for e in effects if e.name != "delay" and (not e.hypers or all(h.name in fixed for h in e.hypers))
+        e.name for e in effects if e.name not in SPECIAL and (not e.hypers or all(h.name in fixed for h in e.hypers))
     ]
-    searched = [e for e in effects if e.name != "delay" and e.name not in linear_names]
+    searched = [e for e in effects if e.name not in SPECIAL and e.name not in linear_names]
     has_delay = "delay" in model
     delay = fixed.get("delay", 0.0)
     current = dict(fixed)
@@ -778,6 +925,17 @@ def fit_model(
         delay, delay_stderr = estimate_delay(design, [m for m in model if m != "delay"], current, start=delay)
         current["delay"] = delay
         shifted = signals.shifted(delay)
+    stderr = {"delay": delay_stderr}
+    plain = [m for m in model if m not in SPECIAL]
+    filters = [m for m in model if m in FILTERS]
+    # a filter and a free delay both shift the reading in time: they are found together
+    joint = has_delay and "delay" not in fixed and bool(filters)
+    for name in filters:
+        if joint or not all(h.name in fixed for h in get(name).hypers):
+            others = [m for m in filters if m != name and all(h.name in current for h in get(m).hypers)]
+            current.update(estimate_filter(design, [*plain, *others], current, name, free_delay=joint))
+    delay = current.get("delay", 0.0)
+    shifted = signals.shifted(delay)
     window = delay_window(signals) if has_delay else math.inf
     if abs(delay) > window:
         raise FitError(
@@ -786,8 +944,10 @@ def fit_model(
             "'delay' out",
             delay=delay,
         )
-    X = design.columns([m for m in model if m != "delay"], current, shifted)
-    return _finish(design, model, effects, X, current, has_delay, delay_stderr, robust)
+    X = design.model_columns(model, current, shifted)
+    for name in filters:
+        stderr.update(filter_stderr(design, model, current, name, with_delay=joint))
+    return _finish(design, model, effects, X, current, stderr, robust)
 
 
 def reversed_sensor_error(kt: float) -> DynoDataError:
@@ -920,8 +1080,7 @@ def _finish(
     effects: list[Effect],
     X: Array,
     hypers: Mapping[str, float],
-    has_delay: bool,
-    delay_stderr: float,
+    hyper_stderr: Mapping[str, float],
     robust: bool,
 ) -> FitResult:
     y = design.torque
@@ -989,7 +1148,7 @@ def _finish(
             params[par.name] = Estimate(float(beta[col]), float(stderr[col]), par.unit, e.name, at)
             col += 1
         for h in e.hypers:
-            err = delay_stderr if h.name == "delay" else float("nan")
+            err = float(hyper_stderr.get(h.name, float("nan")))
             params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name)
     k_all = p + sum(len(e.hypers) for e in effects)
     loglik_term = n * math.log(max(rss / max(n, 1), 1e-300))

@@ -5,7 +5,7 @@ motor under test sweeps its current (triangular ramps and short steps beyond the
 application's maximum current). The transducer torque is, with ``sgn(w) = tanh(w / eps)``
 and ``eps = SIGN_EPS = 0.01 rad/s``::
 
-    measured(t) = tau(t - delay) + offset + noise,     noise ~ N(0, noise_std^2), white
+    measured(t) = H[tau](t - delay) + offset + noise,     noise ~ N(0, noise_std^2), white
     tau = kt i
           - k_sat i |i|                                          saturation
           - k_sat3 i^3                                           saturation_cubic
@@ -20,6 +20,12 @@ and ``eps = SIGN_EPS = 0.01 rad/s``::
                                                                  cogging, N = cogging_order
           + i (ripple_sin sin(M theta) + ripple_cos cos(M theta))  ripple, M = ripple_order
           - inertia dw/dt                                        inertia (rotor and coupling before the sensor)
+
+``H`` is the transducer's own dynamics, the identity unless simulated: "lag", a first-order
+low-pass 1 / (1 + s lag_tau), and "resonance", a second-order one
+w0^2 / (s^2 + 2 resonance_zeta w0 s + w0^2), w0 = 2 pi resonance_f0 (lag first when both); they
+are integrated by the trapezoidal rule on a grid ten times finer than the log's (at least
+10 kHz), from rest at the first torque, and read at the sample times.
 
 ``offset`` is the effect "offset" and ``delay`` the effect "delay": the torque channel
 lags the current channel, so the torque logged at time t is the physical torque at
@@ -75,6 +81,8 @@ EFFECTS: tuple[str, ...] = (
     "ripple",
     "thermal",
     "inertia",
+    "lag",
+    "resonance",
     "delay",
 )
 
@@ -94,6 +102,8 @@ EFFECT_PARAMETERS: Mapping[str, tuple[str, ...]] = MappingProxyType(
         "ripple": ("ripple_sin", "ripple_cos"),
         "thermal": ("kt_temp_coeff",),
         "inertia": ("inertia",),
+        "lag": ("lag_tau",),
+        "resonance": ("resonance_f0", "resonance_zeta"),
         "delay": ("delay",),
     }
 )
@@ -139,6 +149,9 @@ PARAMETER_UNITS: Mapping[str, str] = MappingProxyType(
         "ripple_order": "1/rev",
         "kt_temp_coeff": "N m/A/K",
         "inertia": "kg m^2",
+        "lag_tau": "s",
+        "resonance_f0": "Hz",
+        "resonance_zeta": "1",
         "delay": "s",
         "noise_std": "N m",
     }
@@ -174,6 +187,10 @@ _RIPPLE_PHASE = 0.9  # rad
 _RIPPLE_ORDER = 42
 _TEMP_COEFF = -0.0011  # 1/K, NdFeB (notes: -0.09..-0.12 %/K)
 _DELAY = 0.005  # s (notes: 1-15 ms)
+_LAG_TAU = 0.002  # s: a transducer amplifier's filter of 80 Hz (assumed)
+_RESONANCE = (60.0, 0.1)  # Hz and damping ratio: a torque flange's coupling mode (assumed)
+#: The transducer's dynamics are integrated on a grid this fine at least, and ten times the log's rate [Hz].
+FILTER_GRID_HZ = 10_000.0
 _INERTIA_FRACTION = 1.3e-4  # kg m^2 per N m of peak torque: rotor, coupling and transducer flange before the sensor,
 # 1e-3 kg m^2 for the default 7.7 N m motor (assumed)
 _KNEE_FRACTION = 0.4  # knee current / max_current
@@ -392,9 +409,10 @@ def typical_truth(effects: Sequence[str], motor: SimMotor = SimMotor()) -> dict[
     coulomb 1 % P; stribeck 0.4 coulomb with stribeck_speed 3 rad/s; viscous 1 % P at 40 rad/s;
     gear_friction 0.04 kt; cogging order 24 with harmonics of 0.8 % and 0.24 % P; ripple order 42 with
     amplitude 0.5 % kt per amp; kt_temp_coeff -0.0011 kt per K (NdFeB); inertia 1.3e-4 kg m^2 per N m of P;
-    delay 5 ms. The chosen saturation forms together make the torque at max_current 20 % below kt max_current, shared
-    equally (the knee sits at 0.4 max_current). Parameters of effects not chosen are 0; shape
-    parameters (knee_current, stribeck_speed, cogging_order, ripple_order) keep their nominal value.
+    lag 2 ms; resonance at 60 Hz with damping 0.1; delay 5 ms. The chosen saturation forms together make the torque
+    at max_current 20 % below kt max_current, shared equally (the knee sits at 0.4 max_current). Parameters of effects
+    not chosen are 0; shape parameters (knee_current, stribeck_speed, cogging_order, ripple_order) keep their nominal
+    value.
 
     Args:
         effects: Effect names from ``EFFECTS``.
@@ -431,6 +449,9 @@ def typical_truth(effects: Sequence[str], motor: SimMotor = SimMotor()) -> dict[
         "ripple_cos": ripple * math.sin(_RIPPLE_PHASE),
         "kt_temp_coeff": _TEMP_COEFF * kt,
         "inertia": _INERTIA_FRACTION * peak,
+        "lag_tau": _LAG_TAU,
+        "resonance_f0": _RESONANCE[0],
+        "resonance_zeta": _RESONANCE[1],
         "delay": _DELAY,
     }
     truth = {p: (values[p] if e in chosen else 0.0) for e in EFFECTS for p in EFFECT_PARAMETERS[e]}
@@ -464,12 +485,41 @@ def _merge_truth(base: dict[str, float], overrides: Mapping[str, float], effects
             )
     for key in ("kt", "knee_current", "stribeck_speed"):
         _check_finite(truth[key], f"truth[{key!r}]", positive=True)
-    for key in ("delay", "noise_std"):
+    for key in ("delay", "noise_std", "lag_tau", "resonance_f0", "resonance_zeta"):
         _check_finite(truth[key], f"truth[{key!r}]", nonnegative=True)
+    if truth["resonance_f0"] > 0 and truth["resonance_zeta"] <= 0:
+        raise DynoDataError(
+            f"truth['resonance_zeta']: found {truth['resonance_zeta']:g}, expected a positive damping ratio",
+            parameter="resonance_zeta",
+        )
     for key in ("cogging_order", "ripple_order"):
         if truth[key] < 1 or truth[key] != round(truth[key]):
             raise DynoDataError(f"truth[{key!r}]: found {truth[key]:g}, expected a positive integer", parameter=key)
     return truth
+
+
+def _sensor_dynamics(
+    tau: NDArray[np.float64], rate: float, params: Mapping[str, float], dynamics: Sequence[str]
+) -> NDArray[np.float64]:
+    """The torque as the transducer reads it: each of ``dynamics`` ("lag", then "resonance") integrated by the
+    trapezoidal rule (Tustin; no added delay, and at a grid ten times the log's the error is far below any noise), from
+    rest at the first value."""
+    from scipy.signal import cont2discrete, lfilter, lfilter_zi, ss2tf
+
+    out = np.asarray(tau, dtype=np.float64)
+    for name in dynamics:
+        if name == "lag":
+            tc = params["lag_tau"]
+            system = (np.array([[-1.0 / tc]]), np.array([[1.0 / tc]]), np.array([[1.0]]), np.array([[0.0]]))
+        else:
+            w0, zeta = 2 * math.pi * params["resonance_f0"], params["resonance_zeta"]
+            A = np.array([[0.0, 1.0], [-(w0**2), -2.0 * zeta * w0]])
+            system = (A, np.array([[0.0], [w0**2]]), np.array([[1.0, 0.0]]), np.array([[0.0]]))
+        Ad, Bd, Cd, Dd, _ = cont2discrete(system, 1.0 / rate, method="bilinear")
+        b, a = ss2tf(Ad, Bd, Cd, Dd)
+        b, a = np.asarray(b, float).ravel() / a[0], np.asarray(a, float) / a[0]
+        out = lfilter(b, a, out, zi=lfilter_zi(b, a) * out[0])[0]
+    return out
 
 
 def smooth_sign(velocity: ArrayLike) -> NDArray[np.float64]:
@@ -750,7 +800,18 @@ def simulate(
         temperature = np.interp(time, grid, grid_temp)
 
     delay = params["delay"]
-    if delay > 0:
+    dynamics = [e for e in ("lag", "resonance") if e in chosen]
+    if dynamics:  # the transducer's dynamics on a fine grid, read at the sample times
+        fine_rate = max(FILTER_GRID_HZ, 10.0 * rate)
+        fine = np.arange(int(math.floor(sched.duration * fine_rate + 1e-9)) + 1, dtype=np.float64) / fine_rate
+        lagged = fine - delay
+        w_lag, theta_lag = sched.speed_and_position(lagged)
+        temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
+        tau_fine = physical_torque(
+            sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged)
+        )
+        tau = np.interp(time, fine, _sensor_dynamics(tau_fine, fine_rate, params, dynamics))
+    elif delay > 0:
         lagged = time - delay
         w_lag, theta_lag = sched.speed_and_position(lagged)
         temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)

@@ -6,7 +6,9 @@ follows the public actuator logs described in ``physics-notes.md``:
 
 * a host loop polls the drive at 100-200 Hz with a jittered period; the drive's current reply
   describes the previous loop (``current_late``), so the current lags the torque by one loop;
-* the torque transducer is a second-order (Butterworth) low-pass, and its noise is AR(1);
+* the torque transducer is a second-order (Butterworth) low-pass, and its noise is AR(1); options: the
+  coupling's torsional mode (a lightly damped resonance the reading rings at after a step) and a
+  first-order amplifier filter, each integrated on the physics grid;
 * the current reply is quantised, encoded in a fixed range (clamped, or wrapped around);
 * the driver limits the current while the command keeps rising; the reply's range may end below
   the driver's limit, and the first reply past it may come back from the other end;
@@ -58,6 +60,9 @@ class Rig:
     constant_current: float | None = None  # A: one held current instead of a sweep
     current_loop_tau: float = 0.0015  # s
     torque_filter_hz: float = 80.0  # transducer bandwidth
+    resonance_hz: float | None = None  # the coupling's torsional mode between motor and sensor
+    resonance_zeta: float = 0.15
+    lag_ms: float | None = None  # a first-order filter of the transducer's amplifier
     torque_noise: float = 0.03  # N m
     torque_noise_rho: float = 0.85  # AR(1) correlation per loop
     current_noise: float = 0.02  # A
@@ -85,6 +90,27 @@ def _butter2(x: np.ndarray, cutoff: float, rate: float) -> np.ndarray:
 
     b, a = butter(2, cutoff / (rate / 2))
     return lfilter(b, a, x - x[0]) + x[0]
+
+
+def _mode(x: np.ndarray, hz: float, zeta: float, rate: float) -> np.ndarray:
+    """A spring-mass mode driven by x (unit gain at rest): semi-implicit Euler on the physics grid, its own method."""
+    w0, dt = 2 * np.pi * hz, 1.0 / rate
+    out = np.empty_like(x)
+    pos, vel = float(x[0]), 0.0
+    for j, u in enumerate(x.tolist()):
+        vel += dt * (w0 * w0 * (u - pos) - 2 * zeta * w0 * vel)
+        pos += dt * vel
+        out[j] = pos
+    return out
+
+
+def _first_order(x: np.ndarray, tau: float, rate: float) -> np.ndarray:
+    out = np.empty_like(x)
+    y, a = float(x[0]), 1.0 / (tau * rate)
+    for j, u in enumerate(x.tolist()):
+        y += a * (u - y)
+        out[j] = y
+    return out
 
 
 def run(rig: Rig) -> pd.DataFrame:
@@ -132,6 +158,10 @@ def run(rig: Rig) -> pd.DataFrame:
         - tr.inertia * accel
     )
     sensed = _butter2(torque, rig.torque_filter_hz, FINE_HZ)
+    if rig.resonance_hz is not None:
+        sensed = _mode(sensed, rig.resonance_hz, rig.resonance_zeta, FINE_HZ)
+    if rig.lag_ms is not None:
+        sensed = _first_order(sensed, rig.lag_ms / 1e3, FINE_HZ)
 
     # the host loop: jittered polls
     period = 1.0 / rig.rate_hz

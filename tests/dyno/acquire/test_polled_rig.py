@@ -105,6 +105,42 @@ def test_the_delay_is_signed_and_both_signs_are_named(tmp_path, rig, low, high, 
     assert top.significant and words in top.reason
 
 
+# --- the transducer's own dynamics: a resonance of the coupling, a first-order amplifier filter -----------------
+
+#: A 500 Hz host loop (the reply still one loop late, the loop jittered), the transducer's Butterworth out of the way.
+FAST = {"rate_hz": 500.0, "seconds": 30.0, "torque_filter_hz": 1500.0}
+
+
+def test_a_transducer_resonance_is_found_named_and_valued(tmp_path):
+    rig = Rig(truth=FRICTION, resonance_hz=25.0, resonance_zeta=0.15, **FAST)
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    assert ladder[1].added == "resonance"  # the largest missing effect: every current step rings
+    reason = next(s.reason for s in ladder[0].diagnosis.suggestions if s.effect == "resonance")
+    assert "second-order resonance at" in reason and "rings at" in reason
+    fit = ladder[-1].fit
+    assert {"resonance", "delay", "coulomb", "gear_friction"} <= set(fit.model)
+    assert fit.value("resonance_f0") == pytest.approx(25.0, rel=0.15)
+    assert fit.value("resonance_zeta") == pytest.approx(0.15, rel=0.15)
+    assert fit.parameters["resonance_f0"].stderr > 0 and fit.parameters["resonance_zeta"].stderr > 0
+    assert -0.003 < fit.value("delay") < -0.001  # one 2 ms loop late, found with the resonance
+    assert fit.value("kt") == pytest.approx(1.15, rel=0.003)
+    # the error falls to the transducer's noise (AR(1), 0.03 N m), from 26x that without the resonance
+    assert ladder[0].fit.rmse_test > 20 * rig.torque_noise
+    assert fit.rmse_test < 1.6 * rig.torque_noise
+
+
+def test_a_first_order_transducer_lag_is_found_and_valued(tmp_path):
+    rig = Rig(truth=FRICTION, lag_ms=6.0, current_late=False, **FAST)
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert "lag" in fit.model, [s.added for s in ladder]
+    assert fit.value("lag_tau") == pytest.approx(0.006, rel=0.15)
+    assert fit.value("kt") == pytest.approx(1.15, rel=0.003)
+    assert fit.rmse_test < 1.6 * rig.torque_noise
+
+
 def test_a_delay_outside_its_window_is_refused(tmp_path):
     log = load(tmp_path, Rig())
     signals = Signals.from_log(log)

@@ -27,7 +27,8 @@ EPS = 0.01  # rad/s, sgn(w) = tanh(w / EPS)
 ALL_PARAMETERS = {
     "kt", "k_sat", "k_sat3", "k_knee", "knee_current", "offset", "coulomb", "viscous", "stribeck",
     "stribeck_speed", "gear_friction", "cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2",
-    "cogging_order", "ripple_sin", "ripple_cos", "ripple_order", "kt_temp_coeff", "inertia", "delay", "noise_std",
+    "cogging_order", "ripple_sin", "ripple_cos", "ripple_order", "kt_temp_coeff", "inertia", "lag_tau", "resonance_f0",
+    "resonance_zeta", "delay", "noise_std",
 }  # fmt: skip
 # a short plan for property tests (a few thousand rows)
 SHORT = TestPlan(speeds=(-5.0, 1.0, 8.0), current_levels=2, plateau_time=0.4, pause_time=0.2, hold_time=0.1,
@@ -84,11 +85,12 @@ def column(log, name):
 def test_effect_names():
     assert EFFECTS == (
         "linear", "saturation", "saturation_cubic", "saturation_knee", "offset", "coulomb", "viscous", "stribeck",
-        "gear_friction", "cogging", "ripple", "thermal", "inertia", "delay",
+        "gear_friction", "cogging", "ripple", "thermal", "inertia", "lag", "resonance", "delay",
     )  # fmt: skip
     assert set(EFFECT_PARAMETERS) == set(EFFECTS)
-    # every additive effect is checked below; inertia, whose formula needs the speed's derivative, in its own test
-    assert set(CONTRIBUTION) == set(EFFECTS) - {"linear", "delay", "inertia"}
+    # every additive effect is checked below; inertia, whose formula needs the speed's derivative, and the transducer's
+    # filters in their own tests
+    assert set(CONTRIBUTION) == set(EFFECTS) - {"linear", "delay", "inertia", "lag", "resonance"}
 
 
 def test_truth_has_every_parameter():
@@ -264,7 +266,8 @@ def test_fractional_delay_interpolates():
 
 
 def test_physical_torque_matches_the_log():
-    log = simulate(tuple(e for e in EFFECTS if e not in ("delay", "inertia")), noise_std=0.0)  # inertia: own test
+    # inertia and the transducer's filters: own tests
+    log = simulate(tuple(e for e in EFFECTS if e not in ("delay", "inertia", "lag", "resonance")), noise_std=0.0)
     f = log.frame
     tau = physical_torque(f.current, f.velocity, f.position, f.temperature, log.truth)
     assert np.allclose(f.torque.to_numpy(), tau + log.truth["offset"], rtol=0.0, atol=1e-12)
@@ -492,6 +495,28 @@ def test_bad_motor_and_scale():
         SimMotor(kt=0.0)
     with pytest.raises(HoundIdError, match=r"scale factor"):
         SimMotor().scaled(-1.0)
+
+
+@pytest.mark.parametrize("effects", [("lag",), ("resonance",), ("lag", "resonance")])
+def test_the_transducer_filters_agree_with_the_fits_discretisation(effects):
+    """The simulator integrates the transducer on a 10 kHz grid by the trapezoidal rule; the fit filters the log's own
+    samples exactly for straight lines between them (hound_id.dyno.current.transducer). On the unfiltered torque of the
+    same run they agree to far below the typical noise (0.2 % of peak torque), steps and all."""
+    from hound_id.dyno.current.transducer import apply
+
+    plan = TestPlan(shape="ramps_and_steps")
+    a = simulate(("linear", *effects), plan=plan, seed=3, noise_std=0.0, truth={"delay": 0.0})
+    b = simulate(("linear",), plan=plan, seed=3, noise_std=0.0, truth={"delay": 0.0})
+    t, raw = b.frame["time"].to_numpy(), b.frame["torque"].to_numpy()
+    filtered = raw
+    for name in effects:
+        filtered = apply(name, a.truth, t, filtered)
+    diff = a.frame["torque"].to_numpy() - filtered
+    assert np.sqrt(np.mean(diff**2)) < 0.002 * a.motor.peak_torque
+    # one filter after the other on samples: the lag's output is not straight between samples just after a step
+    assert np.max(np.abs(diff)) < (0.02 if len(effects) > 1 else 0.002) * a.motor.peak_torque
+    # and the filter is there: the reading differs from the shaft torque by far more at the steps
+    assert np.max(np.abs(a.frame["torque"].to_numpy() - raw)) > 0.05 * a.motor.peak_torque
 
 
 def test_inertia_takes_j_times_the_acceleration_during_speed_changes():
