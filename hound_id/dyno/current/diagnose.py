@@ -133,9 +133,14 @@ SEARCH_TRIALS = 30
 DYNAMICS_ROWS = 2
 #: A filter whose frequency or damping lies within this share of the searched range's ends is at its edge: a
 #: resonance at 43 Hz in a 100 Hz log (the range ends at 45 Hz) is the sampling's limit, not a coupling the log
-#: resolves. Calibrated on test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise and
+#: resolves. Calibrated on test_polled_rig::test_a_transducer_the_log_cannot_resolve_gives_no_filter and
 #: test_polled_rig::test_a_transducer_resonance_is_found_named_and_valued.
 FILTER_EDGE = 0.1
+#: A filter is added only when each of its values has a standard error of at most this share of it (2 sigma from
+#: zero): a filter that helps but whose time constant the log cannot pin down gives no number. Calibrated on
+#: test_polled_rig::test_a_first_order_transducer_lag_is_found_and_valued and
+#: test_polled_rig::test_a_transducer_the_log_cannot_resolve_gives_no_filter.
+FILTER_DETERMINED = 0.5
 
 
 @dataclass(frozen=True)
@@ -416,6 +421,13 @@ def _filter_trial(name: str, signals: Signals, torque: Array, fit: FitResult) ->
     edge = _filter_at_edge(name, trial.hypers, signals)
     if edge is not None:
         return edge
+    for h in get(name).hypers:
+        est = trial.parameters[h.name]
+        if not est.stderr <= FILTER_DETERMINED * est.value:
+            return (
+                f"its {h.name} = {est.value:.3g} +- {est.stderr:.2g} {h.unit} is not determined by this log (the "
+                f"standard error is more than {FILTER_DETERMINED:.0%} of it): no value to report"
+            )
     sizes = np.diff(fit.blocks.edges)
     gain = np.asarray(fit.block_rmse) ** 2 * sizes - np.asarray(trial.block_rmse) ** 2 * sizes
     p = 1.0 if not np.any(gain != 0) else float(wilcoxon(gain, alternative="greater").pvalue)

@@ -141,6 +141,18 @@ def test_a_first_order_transducer_lag_is_found_and_valued(tmp_path):
     assert fit.rmse_test < 1.6 * rig.torque_noise
 
 
+def test_a_transducer_the_log_cannot_resolve_gives_no_filter(tmp_path):
+    # a coupling mode at 70 Hz in a 150 Hz log: past the 67 Hz the log can show, so no resonance value is reported
+    rig = Rig(truth=FRICTION, resonance_hz=70.0, resonance_zeta=0.15)
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    fit = ladder[-1].fit
+    assert "resonance" not in fit.model
+    why = " ".join(s for step in ladder for s in step.diagnosis.skipped if s.startswith("resonance"))
+    assert "edge of what this log can show" in why or "not determined" in why or "no trace" in why, why
+    assert_not_confidently_wrong(fit, ladder[-1].diagnosis, 1.15)
+
+
 def test_a_delay_outside_its_window_is_refused(tmp_path):
     log = load(tmp_path, Rig())
     signals = Signals.from_log(log)
