@@ -402,8 +402,13 @@ def _runs(mask: NDArray[np.bool_]) -> list[tuple[int, int]]:
     return [(int(a), int(b)) for a, b in zip(edges[::2], edges[1::2], strict=True)]
 
 
-def find_plateaus(current: Array, torque: Array, command: Array | None = None) -> list[Plateau]:
-    """Clamped replies and driver current limits at either extreme of the current (module docstring)."""
+def find_plateaus(
+    current: Array, torque: Array, command: Array | None = None, range_end: float | None = None
+) -> list[Plateau]:
+    """Clamped replies and driver current limits at either extreme of the current (module docstring).
+
+    ``range_end``: where the reply's encoding range ends [A], when a wrap-around showed it; a plateau there is the
+    reply's range, not the driver's limit."""
     x = np.asarray(current, float)
     y = np.asarray(torque, float)
     if x.size < PLATEAU_MIN_RUN:
@@ -436,8 +441,15 @@ def find_plateaus(current: Array, torque: Array, command: Array | None = None) -
         if _torque_goes_past(x, y, rows, level, sigma_y, k_scale):
             found.append(Plateau("clamp", level, rows, (lo, hi), cmd_span, longest))
             continue
+        at_range_end = range_end is not None and abs(abs(level) - range_end) <= max(tol, BOUNDARY_SHARE * range_end)
+        # a pile at the top tells a reply's range without a command, on a channel that is noisy elsewhere
+        ceiling = _ceiling(x[rows], level) if (asked is not None or sigma_x >= max(quantum(x), 1e-300)) else None
+        if at_range_end or (asked is None and ceiling is not None):
+            top = level if ceiling is None else ceiling
+            excess = _excess(x, y, rows, top)
+            found.append(Plateau("reply_clamp", top, rows, (lo, hi), cmd_span, longest, asked, excess))
+            continue
         if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
-            ceiling = _ceiling(x[rows], level)
             if ceiling is not None:
                 excess = _excess(x, y, rows, ceiling)
                 found.append(Plateau("reply_clamp", ceiling, rows, (lo, hi), cmd_span, longest, asked, excess))

@@ -30,8 +30,13 @@ if TYPE_CHECKING:
 
 #: Cleaning notes that are information, not warnings (shown as ``note:`` outside ``--json``).
 NOTE_KINDS = ("unit", "format", "window")
-#: Cleaning notes that show the current reply cut off at the end of its range (the peak-torque advice names the reply).
+#: Cleaning notes that show the current reply cut off at the end of its range (the peak-torque advice names the reply);
+#: a wrap-around does when its boundary rows were removed (folded back, not restored from the torque).
 REPLY_CUT = ("clamp", "reply_clamp")
+
+
+def _cuts_reply(note: Any) -> bool:
+    return bool(note.kind in REPLY_CUT or (note.kind == "wrap" and note.rows > 0))
 
 
 @dataclass(frozen=True)
@@ -265,7 +270,7 @@ def fit_current(
         log.rows_read,
         current_limit=log.current_limit,
         time=signals.time if signals.timed else None,
-        reply_range=log.current_range if any(n.kind in REPLY_CUT for n in log.notes) else None,
+        reply_range=log.current_range if any(_cuts_reply(n) for n in log.notes) else None,
     )
     report["current_range"] = log.current_range
     if left_out:

@@ -72,6 +72,7 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.dyno.artefacts import (
+    BOUNDARY_SHARE,
     LIVE_SHARE,
     align_stale,
     asked_at_boundary,
@@ -1346,13 +1347,12 @@ def _undo_wraps(
     boundary = at_boundary(unwrapped, wrap)
     count = int(np.count_nonzero(boundary))
     asked = asked_at_boundary(unwrapped, None if command is None else command[rows - 1], boundary, half)
-    limit: float | None = None
     capped = ""
     if asked is not None and asked > 1.05 * half:
-        limit = half
+        # the reply cannot say more than its range, whatever the driver gives: no driver limit is claimed
         capped = (
             f"; there the command asks for {asked:.3g} A (median, from the command-current relation elsewhere), "
-            f"so the current is capped at {half:.4g} A (the driver's limit or the reply's range)"
+            f"and the reply cannot say more than {half:.4g} A (its range; the driver may give more)"
         )
     notes.append(
         CleaningNote(
@@ -1364,7 +1364,7 @@ def _undo_wraps(
         )
     )
     data, rows = _keep(data, rows, ~boundary)
-    return data, rows, limit
+    return data, rows, None
 
 
 def _current_plateaus(
@@ -1380,7 +1380,7 @@ def _current_plateaus(
     limit: float | None = None
     cmd = None if command is None else command[rows - 1]
     keep = np.ones(rows.size, dtype=bool)
-    plateaus = find_plateaus(current, torque, cmd)
+    plateaus = find_plateaus(current, torque, cmd, ranges[0] if ranges else None)
     for plateau in plateaus:
         lo, hi = plateau.torque_span
         count = int(plateau.rows.size)
@@ -1388,11 +1388,19 @@ def _current_plateaus(
             exact = int(np.count_nonzero(current[plateau.rows] == plateau.level))
             if ranges is not None:
                 ranges.append(abs(plateau.level))
+            if plateau.asked is not None:
+                why = (
+                    f"while the command asks for {plateau.asked:.3g} A (median there, from the command-current "
+                    "relation elsewhere in the log)"
+                )
+            elif ranges and abs(abs(plateau.level) - ranges[0]) <= BOUNDARY_SHARE * ranges[0] + 1e-12:
+                why = f"at the end of the range its wrap-around shows (+-{ranges[0]:.4g} A)"
+            else:
+                why = "while it is noisy elsewhere (a pile at the top of the readings, none beyond)"
             head = (
                 f"the current reply is held at {plateau.level:.4g} A, the top of its range, in {_plural(count, 'row')} "
-                f"({exact} on exactly that value) while the command asks for {plateau.asked:.3g} A (median there, from "
-                "the command-current relation elsewhere in the log): the reply's encoding range ends there (a protocol "
-                "clamp), not the driver; "
+                f"({exact} on exactly that value) {why}: the reply's encoding range ends there (a protocol clamp), not "
+                "the driver; "
             )
             beyond = "" if plateau.excess is None else f" ({100 * plateau.excess:+.2g} % of what the level makes)"
             if plateau.usable:

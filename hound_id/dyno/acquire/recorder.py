@@ -577,6 +577,11 @@ def record(
                 time.sleep(due - now)
             elif now - due > period:  # late by more than a period: skip to the next tick due in the future
                 skip = int((now - due) / period)
+                if duration is not None:  # ticks past the end of the run are not missed: they were never due
+                    skip = min(skip, max(math.ceil(duration / period - 1e-9) - tick, 0))
+                    if skip == 0:
+                        status = "complete"
+                        break
                 with state.lock:
                     state.skip(skip)
                 tick += skip

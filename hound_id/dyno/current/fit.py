@@ -745,6 +745,14 @@ def _filter_bounds(name: str, signals: Signals) -> tuple[Array, Array]:
     return np.log([lo, d_lo]), np.log([hi, d_hi])
 
 
+def _filter_held(name: str, hypers: Mapping[str, float], signals: Signals) -> set[str]:
+    """The filter's hypers held at the end of the range the log can show (a value there is a bound, not a finding)."""
+    lo, hi = _filter_bounds(name, signals)
+    point = _filter_point(name, hypers)
+    keys = [h.name for h in get(name).hypers]
+    return {k for k, p, a, b in zip(keys, point, lo, hi, strict=True) if p <= a + 1e-3 or p >= b - 1e-3}
+
+
 def _filter_rss(design: Design, X: Array, name: str, hypers: Mapping[str, float]) -> float:
     """Residual sum of squares of the torque on the filtered columns (and an offset), unbounded least squares."""
     Z = design.with_ones(transducer.apply(name, hypers, design.signals.time, X))
@@ -945,9 +953,11 @@ def fit_model(
             delay=delay,
         )
     X = design.model_columns(model, current, shifted)
+    held: set[str] = set()
     for name in filters:
         stderr.update(filter_stderr(design, model, current, name, with_delay=joint))
-    return _finish(design, model, effects, X, current, stderr, robust)
+        held |= _filter_held(name, current, signals)
+    return _finish(design, model, effects, X, current, stderr, robust, held)
 
 
 def reversed_sensor_error(kt: float) -> DynoDataError:
@@ -1082,6 +1092,7 @@ def _finish(
     hypers: Mapping[str, float],
     hyper_stderr: Mapping[str, float],
     robust: bool,
+    hyper_held: set[str] | None = None,
 ) -> FitResult:
     y = design.torque
     n = y.size
@@ -1149,7 +1160,8 @@ def _finish(
             col += 1
         for h in e.hypers:
             err = float(hyper_stderr.get(h.name, float("nan")))
-            params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name)
+            held = h.name in (hyper_held or set())
+            params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name, held)
     k_all = p + sum(len(e.hypers) for e in effects)
     loglik_term = n * math.log(max(rss / max(n, 1), 1e-300))
     return FitResult(
