@@ -260,6 +260,8 @@ class Plateau:
     excess: float | None = None
     """For a reply clamp, the median torque there beyond what the level makes (a line through the ramp up to it), as a
     share of that torque; None without a ramp to compare with."""
+    at_range_end: bool = False
+    """For a reply clamp, whether its level is the end of the range a wrap-around showed."""
 
     @property
     def usable(self) -> bool:
@@ -444,17 +446,13 @@ def find_plateaus(
         at_range_end = range_end is not None and abs(abs(level) - range_end) <= max(tol, BOUNDARY_SHARE * range_end)
         # a pile at the top tells a reply's range without a command, on a channel that is noisy elsewhere
         ceiling = _ceiling(x[rows], level) if (asked is not None or sigma_x >= max(quantum(x), 1e-300)) else None
-        if at_range_end or (asked is None and ceiling is not None):
+        if at_range_end or ceiling is not None:
             top = level if ceiling is None else ceiling
             excess = _excess(x, y, rows, top)
-            found.append(Plateau("reply_clamp", top, rows, (lo, hi), cmd_span, longest, asked, excess))
+            found.append(Plateau("reply_clamp", top, rows, (lo, hi), cmd_span, longest, asked, excess, at_range_end))
             continue
-        if asked is not None and abs(asked) > (1.0 + COMMAND_EXCESS) * abs(level):
-            if ceiling is not None:
-                excess = _excess(x, y, rows, ceiling)
-                found.append(Plateau("reply_clamp", ceiling, rows, (lo, hi), cmd_span, longest, asked, excess))
-            else:
-                found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
+        if asked is not None:  # asking for more than the level (a hold it asks for was left above)
+            found.append(Plateau("driver_limit", level, rows, (lo, hi), cmd_span, longest, asked))
             continue
         stuck = x == level
         exact = max((b - a for a, b in _runs(stuck)), default=0)
@@ -464,15 +462,24 @@ def find_plateaus(
     return found
 
 
-def _excess(current: Array, torque: Array, rows: NDArray[np.intp], level: float) -> float | None:
-    """Median torque on a plateau beyond a line through the ramp up to it (rows on the same side between 30 % and 95 %
-    of the level), as a share of the line's torque at the level; None without such a ramp."""
+def _ramp_line(current: Array, torque: Array, level: float) -> tuple[float, float, NDArray[np.bool_]] | None:
+    """A straight line torque = a current + b through the rows on the level's side between 30 % and 95 % of it (the
+    ramp up to a plateau), with those rows; None when they are fewer than ten or span less than 30 % of the level."""
     sign = 1.0 if level > 0 else -1.0
     ramp = (sign * current > 0.3 * abs(level)) & (sign * current < 0.95 * abs(level))
     if np.count_nonzero(ramp) < 10 or np.ptp(current[ramp]) <= 0.3 * abs(level):
         return None
     a, b = np.polyfit(current[ramp], torque[ramp], 1)
-    made = a * level + b
+    return float(a), float(b), ramp
+
+
+def _excess(current: Array, torque: Array, rows: NDArray[np.intp], level: float) -> float | None:
+    """Median torque on a plateau beyond the ramp's line (:func:`_ramp_line`) at the level, as a share of the line's
+    torque there; None without such a ramp."""
+    line = _ramp_line(current, torque, level)
+    if line is None:
+        return None
+    made = line[0] * level + line[1]
     if made == 0:
         return None
     return float((np.median(torque[rows]) - made) / made)
@@ -515,10 +522,10 @@ def _torque_goes_past(
     plateau must exceed the same margin and NO_RAMP_SHARE of the torque the level makes.
     """
     sign = 1.0 if level > 0 else -1.0
-    ramp = (sign * current > 0.3 * abs(level)) & (sign * current < 0.95 * abs(level))
     margin = max(MOVING_SIGMAS * sigma_y, MOVING_SHARE * k_scale * abs(level))
-    if np.count_nonzero(ramp) >= 10 and np.ptp(current[ramp]) > 0.3 * abs(level):
-        a, b = np.polyfit(current[ramp], torque[ramp], 1)
+    line = _ramp_line(current, torque, level)
+    if line is not None:
+        a, b, ramp = line
         # friction and other speed effects scatter the torque about the line on the ramp as on the plateau
         scatter = float(np.percentile(np.abs(torque[ramp] - (a * current[ramp] + b)), 95))
         margin = max(margin, 2.0 * scatter)

@@ -72,7 +72,6 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.dyno.artefacts import (
-    BOUNDARY_SHARE,
     LIVE_SHARE,
     align_stale,
     asked_at_boundary,
@@ -600,16 +599,14 @@ def log_from_frame(
         core = _align_stale(core, rows, data, notes)
     command = next((data[c] for c in ("current_cmd", "torque_cmd") if c in data), None)
     ranges: list[float] = []
-    current_limit: float | None = None
     if timed:  # a wrap is a jump in time; the rows of a steady-state table are separate operating points
-        core, rows, current_limit = _undo_wraps(core, rows, command, notes, ranges)
+        core, rows = _undo_wraps(core, rows, command, notes, ranges)
     _check_enough(rows.size, rows_read, notes, source)
     noise: dict[str, float] = {}
     if timed:  # a glitch is a spike in time; the rows of a steady-state table are separate operating points
         # before clamps are cut out: a row next to a removed stretch is no spike
         core, rows, noise = _remove_glitches(core, rows, notes)
-    core, rows, limit = _current_plateaus(core, rows, command, notes, ranges)
-    current_limit = limit if current_limit is None else max(current_limit, limit or 0.0)
+    core, rows, current_limit = _current_plateaus(core, rows, command, notes, ranges)
     _check_enough(rows.size, rows_read, notes, source)
     core, rows = _remove_clipping(core, rows, noise, notes)
     _check_enough(rows.size, rows_read, notes, source)
@@ -1315,13 +1312,13 @@ def _undo_wraps(
     command: NDArray[np.float64] | None,
     notes: list[CleaningNote],
     ranges: list[float] | None = None,
-) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None]:
-    """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); a limit when the command asks past it.
-    The encoding range found (half the period) is appended to ``ranges``."""
+) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64]]:
+    """Undo wrap-around of the current (:mod:`hound_id.dyno.artefacts`); the note says when the command asks past the
+    range. The encoding range found (half the period) is appended to ``ranges``."""
     time = data["time"]
     unwrapped, wrap = find_wraps(data["current"], data["torque"])
     if wrap is None:
-        return data, rows, None
+        return data, rows
     data = {**data, "current": unwrapped}
     half = wrap.period / 2.0
     if ranges is not None:
@@ -1343,7 +1340,7 @@ def _undo_wraps(
                 "current",
             )
         )
-        return data, rows, None
+        return data, rows
     boundary = at_boundary(unwrapped, wrap)
     count = int(np.count_nonzero(boundary))
     asked = asked_at_boundary(unwrapped, None if command is None else command[rows - 1], boundary, half)
@@ -1364,7 +1361,7 @@ def _undo_wraps(
         )
     )
     data, rows = _keep(data, rows, ~boundary)
-    return data, rows, None
+    return data, rows
 
 
 def _current_plateaus(
@@ -1393,7 +1390,7 @@ def _current_plateaus(
                     f"while the command asks for {plateau.asked:.3g} A (median there, from the command-current "
                     "relation elsewhere in the log)"
                 )
-            elif ranges and abs(abs(plateau.level) - ranges[0]) <= BOUNDARY_SHARE * ranges[0] + 1e-12:
+            elif plateau.at_range_end and ranges:
                 why = f"at the end of the range its wrap-around shows (+-{ranges[0]:.4g} A)"
             else:
                 why = "while it is noisy elsewhere (a pile at the top of the readings, none beyond)"

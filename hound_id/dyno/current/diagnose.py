@@ -387,24 +387,15 @@ def _dynamics_trace(signals: Signals, fit: FitResult, floor: float) -> str | Non
 def _filter_at_edge(name: str, hypers: Mapping[str, float], signals: Signals) -> str | None:
     """A sentence when a filter fits only at the edge of the range the log can show (within FILTER_EDGE of a bound):
     then it is not the transducer's dynamics but something else the filter's shape happens to smooth."""
-    lo, hi = transducer.frequency_range(signals.time)
-    if name == "lag":
-        f = 1.0 / (2 * math.pi * hypers["lag_tau"])
-        values = [("its bandwidth", f, lo, hi, "Hz")]
-    else:
-        d_lo, d_hi = transducer.DAMPING_RANGE
-        values = [
-            ("f0", hypers["resonance_f0"], lo, hi, "Hz"),
-            ("its damping", hypers["resonance_zeta"], d_lo, d_hi, ""),
-        ]
-    for what, value, low, high, unit in values:
-        if value <= low * (1 + FILTER_EDGE) or value >= high / (1 + FILTER_EDGE):
-            return (
-                f"fits only at the edge of what this log can show ({what} {value:.3g}{' ' + unit if unit else ''}, "
-                f"the range being {low:.3g} to {high:.3g}{' ' + unit if unit else ''}): not a transducer's dynamics "
-                "the log can resolve"
-            )
-    return None
+    edge = transducer.at_edge(name, hypers, signals.time, FILTER_EDGE)
+    if not edge:
+        return None
+    c = edge[0]
+    unit = f" {c.unit}" if c.unit else ""
+    return (
+        f"fits only at the edge of what this log can show ({c.label} {c.value:.3g}{unit}, the range being "
+        f"{c.low:.3g} to {c.high:.3g}{unit}): not a transducer's dynamics the log can resolve"
+    )
 
 
 def _filter_trial(name: str, signals: Signals, torque: Array, fit: FitResult) -> _Trial | str:

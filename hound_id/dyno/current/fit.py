@@ -723,34 +723,10 @@ def estimate_delay(
     return delay, stderr
 
 
-def _filter_hypers(name: str, point: Array) -> dict[str, float]:
-    """The filter's hypers from a search point in log space."""
-    if name == "lag":
-        return {"lag_tau": float(np.exp(point[0]))}
-    return {"resonance_f0": float(np.exp(point[0])), "resonance_zeta": float(np.exp(point[1]))}
-
-
-def _filter_point(name: str, hypers: Mapping[str, float]) -> Array:
-    if name == "lag":
-        return np.log([hypers["lag_tau"]])
-    return np.log([hypers["resonance_f0"], hypers["resonance_zeta"]])
-
-
-def _filter_bounds(name: str, signals: Signals) -> tuple[Array, Array]:
-    """Bounds of the search point in log space: the frequencies the log can show (and the damping range)."""
-    lo, hi = transducer.frequency_range(signals.time)
-    if name == "lag":
-        return np.log([1.0 / (2 * math.pi * hi)]), np.log([1.0 / (2 * math.pi * lo)])
-    d_lo, d_hi = transducer.DAMPING_RANGE
-    return np.log([lo, d_lo]), np.log([hi, d_hi])
-
-
 def _filter_held(name: str, hypers: Mapping[str, float], signals: Signals) -> set[str]:
-    """The filter's hypers held at the end of the range the log can show (a value there is a bound, not a finding)."""
-    lo, hi = _filter_bounds(name, signals)
-    point = _filter_point(name, hypers)
-    keys = [h.name for h in get(name).hypers]
-    return {k for k, p, a, b in zip(keys, point, lo, hi, strict=True) if p <= a + 1e-3 or p >= b - 1e-3}
+    """The filter's hypers held at the end of the range the log can show (a value there is a bound, not a finding):
+    within 1e-3 of a bound of the search point."""
+    return {c.hyper for c in transducer.at_edge(name, hypers, signals.time, math.expm1(1e-3))}
 
 
 def _filter_rss(design: Design, X: Array, name: str, hypers: Mapping[str, float]) -> float:
@@ -770,7 +746,7 @@ class _FilterSearch:
     ) -> None:
         self.design, self.model, self.hypers, self.name, self.free_delay = design, model, hypers, name, free_delay
         signals = design.signals
-        lo, hi = _filter_bounds(name, signals)
+        lo, hi = transducer.search_bounds(name, signals.time)
         if free_delay:
             reach = 1.5 * delay_window(signals)
             lo, hi = np.append(lo, -reach), np.append(hi, reach)
@@ -781,7 +757,7 @@ class _FilterSearch:
 
     def values(self, point: Array) -> dict[str, float]:
         p = np.clip(point, self.lo, self.hi)
-        out = _filter_hypers(self.name, p[: p.size - int(self.free_delay)])
+        out = transducer.from_point(self.name, p[: p.size - int(self.free_delay)])
         if self.free_delay:
             out["delay"] = float(p[-1])
         return out
@@ -827,7 +803,7 @@ def filter_stderr(
     the time blocks as clusters."""
     others = [m for m in model if m != name and m != "delay"]
     search = _FilterSearch(design, others, hypers, name, with_delay)
-    point = _filter_point(name, hypers)
+    point = transducer.to_point(name, hypers)
     if with_delay:
         point = np.append(point, hypers.get("delay", 0.0))
     delay = hypers.get("delay", 0.0)

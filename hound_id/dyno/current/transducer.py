@@ -24,6 +24,7 @@ from __future__ import annotations
 
 import math
 from collections.abc import Mapping
+from dataclasses import dataclass
 
 import numpy as np
 from numpy.typing import NDArray
@@ -61,6 +62,58 @@ def frequency_range(time: Array) -> tuple[float, float]:
     """The filter frequencies [Hz] this log can show (:data:`FREQUENCY_RANGE` of its sample rate)."""
     rate = 1.0 / sample_interval(time)
     return FREQUENCY_RANGE[0] * rate, FREQUENCY_RANGE[1] * rate
+
+
+def to_point(name: str, hypers: Mapping[str, float]) -> Array:
+    """The filter's hypers as a search point: the logarithms of ``lag_tau``, or of ``resonance_f0`` and
+    ``resonance_zeta``."""
+    if name == "lag":
+        return np.log([hypers["lag_tau"]])
+    return np.log([hypers["resonance_f0"], hypers["resonance_zeta"]])
+
+
+def from_point(name: str, point: Array) -> dict[str, float]:
+    """The filter's hypers from a search point (:func:`to_point`)."""
+    if name == "lag":
+        return {"lag_tau": float(np.exp(point[0]))}
+    return {"resonance_f0": float(np.exp(point[0])), "resonance_zeta": float(np.exp(point[1]))}
+
+
+def search_bounds(name: str, time: Array) -> tuple[Array, Array]:
+    """Bounds of the search point (:func:`to_point`): the frequencies this log can show, and the damping range."""
+    lo, hi = frequency_range(time)
+    if name == "lag":
+        return np.log([1.0 / (2 * math.pi * hi)]), np.log([1.0 / (2 * math.pi * lo)])
+    return np.log([lo, DAMPING_RANGE[0]]), np.log([hi, DAMPING_RANGE[1]])
+
+
+@dataclass(frozen=True)
+class Coordinate:
+    """One of a filter's values as a user reads it, with the range this log can show."""
+
+    hyper: str
+    """The hyper it comes from."""
+    label: str
+    """How a sentence names it ("its bandwidth", "f0", "its damping")."""
+    value: float
+    low: float
+    high: float
+    unit: str
+    """Its unit ("" for a ratio)."""
+
+
+def at_edge(name: str, hypers: Mapping[str, float], time: Array, share: float) -> list[Coordinate]:
+    """The filter's values within ``share`` of an end of the range this log can show (a lag by its bandwidth), in
+    the order of its hypers."""
+    lo, hi = frequency_range(time)
+    if name == "lag":
+        values = [Coordinate("lag_tau", "its bandwidth", 1.0 / (2 * math.pi * hypers["lag_tau"]), lo, hi, "Hz")]
+    else:
+        values = [
+            Coordinate("resonance_f0", "f0", hypers["resonance_f0"], lo, hi, "Hz"),
+            Coordinate("resonance_zeta", "its damping", hypers["resonance_zeta"], *DAMPING_RANGE, ""),
+        ]
+    return [c for c in values if c.value <= c.low * (1 + share) or c.value >= c.high / (1 + share)]
 
 
 def _state_space(name: str, hypers: Mapping[str, float]) -> tuple[Array, Array, Array, Array]:
@@ -139,10 +192,15 @@ __all__ = [
     "FILTERS",
     "FREQUENCY_RANGE",
     "JITTER",
+    "Coordinate",
     "apply",
+    "at_edge",
     "coefficients",
     "frequency_range",
+    "from_point",
     "overshoot",
     "sample_interval",
+    "search_bounds",
     "step_response",
+    "to_point",
 ]
