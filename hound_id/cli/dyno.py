@@ -173,6 +173,8 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
         f"noise floor {diagnosis.noise_floor:.3g} N m; AIC {fit.aic:.6g}, BIC {fit.bic:.6g}",
         highlight=False,
     )
+    if diagnosis.noise is not None:
+        console.print(diagnosis.noise.sentence(), highlight=False)
     pk = report["peak_torque"]
     console.print(pk["note"], highlight=False)
     exact, comp = report["compensation"], report["compensation_polynomial"]

@@ -77,6 +77,11 @@ def test_default_model_table_names_the_missing_effect(canonical_log):
     assert proc.returncode == 0, proc.stderr
     assert "coulomb" in proc.stdout and "velocity changes sign" in proc.stdout
     assert "add 'coulomb'" in proc.stdout.replace("\n", " ")
+    # how the floor was found, printed under it
+    assert any(
+        line.startswith("noise floor ") and "N m" in line and ("scatter" in line or "sample-to-sample" in line)
+        for line in proc.stdout.splitlines()
+    ), proc.stdout
 
 
 def test_add_and_model_options(canonical_log, tmp_path):

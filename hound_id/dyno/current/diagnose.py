@@ -36,6 +36,7 @@ from dataclasses import dataclass, field
 from typing import Any
 
 import numpy as np
+from numpy.typing import NDArray
 
 from hound_id.dyno.current import transducer
 from hound_id.dyno.current.effects import REGISTRY, Signals, get, requirements_missing
@@ -187,6 +188,7 @@ class Diagnosis:
         """The floor with how it was found, e.g. '0.36 N m, its scatter where the inputs hold still'."""
         how = {
             "still": "the torque's scatter where the inputs hold still",
+            "neighbours": "the torque's scatter between far-apart moments with the same inputs",
             "quantisation": "the torque channel's rounding",
         }.get(self.noise.method if self.noise is not None else "", "sample-to-sample")
         return f"{self.noise_floor:.3g} N m, {how}"
@@ -442,7 +444,8 @@ def diagnose(
     lower, upper = bounds_of(fit.model)
     base_sse = cross_validate(stats, stats, cols, lower, upper).sse
     residual_search = np.asarray(fit.residual)[design.search]
-    noise = estimate(signals, design.torque, np.asarray(fit.residual))
+    agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
+    noise = estimate(signals, design.torque, np.asarray(fit.residual), rows=_typical_rows(design, agreeing))
     # never below the arithmetic's own noise: a noiseless log's residual is rounding, not a missing effect
     floor = max(noise.value, NUMERICAL_FLOOR * float(np.sqrt(np.mean(design.torque**2))))
     clusters = design.blocks.count
@@ -511,7 +514,6 @@ def diagnose(
         )
     suggestions = rank(suggestions)
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
-    agreeing = _Agreeing(*agreeing_half(stats, cols, lower, upper, np.asarray(fit.block_rmse)))
     disagreeing = _disagreeing(agreeing, floor, block_floor)
     kt = _kt(fit, agreeing)
     residual = np.asarray(fit.residual)
@@ -576,6 +578,15 @@ class _Agreeing:
     def typical(self) -> float:
         """The median block's RMSE under that fit (a good block's while fewer than half disagree)."""
         return float(np.median(self.rmse))
+
+
+def _typical_rows(design: Design, agreeing: _Agreeing) -> NDArray[np.bool_]:
+    """Rows of the blocks within BLOCK_FACTOR of the typical block's RMSE under the agreeing half's fit (what the
+    noise floor may pair: a broken stretch paired with the rest would read as noise and hide itself)."""
+    rows = np.ones(design.torque.size, dtype=bool)
+    for block, s in enumerate(design.blocks.slices()):
+        rows[s] = agreeing.rmse[block] <= BLOCK_FACTOR * agreeing.typical
+    return rows
 
 
 def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.ndarray:

@@ -1,6 +1,6 @@
 """The noise floor of a dyno log: the torque error no model of the logged channels can remove.
 
-Two estimates, and the floor says which it used:
+Three estimates, and the floor says which it used:
 
 * **sample-to-sample** (:func:`white_floor`): for white measurement noise of standard deviation sigma, second
   differences of the residual have variance 6 sigma^2 while effects smooth at the sample rate nearly cancel; the
@@ -73,6 +73,47 @@ QUANTISATION_SHOWS = 0.3
 #: Pieces' deviations beyond this many robust sigmas are left out of the still floor (a glitch or an unsettled step).
 #: Calibrated on test_noise::test_white_noise_gives_both_estimates_alike.
 TRIM_SIGMAS = 5.0
+#: Two moments pair only when this far apart in time [s] and :data:`NEIGHBOUR_GAP_ROWS` rows (the noise of a filtered
+#: transducer, AR(1) with a correlation of 0.95 per sample, is correlated by 0.08 after 50 samples). Calibrated on
+#: test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation.
+NEIGHBOUR_GAP_S = 0.5
+NEIGHBOUR_GAP_ROWS = 50
+#: Past samples of the current two paired moments must share (the recent history a delay or a lag reads). Calibrated
+#: on test_noise::test_the_neighbour_floor_does_not_take_a_missing_effect_for_noise.
+NEIGHBOUR_LAGS = 2
+#: Fewest pairs for a neighbour floor: each difference holds two independent noise values, so 100 pairs know the
+#: standard deviation to about 7 %. Calibrated on
+#: test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation.
+MIN_NEIGHBOUR_PAIRS = 100
+#: Partners taken per searched row (more pairs at more separations); share of the pairs, nearest in time, the floor
+#: comes from; the farthest as many again show a drift when they differ by more than DRIFT_FACTOR times as much.
+#: Calibrated on test_noise::test_a_drift_over_the_log_is_reported_and_not_counted_as_noise.
+NEIGHBOUR_K = 4
+NEAR_SHARE = 0.25
+DRIFT_FACTOR = 1.5
+#: Pair differences beyond this many robust standard deviations are left out of the neighbour estimate (its mean
+#: square is then divided by what a normal distribution keeps). Calibrated on
+#: test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation.
+PAIR_TRIM_SIGMAS = 3.0
+#: Standard deviation of a unit normal cut at +-c = PAIR_TRIM_SIGMAS: sqrt(1 - 2 c phi(c) / (2 Phi(c) - 1)).
+_TRIMMED_SD = math.sqrt(
+    1.0
+    - 2.0
+    * PAIR_TRIM_SIGMAS
+    * math.exp(-(PAIR_TRIM_SIGMAS**2) / 2)
+    / math.sqrt(2 * math.pi)
+    / math.erf(PAIR_TRIM_SIGMAS / math.sqrt(2))
+)
+#: Bins of separation the drift's growth is fitted over, and the fewest pairs in one. Calibrated on
+#: test_noise::test_a_drift_over_the_log_is_reported_and_not_counted_as_noise.
+DRIFT_BINS = 8
+MIN_DRIFT_BIN = 20
+#: Most rows searched for a partner (evenly spaced); most rows a partner is searched among: the estimate needs
+#: hundreds of pairs, not millions, and the search stays linear in the log's length (0.23 s for a million rows).
+#: Calibrated on test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation (its
+#: 6,000 rows are all searched).
+NEIGHBOUR_QUERIES = 20_000
+NEIGHBOUR_POOL = 50_000
 
 
 @dataclass(frozen=True)
@@ -82,7 +123,7 @@ class NoiseFloor:
     value: float
     """The floor the verdicts use [N m]."""
     method: str
-    """``still``, ``sample-to-sample`` or ``quantisation``: which estimate set the value."""
+    """``still``, ``neighbours``, ``sample-to-sample`` or ``quantisation``: which estimate set the value."""
     white: float
     """Sample-to-sample estimate from second differences of the residual [N m] (NaN on too few rows)."""
     still: float | None = None
@@ -93,18 +134,30 @@ class NoiseFloor:
     """Pieces (still stretches, cut at :data:`CHUNK_ROWS`) it used."""
     quantisation: float = 0.0
     """The torque channel's rounding, q / sqrt(12) [N m]."""
+    paired: Neighbours | None = None
+    """The residual's scatter between far-apart moments whose inputs coincide; None without enough pairs."""
     timed: bool = True
     """False for a steady-state table (no still stretches there: its rows are operating points)."""
 
     @property
+    def neighbours(self) -> float | None:
+        """The neighbour estimate [N m] (pairs nearest in time); None without enough pairs."""
+        return None if self.paired is None else self.paired.value
+
+    @property
     def correlation(self) -> float | None:
-        """still / sample-to-sample: about 1 for white noise, larger when the noise is correlated or filtered."""
-        if self.still is None or not self.white > 0:
+        """floor / sample-to-sample when a still or neighbour estimate set it: about 1 for white noise, larger when
+        the noise is correlated or filtered."""
+        direct = {"still": self.still, "neighbours": self.neighbours}.get(self.method)
+        if direct is None or not self.white > 0:
             return None
-        return self.still / self.white
+        return direct / self.white
 
     def sentence(self) -> str:
-        """How the floor was found, in one sentence."""
+        """How the floor was found, in one sentence (and the drift, when far-apart moments show one)."""
+        return self._how() + self._drift()
+
+    def _how(self) -> str:
         if self.method == "quantisation":
             return (
                 f"noise floor {self.value:.3g} N m: the torque channel's rounding (q / sqrt(12)), above the "
@@ -114,18 +167,36 @@ class NoiseFloor:
             return (
                 f"noise floor {self.value:.3g} N m from differences between neighbouring operating points of the table"
             )
-        if self.still is None:
+        if self.method == "sample-to-sample" and self.still is None and self.paired is None:
             return (
                 f"noise floor {self.value:.3g} N m from sample-to-sample differences (the log has fewer than "
                 f"{MIN_STILL_ROWS} rows in stretches of {MIN_PIECE_ROWS + SETTLE_ROWS} samples or more where current "
-                "and speed hold still); it reads low if the transducer filters its noise: hold the current and speed "
-                "still now and then to measure it"
+                f"and speed hold still, and fewer than {MIN_NEIGHBOUR_PAIRS} pairs of moments {NEIGHBOUR_GAP_S:g} s "
+                "apart with the same inputs); it reads low if the transducer filters its noise: hold the current and "
+                "speed still now and then, or repeat the excitation, to measure it"
             )
-        ratio = self.correlation
-        head = (
-            f"noise floor {self.value:.3g} N m: the torque's scatter where the inputs hold still ({self.still_rows} "
-            f"rows in {self.still_pieces} pieces) is {self.still:.3g} N m"
+        still = (
+            f"the torque's scatter where the inputs hold still ({self.still_rows} rows in {self.still_pieces} pieces)"
         )
+        paired = ""
+        if self.paired is not None:
+            lo, hi = self.paired.within
+            paired = (
+                f"the torque's scatter between moments {lo:.2g}-{hi:.2g} s apart whose inputs coincide "
+                f"(+- {self.paired.stderr:.1g} N m, {self.paired.pairs} pairs)"
+            )
+            if self.paired.extrapolated:
+                paired = (
+                    f"the torque's scatter between moments whose inputs coincide, as it grows with their separation, "
+                    f"read at {lo:.2g} s ({self.paired.pairs} pairs)"
+                )
+        if self.method == "sample-to-sample":
+            others = [f"{what} is {v:.3g} N m" for what, v in ((still, self.still), (paired, self.neighbours)) if v]
+            return f"noise floor {self.value:.3g} N m from sample-to-sample differences (white noise); " + ", ".join(
+                others
+            )
+        head = f"noise floor {self.value:.3g} N m: {still if self.method == 'still' else paired}"
+        ratio = self.correlation
         if ratio is not None and ratio > 1.2:
             return (
                 f"{head}, {ratio:.2g}x its sample-to-sample noise ({self.white:.3g} N m): the noise is correlated "
@@ -133,7 +204,20 @@ class NoiseFloor:
             )
         return f"{head}; sample-to-sample {self.white:.3g} N m"
 
+    def _drift(self) -> str:
+        if self.paired is None or self.paired.drift is None:
+            return ""
+        p = self.paired
+        lo, hi = p.far_within
+        return (
+            f"; moments with the same inputs {lo:.2g}-{hi:.2g} s apart differ by {p.far:.2g} "
+            f"+- {p.far_stderr:.1g} N m, {p.far / self.value:.2g}x the floor: the torque drifts over the log (a motor "
+            "heating, an offset creeping) or remembers more than its last samples, which no model of these channels "
+            "follows"
+        )
+
     def to_dict(self) -> dict[str, object]:
+        p = self.paired
         return {
             "floor": self.value,
             "method": self.method,
@@ -141,6 +225,15 @@ class NoiseFloor:
             "still": self.still,
             "still_rows": self.still_rows,
             "still_pieces": self.still_pieces,
+            "neighbours": None if p is None else p.value,
+            "neighbours_stderr": None if p is None else p.stderr,
+            "neighbour_pairs": 0 if p is None else p.pairs,
+            "neighbour_separation": None if p is None else list(p.within),
+            "far_apart": None if p is None else p.far,
+            "far_apart_stderr": None if p is None else p.far_stderr,
+            "far_apart_separation": None if p is None else list(p.far_within),
+            "drift": None if p is None else p.drift,
+            "extrapolated": None if p is None else p.extrapolated,
             "quantisation": self.quantisation,
             "sentence": self.sentence(),
         }
@@ -224,8 +317,201 @@ def still_scatter(residual: Array, pieces: list[tuple[int, int]]) -> tuple[float
     return math.sqrt(float(dev[keep] @ dev[keep]) / dof), int(keep.sum())
 
 
+def _neighbour_inputs(signals: Signals) -> Array:
+    """The paired channels from row :data:`NEIGHBOUR_LAGS` on, each divided by its still tolerance (two moments
+    coincide within 1 on every column): the current now and its last samples, the speed, the temperature, the angle."""
+    n, lags = signals.current.size, NEIGHBOUR_LAGS
+    tol = _tolerance(signals.current, STILL_SHARE * float(np.ptp(signals.current)))
+    columns = [signals.current[lags - k : n - k] / tol for k in range(lags + 1)]
+    for x in (signals.velocity, signals.temperature):
+        if x is not None:
+            columns.append(x[lags:] / _tolerance(x, STILL_SHARE * float(np.ptp(x))))
+    if signals.position is not None:  # cogging is never noise on a log that can show it
+        columns.append(np.mod(signals.position[lags:], 2 * math.pi) / (STILL_ANGLE / 2))
+    return np.column_stack([np.where(np.isfinite(c), c, 0.0) for c in columns])
+
+
+@dataclass(frozen=True)
+class Neighbours:
+    """The residual's scatter between far-apart moments whose inputs coincide, near and far apart in time."""
+
+    value: float
+    """Standard deviation from every pair, or from the pairs nearest in time when the far ones show a drift [N m]:
+    the noise floor's estimate."""
+    pairs: int
+    """Pairs it used."""
+    within: tuple[float, float]
+    """Their separations in time, least and most [s]."""
+    far: float
+    """Standard deviation from the pairs farthest apart in time [N m]."""
+    far_within: tuple[float, float]
+    """Their separations [s]."""
+    extrapolated: bool = False
+    """True when :attr:`value` is the pairs' scatter fitted against their separation and read at the least one (a
+    drift)."""
+    stderr: float = 0.0
+    """Standard error of :attr:`value` (a jackknife over the spans of the log) [N m]; of the nearest pairs' scatter
+    when :attr:`value` was read off their growth."""
+    far_stderr: float = 0.0
+    """Standard error of :attr:`far` [N m]."""
+
+    @property
+    def drift(self) -> float | None:
+        """far / value when the far pairs differ by more than :data:`DRIFT_FACTOR` times the floor's pairs."""
+        ratio = self.far / self.value if self.value > 0 else math.inf
+        return ratio if ratio > DRIFT_FACTOR else None
+
+
+def neighbour_scatter(signals: Signals, residual: Array, rows: NDArray[np.bool_] | None = None) -> Neighbours | None:
+    """The residual's scatter from pairs of far-apart moments whose inputs coincide (module docstring); None below
+    :data:`MIN_NEIGHBOUR_PAIRS` pairs.
+
+    ``rows`` (True where a row may be paired) keeps a broken stretch out: paired with the rest of the log, a motor
+    switched off or a torque amplifier gone wrong would read as noise, and the floor would hide it.
+
+    The log is cut into spans of the gap and the spans dealt round four classes; rows of classes 0 and 2 (and of 1
+    and 3) are at least one span apart, so a partner found in the other class of the couple is never close in time.
+    Each searched row takes its :data:`NEIGHBOUR_K` nearest partners there (Chebyshev distance in tolerances, at most
+    1). What the pair's channels still differ by, within tolerance, moves a missing effect's torque: that is taken out
+    of the differences by its slope over all pairs (a delay the model lacks is linear in the current's last samples).
+    The scatter is a trimmed root mean square (:func:`_pair_sigma`).
+
+    A drift over the log (a motor heating, an offset creeping) grows with the separation: when the pairs farthest
+    apart in time (the farthest :data:`NEAR_SHARE`, at least :data:`MIN_NEIGHBOUR_PAIRS`) scatter more than
+    :data:`DRIFT_FACTOR` times the nearest as many, and significantly so, the floor is read off the scatter's growth
+    at the least separation (:func:`_variogram_floor`, never above the nearest pairs' own) and the drift is reported
+    beside it, not counted as noise.
+
+    Blind spot: an error that depends on the channels' history further back than :data:`NEIGHBOUR_LAGS` samples (a
+    slow lag or a resonance the model lacks) varies between the pairs and counts as noise here; the still estimate
+    and the diagnosis's own tests of those effects do not share it.
+    """
+    from scipy.spatial import cKDTree
+
+    if not signals.timed or signals.current.size < 4 * NEIGHBOUR_GAP_ROWS:
+        return None
+    r = np.asarray(residual, float)[NEIGHBOUR_LAGS:]
+    t = signals.time[NEIGHBOUR_LAGS:]
+    X = _neighbour_inputs(signals)
+    step = float(np.median(np.diff(t)))
+    gap = max(NEIGHBOUR_GAP_S, NEIGHBOUR_GAP_ROWS * step)
+    spans = np.floor((t - t[0]) / gap).astype(np.int64)
+    span = spans % 4
+    if rows is not None:
+        span[~np.asarray(rows, bool)[NEIGHBOUR_LAGS:]] = -1
+    found_a, found_b = [], []
+    for a_class, b_class in ((0, 2), (2, 0), (1, 3), (3, 1)):
+        pool = np.flatnonzero(span == b_class)
+        queries = np.flatnonzero(span == a_class)
+        if pool.size == 0 or queries.size == 0:
+            continue
+        pool = pool[:: -(-pool.size // NEIGHBOUR_POOL)]
+        queries = queries[:: -(-queries.size // (NEIGHBOUR_QUERIES // 4))]
+        k = min(NEIGHBOUR_K, pool.size)
+        dist, idx = cKDTree(X[pool]).query(X[queries], k=k, p=np.inf, distance_upper_bound=1.0)
+        dist, idx = dist.reshape(queries.size, k), idx.reshape(queries.size, k)
+        hit = np.isfinite(dist)
+        found_a.append(np.repeat(queries, k)[hit.ravel()])
+        found_b.append(pool[np.minimum(idx, pool.size - 1)].ravel()[hit.ravel()])
+    if not found_a:
+        return None
+    a_rows, b_rows = np.concatenate(found_a), np.concatenate(found_b)
+    pairs = np.unique(np.column_stack((np.minimum(a_rows, b_rows), np.maximum(a_rows, b_rows))), axis=0)
+    if len(pairs) < MIN_NEIGHBOUR_PAIRS:
+        return None
+    a_rows, b_rows = pairs[:, 0], pairs[:, 1]
+    diff = r[a_rows] - r[b_rows]
+    dx = X[a_rows] - X[b_rows]
+    slope, *_ = np.linalg.lstsq(dx, diff, rcond=None)
+    diff = diff - dx @ slope
+    sep = np.abs(t[a_rows] - t[b_rows])
+    episode = (spans[a_rows], spans[b_rows])
+    order = np.argsort(sep, kind="stable")
+    count = max(MIN_NEIGHBOUR_PAIRS, int(NEAR_SHARE * order.size))
+    near, far = order[:count], order[-count:]
+    fits = [_pair_sigma(diff[rows_], (episode[0][rows_], episode[1][rows_])) for rows_ in (near, far, order)]
+    if any(f is None for f in fits):
+        return None
+    (near_sigma, near_se), (far_sigma, far_se), (every, every_se) = fits  # type: ignore[misc]
+    if not every > 0:
+        return None
+    far_within = (float(sep[far].min()), float(sep[far].max()))
+    # a drift: the far pairs scatter more than DRIFT_FACTOR times the near ones (reported with both errors; a missed
+    # drift would be counted as noise and could make a log look at its floor, a false one only lowers the floor)
+    if far_sigma > DRIFT_FACTOR * near_sigma:
+        # the floor is the pairs' scatter as it grows with the separation, read at the least separation
+        grown = _variogram_floor(diff, sep, episode)
+        within = (float(sep[near].min()), float(sep[near].max()))
+        return Neighbours(
+            min(near_sigma, grown), int(near.size), within, far_sigma, far_within, grown < near_sigma, near_se, far_se
+        )
+    return Neighbours(
+        every, int(diff.size), (float(sep.min()), float(sep.max())), far_sigma, far_within, False, every_se, far_se
+    )
+
+
+def _variogram_floor(diff: Array, sep: Array, episode: tuple[NDArray[np.int64], NDArray[np.int64]]) -> float:
+    """The pairs' noise standard deviation at their least separation [N m]: half their mean square in
+    :data:`DRIFT_BINS` bins of separation, fitted by a + b s + c s^2 (a, b, c >= 0: a drift that wanders or runs),
+    read at the least separation."""
+    from scipy.optimize import nnls
+
+    order = np.argsort(sep, kind="stable")
+    rows, values = [], []
+    for chunk in np.array_split(order, DRIFT_BINS):
+        fit = _pair_sigma(diff[chunk], (episode[0][chunk], episode[1][chunk]), least=MIN_DRIFT_BIN)
+        if fit is not None:
+            sigma = fit[0]
+            s_mid = float(np.median(sep[chunk]))
+            rows.append((1.0, s_mid, s_mid**2))
+            values.append(sigma**2)
+    if len(rows) < 3:
+        return math.inf
+    coef, _ = nnls(np.array(rows), np.array(values))
+    s0 = float(sep.min())
+    return math.sqrt(float(coef @ np.array([1.0, s0, s0**2])))
+
+
+def _pair_sigma(
+    diff: Array, ends: tuple[NDArray[np.int64], NDArray[np.int64]], least: int = MIN_NEIGHBOUR_PAIRS
+) -> tuple[float, float] | None:
+    """Noise standard deviation from pair differences (a difference holds two noise values) and its standard error
+    [N m]; None below ``least`` pairs.
+
+    The root mean square within :data:`PAIR_TRIM_SIGMAS` robust standard deviations of zero, corrected for the
+    normal distribution's tails so cut. Cut closer than the still estimate's trim on purpose: where the torque's error
+    depends on more of the current's history than the pairs share (the instants after a step on a rig that rings), a
+    few pairs differ by far more than the noise, and a plain mean square would count that error as noise. About zero,
+    not about the median: a drift shifts every far pair's difference the same way, and is no noise. The standard
+    error is a jackknife over the spans of the log (``ends``: the span of each pair's two moments), leaving out every
+    pair that touches a span in turn: correlated noise makes the pairs from one stretch alike, and a log holds only
+    so many independent ones."""
+    if diff.size < least:
+        return None
+    robust = MAD_TO_SIGMA * float(np.median(np.abs(diff)))
+    if not robust > 0:
+        return 0.0, 0.0
+    keep = np.abs(diff) <= PAIR_TRIM_SIGMAS * robust
+    q = diff[keep] ** 2 / (2.0 * _TRIMMED_SD**2)
+    first, second = ends[0][keep], ends[1][keep]
+    size = int(max(first.max(), second.max())) + 1
+    touched = np.bincount(first, minlength=size) + np.bincount(second, minlength=size)
+    weight = np.bincount(first, weights=q, minlength=size) + np.bincount(second, weights=q, minlength=size)
+    spans = np.flatnonzero((touched > 0) & (touched < q.size))
+    sigma = math.sqrt(float(q.mean()))
+    if spans.size < 2 or not sigma > 0:
+        return sigma, 0.0
+    left = (float(q.sum()) - weight[spans]) / (q.size - touched[spans])
+    variance = (spans.size - 1) / spans.size * float(np.sum((left - left.mean()) ** 2))
+    return sigma, math.sqrt(variance) / (2.0 * sigma)
+
+
 def estimate(
-    signals: Signals, torque: Array, residual: Array, pieces: list[tuple[int, int]] | None = None
+    signals: Signals,
+    torque: Array,
+    residual: Array,
+    pieces: list[tuple[int, int]] | None = None,
+    rows: NDArray[np.bool_] | None = None,
 ) -> NoiseFloor:
     """The noise floor of a fit's residual on a log (module docstring).
 
@@ -234,6 +520,8 @@ def estimate(
         torque: The measured torque [N m] (for its quantisation).
         residual: Measured minus model torque [N m].
         pieces: The still pieces (:func:`still_segments`), when already found.
+        rows: Rows the neighbour estimate may pair (None: all); the diagnosis leaves out blocks far worse than the
+            typical one.
     """
     white = white_floor(residual)
     q = resolution(np.asarray(torque, float)) / math.sqrt(12.0)
@@ -245,21 +533,36 @@ def estimate(
     spread = float(np.std(r)) if r.size else 0.0
     visible = q if spread >= QUANTISATION_SHOWS * q else 0.0
     candidates = [("sample-to-sample", white if math.isfinite(white) else 0.0), ("quantisation", visible)]
-    still, rows = (None, 0) if found is None else found
+    still, still_rows = (None, 0) if found is None else found
     if still is not None:
         candidates.append(("still", still))
+    paired = neighbour_scatter(signals, r, rows)
+    if paired is not None:
+        candidates.append(("neighbours", paired.value))
     method, value = max(candidates, key=lambda mv: mv[1])
     if not value > 0:
         value, method = (white if not math.isfinite(white) else 0.0), "sample-to-sample"
-    return NoiseFloor(value, method, white, still, rows, len(pieces) if still is not None else 0, q, signals.timed)
+    return NoiseFloor(
+        value,
+        method,
+        white,
+        still,
+        still_rows,
+        len(pieces) if still is not None else 0,
+        q,
+        paired,
+        signals.timed,
+    )
 
 
 __all__ = [
     "CHUNK_ROWS",
     "MIN_STILL_ROWS",
+    "Neighbours",
     "NoiseFloor",
     "SETTLE_ROWS",
     "estimate",
+    "neighbour_scatter",
     "resolution",
     "still_scatter",
     "still_segments",

@@ -131,6 +131,27 @@ def test_a_transducer_resonance_is_found_named_and_valued(tmp_path):
     assert fit.rmse_test < 1.6 * rig.torque_noise
 
 
+def test_the_noise_floor_of_a_filtered_transducer_is_honest_without_still_stretches(tmp_path):
+    """The rig never holds its inputs still, and its transducer noise is AR(1) with a correlation of 0.95 per loop:
+    second differences read it at a fraction of its size. Pairs of far-apart moments with the same inputs read what
+    no model of the logged channels removes: the transducer's 0.03 N m and the current reply's 0.02 A through Kt."""
+    rig = Rig(truth=FRICTION, torque_noise_rho=0.95, **FAST)
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    fit, d = ladder[-1].fit, ladder[-1].diagnosis
+    assert {"coulomb", "gear_friction", "delay"} <= set(fit.model)
+    honest = math.hypot(rig.torque_noise, FRICTION.kt * rig.current_noise)
+    assert d.noise is not None and d.noise.still is None
+    assert d.noise.method == "neighbours" and d.noise_floor == pytest.approx(honest, rel=0.15)
+    assert abs(d.noise_floor - honest) < 3 * d.noise.paired.stderr  # its own error covers the truth
+    assert d.noise.white < 0.6 * honest  # the sample-to-sample floor reads low
+    assert "correlated" in d.noise.sentence() and d.noise.paired.drift is None
+    # the final fit is 1.1x what no model removes; the ratio the tool prints is within the floor's own error of it
+    assert fit.rmse_test < 1.2 * honest and fit.rmse_test / d.noise_floor < 1.5, d.summary()
+    # and the floor says nothing is left while an effect is missing: the first rung is far from it
+    assert ladder[0].fit.rmse_test > 5 * ladder[0].diagnosis.noise_floor
+
+
 def test_a_first_order_transducer_lag_is_found_and_valued(tmp_path):
     rig = Rig(truth=FRICTION, lag_ms=6.0, current_late=False, **FAST)
     log = load(tmp_path, rig)
