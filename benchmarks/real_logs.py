@@ -17,7 +17,9 @@ do not copy its files into this repository)::
         --columns time=loop_time,current=motor_measured_current,torque=adc_measured_torque,\\
 velocity=motor_measured_speed,torque_cmd=motor_torque_command
 
-Add ``--markdown`` for a table to paste into the README, ``--json`` for every report.
+Add ``--markdown`` for a table to paste into the README, ``--json`` for every report. The last line (``summary`` in
+the JSON) gives the figures over the fitted logs: the median cross-validated RMSE / noise floor, with and without the
+stretches each log flags, how the floors were found and on how many logs a drift is named.
 """
 
 from __future__ import annotations
@@ -25,6 +27,7 @@ from __future__ import annotations
 import argparse
 import json
 import shutil
+import statistics
 import subprocess
 import sys
 from pathlib import Path
@@ -90,6 +93,47 @@ def line(report: dict[str, Any]) -> dict[str, str]:
     }
 
 
+def summary(results: list[dict[str, Any]]) -> dict[str, Any]:
+    """The figures over the fitted logs: how far from their floor, where the excess is, how the floor was found."""
+    fitted = [r for r in results if "error" not in r]
+    ratios = [r["rmse"]["test"] / r["noise_floor"] for r in fitted if r["noise_floor"] > 0]
+    # outside the flagged stretches: the whole log's ratio when nothing is flagged
+    outside = [
+        (r["rmse"].get("outside_flagged") or r["rmse"]["test"]) / r["noise_floor"]
+        for r in fitted
+        if r["noise_floor"] > 0
+    ]
+    noise = [r.get("noise") or {} for r in fitted]
+    methods = [n.get("method", "sample-to-sample") for n in noise]
+    return {
+        "logs": len(results),
+        "fitted": len(fitted),
+        "median_ratio": statistics.median(ratios) if ratios else None,
+        "ratio_range": [min(ratios), max(ratios)] if ratios else None,
+        "within_2x": sum(x <= 2.0 for x in ratios),
+        "within_1.2x": sum(x <= 1.2 for x in ratios),
+        "at_noise_floor": sum(bool(r["at_noise_floor"]) for r in fitted),
+        "median_ratio_outside_flagged": statistics.median(outside) if outside else None,
+        "within_2x_outside_flagged": sum(x <= 2.0 for x in outside),
+        "floor_methods": {m: methods.count(m) for m in sorted(set(methods))},
+        "drift_named": sum(1 for n in noise if n.get("drift")),
+    }
+
+
+def summary_line(s: dict[str, Any]) -> str:
+    """The summary in one paragraph."""
+    if not s["fitted"]:
+        return f"{s['logs']} logs, none fitted"
+    lo, hi = s["ratio_range"]
+    methods = ", ".join(f"{k} {v}" for k, v in s["floor_methods"].items())
+    return (
+        f"{s['fitted']} of {s['logs']} logs fitted; cross-validated RMSE / noise floor: median {s['median_ratio']:.3g} "
+        f"({lo:.3g} to {hi:.3g}), {s['within_2x']} within 2x, {s['within_1.2x']} within 1.2x, {s['at_noise_floor']} at "
+        f"the floor; outside the flagged stretches: median {s['median_ratio_outside_flagged']:.3g}, "
+        f"{s['within_2x_outside_flagged']} within 2x; floor from {methods}; a drift named on {s['drift_named']}"
+    )
+
+
 def _left_out(report: dict[str, Any]) -> str:
     """'[left out: 2 another regime, motor off] ' when the headline leaves part of the log out, else ''."""
     kinds = [s["kind"] for s in report.get("left_out", [])]
@@ -144,8 +188,11 @@ def main() -> int:
                 f"{name}: rows {f['rows']}; Kt {f['kt']}; {f['effects']}; CV/noise {f['cv']}; {f['verdict']}",
                 flush=True,
             )
+    totals = summary(results)
     if args.json:
-        print(json.dumps({"schema": "hound-id/real-logs/1", "logs": results}, indent=2))
+        print(json.dumps({"schema": "hound-id/real-logs/1", "summary": totals, "logs": results}, indent=2))
+    else:
+        print(("\n" if args.markdown else "") + summary_line(totals))
     return 0
 
 

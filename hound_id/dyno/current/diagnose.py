@@ -177,6 +177,9 @@ class Diagnosis:
     """Kt of the fit to the agreeing half of the blocks [N m/A] (None without a ``linear`` term)."""
     stretches: tuple[Stretch, ...] = ()
     """Each run of disagreeing blocks, read from its channels (rows of the diagnosed log), in log order."""
+    rmse_outside: float | None = None
+    """The cross-validated RMSE of the model fitted and scored without the disagreeing blocks [N m] (None when none
+    disagrees): how far the model is from the floor where the flagged stretches do not count."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -193,6 +196,15 @@ class Diagnosis:
         }.get(self.noise.method if self.noise is not None else "", "sample-to-sample")
         return f"{self.noise_floor:.3g} N m, {how}"
 
+    def _outside(self) -> str:
+        """How far the model is from the floor outside the flagged stretches, when some are flagged."""
+        if self.rmse_outside is None or not self.noise_floor > 0:
+            return ""
+        return (
+            f"; outside the flagged stretches the cross-validated residual is {self.rmse_outside:.3g} N m, "
+            f"{self.rmse_outside / self.noise_floor:.2g}x the floor"
+        )
+
     def summary(self) -> str:
         """One sentence on where the model stands."""
         ratio = self.rmse_test / self.noise_floor if self.noise_floor > 0 else math.inf
@@ -206,11 +218,11 @@ class Diagnosis:
                 f"cross-validated residual {self.rmse_test:.3g} N m is {ratio:.2g}x the noise floor "
                 f"({self.floor_label}); add '{self.best.effect}': {self.best.reason}"
             )
-            return f"{head}; also: {self.flags[0]}" if self.flags else head
+            return f"{head}; also: {self.flags[0]}{self._outside()}" if self.flags else head
         if self.outliers:
             return f"no candidate effect is significant, but {self.outliers}"
         if self.flags:
-            return f"part of the log does not follow any model tried: {self.flags[0]}"
+            return f"part of the log does not follow any model tried: {self.flags[0]}{self._outside()}"
         if ratio <= FLOOR_FACTOR:
             return f"no candidate effect is significant and material; {self.rmse_test:.3g} N m is at the noise floor"
         head = (
@@ -538,7 +550,29 @@ def diagnose(
         noise,
         kt,
         stretches,
+        _rmse_outside(stats, cols, lower, upper, disagreeing),
     )
+
+
+def _rmse_outside(stats: Stats, cols: list[int], lower: Array, upper: Array, disagreeing: np.ndarray) -> float | None:
+    """The cross-validated RMSE of the model fitted and scored without the disagreeing blocks [N m] (each fold held
+    out once, as for the whole log); None when no block or every block disagrees."""
+    if not disagreeing.any() or disagreeing.all():
+        return None
+    keep = ~disagreeing
+    blocks = stats.blocks
+    rows = np.diff(blocks.edges)
+    sse, n = 0.0, 0
+    for k in range(blocks.folds):
+        inside = blocks.fold == k
+        train, test = ~inside & keep, inside & keep
+        if not train.any() or not test.any():
+            continue
+        G, g, _ = stats.total(cols, train)
+        beta, _ = solve_bounded(G, g, lower, upper)
+        sse += float(stats.sse(cols, beta)[test].sum())
+        n += int(rows[test].sum())
+    return math.sqrt(sse / n) if n else None
 
 
 def _kt(fit: FitResult, agreeing: _Agreeing) -> float | None:

@@ -144,8 +144,11 @@ def fit_report(
     """JSON-ready report, schema ``hound-id/fit/3`` (SI units).
 
     Version 3 also carries ``noise`` (added later, so readers of version 3 without it still work): how
-    ``noise_floor`` was found (``method``: ``still``, ``sample-to-sample`` or ``quantisation``; both estimates,
-    the still rows and pieces, the torque channel's rounding, a sentence).
+    ``noise_floor`` was found (``method``: ``still``, ``neighbours``, ``sample-to-sample`` or ``quantisation``; each
+    estimate, the still rows and pieces, the neighbour pairs with their separations, standard errors and the drift,
+    the torque channel's rounding, a sentence); and, added later still, ``rmse.outside_flagged`` (the
+    cross-validated RMSE of the model fitted and scored without the blocks that disagree, null when none does) and
+    each block's ``disagrees``.
 
     Version 3 (from 2): ``current_curve`` is the fitted current-torque curve, ``compensation`` its exact inverse
     (method and error) and ``compensation_polynomial`` the odd polynomial that ``compensation`` was in version 2.
@@ -164,6 +167,7 @@ def fit_report(
             "fold": int(fit.blocks.fold[c]),
             "rmse_held_out": float(fit.block_rmse[c]),
             "noise_floor": float(diagnosis.block_floor[c]) if diagnosis.block_floor.size else None,
+            "disagrees": bool(diagnosis.disagreeing[c]) if diagnosis.disagreeing.size else False,
         }
         if time is not None:
             entry["time"] = [float(time[a]), float(time[b - 1])]
@@ -173,7 +177,12 @@ def fit_report(
         "source": source,
         "model": list(fit.model),
         "parameters": {name: est.to_dict() for name, est in fit.parameters.items()},
-        "rmse": {"train": fit.rmse_train, "test": fit.rmse_test, "blocks": blocks},
+        "rmse": {
+            "train": fit.rmse_train,
+            "test": fit.rmse_test,
+            "outside_flagged": diagnosis.rmse_outside,
+            "blocks": blocks,
+        },
         "aic": fit.aic,
         "bic": fit.bic,
         "robust": fit.robust,

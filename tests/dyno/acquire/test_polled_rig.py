@@ -404,6 +404,10 @@ def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start
     t0 = float(first.split("t = ")[1].split("-")[0])
     assert start - 1.5 < t0 <= start + seen, first
     assert d.disagreeing[-1] and not d.disagreeing[0]
+    # outside the flagged blocks the model is far closer to its floor, and the summary says how close
+    assert d.rmse_outside is not None and d.rmse_outside < 0.5 * d.rmse_test
+    if "does not follow any model" in d.summary():
+        assert f"outside the flagged stretches the cross-validated residual is {d.rmse_outside:.3g} N m" in d.summary()
     # the headline leaves the broken end out, says what it is from the channels, and repeats with an accepted option
     from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
 
