@@ -109,11 +109,12 @@ _TRIMMED_SD = math.sqrt(
 DRIFT_BINS = 8
 MIN_DRIFT_BIN = 20
 #: Most rows searched for a partner (evenly spaced); most rows a partner is searched among: the estimate needs
-#: hundreds of pairs, not millions, and the search stays linear in the log's length (0.23 s for a million rows).
+#: hundreds of pairs, not millions, and the search stays linear in the log's length (0.10-0.14 s for a million rows:
+#: benchmarks/noise_floor.py).
 #: Calibrated on test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation (its
 #: 6,000 rows are all searched).
 NEIGHBOUR_QUERIES = 20_000
-NEIGHBOUR_POOL = 50_000
+NEIGHBOUR_POOL = 20_000
 
 
 @dataclass(frozen=True)
@@ -268,7 +269,32 @@ def _tolerance(x: Array, floor: float = 0.0) -> float:
     return max(STILL_SIGMAS * noise_sigma(x), 2.0 * quantum(x), floor)
 
 
-def still_segments(signals: Signals) -> list[tuple[int, int]]:
+@dataclass(frozen=True)
+class Tolerances:
+    """How far each input channel may move and still hold still [its unit]; None for a channel the log lacks."""
+
+    current: float
+    velocity: float | None
+    temperature: float | None
+    position: float | None
+
+    @classmethod
+    def of(cls, signals: Signals) -> Tolerances:
+        """Each channel's own noise, its quantum, or a share of its range, whichever is widest (module constants)."""
+
+        def share(x: Array | None) -> float | None:
+            return None if x is None else _tolerance(x, STILL_SHARE * float(np.ptp(x)))
+
+        position = None if signals.position is None else _tolerance(signals.position, STILL_ANGLE / 2)
+        return cls(
+            _tolerance(signals.current, STILL_SHARE * float(np.ptp(signals.current))),
+            share(signals.velocity),
+            share(signals.temperature),
+            position,
+        )
+
+
+def still_segments(signals: Signals, tolerances: Tolerances | None = None) -> list[tuple[int, int]]:
     """(start, stop) row ranges where every input channel holds still, settling rows left out, cut into pieces.
 
     A row continues a stretch while no channel steps by more than twice its tolerance from the row before; a piece
@@ -278,11 +304,12 @@ def still_segments(signals: Signals) -> list[tuple[int, int]]:
     n = signals.current.size
     if not signals.timed or n < SETTLE_ROWS + MIN_PIECE_ROWS:
         return []
-    channels = [(signals.current, _tolerance(signals.current, STILL_SHARE * float(np.ptp(signals.current))))]
-    if signals.velocity is not None:
-        channels.append((signals.velocity, _tolerance(signals.velocity, STILL_SHARE * float(np.ptp(signals.velocity)))))
-    if signals.position is not None:  # cogging is never noise on a log that can show it
-        channels.append((signals.position, _tolerance(signals.position, STILL_ANGLE / 2)))
+    widths = Tolerances.of(signals) if tolerances is None else tolerances
+    channels = [(signals.current, widths.current)]
+    if signals.velocity is not None and widths.velocity is not None:
+        channels.append((signals.velocity, widths.velocity))
+    if signals.position is not None and widths.position is not None:  # cogging is never noise on a log showing it
+        channels.append((signals.position, widths.position))
     steady = np.ones(n - 1, dtype=bool)
     for x, tol in channels:
         steady &= np.abs(np.diff(x)) <= 2.0 * tol
@@ -317,17 +344,17 @@ def still_scatter(residual: Array, pieces: list[tuple[int, int]]) -> tuple[float
     return math.sqrt(float(dev[keep] @ dev[keep]) / dof), int(keep.sum())
 
 
-def _neighbour_inputs(signals: Signals) -> Array:
-    """The paired channels from row :data:`NEIGHBOUR_LAGS` on, each divided by its still tolerance (two moments
-    coincide within 1 on every column): the current now and its last samples, the speed, the temperature, the angle."""
-    n, lags = signals.current.size, NEIGHBOUR_LAGS
-    tol = _tolerance(signals.current, STILL_SHARE * float(np.ptp(signals.current)))
-    columns = [signals.current[lags - k : n - k] / tol for k in range(lags + 1)]
-    for x in (signals.velocity, signals.temperature):
-        if x is not None:
-            columns.append(x[lags:] / _tolerance(x, STILL_SHARE * float(np.ptp(x))))
+def _neighbour_inputs(signals: Signals, rows: NDArray[np.intp], tol: Tolerances) -> Array:
+    """The paired channels at ``rows`` (counted from row :data:`NEIGHBOUR_LAGS`), each divided by its still tolerance
+    (two moments coincide within 1 on every column): the current now and its last samples, the speed, the
+    temperature, the angle."""
+    at = rows + NEIGHBOUR_LAGS
+    columns = [signals.current[at - k] / tol.current for k in range(NEIGHBOUR_LAGS + 1)]
+    for x, width in ((signals.velocity, tol.velocity), (signals.temperature, tol.temperature)):
+        if x is not None and width is not None:
+            columns.append(x[at] / width)
     if signals.position is not None:  # cogging is never noise on a log that can show it
-        columns.append(np.mod(signals.position[lags:], 2 * math.pi) / (STILL_ANGLE / 2))
+        columns.append(np.mod(signals.position[at], 2 * math.pi) / (STILL_ANGLE / 2))
     return np.column_stack([np.where(np.isfinite(c), c, 0.0) for c in columns])
 
 
@@ -362,7 +389,12 @@ class Neighbours:
         return ratio if ratio > DRIFT_FACTOR else None
 
 
-def neighbour_scatter(signals: Signals, residual: Array, rows: NDArray[np.bool_] | None = None) -> Neighbours | None:
+def neighbour_scatter(
+    signals: Signals,
+    residual: Array,
+    rows: NDArray[np.bool_] | None = None,
+    tolerances: Tolerances | None = None,
+) -> Neighbours | None:
     """The residual's scatter from pairs of far-apart moments whose inputs coincide (module docstring); None below
     :data:`MIN_NEIGHBOUR_PAIRS` pairs.
 
@@ -392,23 +424,31 @@ def neighbour_scatter(signals: Signals, residual: Array, rows: NDArray[np.bool_]
         return None
     r = np.asarray(residual, float)[NEIGHBOUR_LAGS:]
     t = signals.time[NEIGHBOUR_LAGS:]
-    X = _neighbour_inputs(signals)
     step = float(np.median(np.diff(t)))
     gap = max(NEIGHBOUR_GAP_S, NEIGHBOUR_GAP_ROWS * step)
     spans = np.floor((t - t[0]) / gap).astype(np.int64)
     span = spans % 4
     if rows is not None:
         span[~np.asarray(rows, bool)[NEIGHBOUR_LAGS:]] = -1
-    found_a, found_b = [], []
+    tol = Tolerances.of(signals) if tolerances is None else tolerances
+    members = [np.flatnonzero(span == c) for c in range(4)]
+    searched = []
     for a_class, b_class in ((0, 2), (2, 0), (1, 3), (3, 1)):
-        pool = np.flatnonzero(span == b_class)
-        queries = np.flatnonzero(span == a_class)
-        if pool.size == 0 or queries.size == 0:
-            continue
-        pool = pool[:: -(-pool.size // NEIGHBOUR_POOL)]
-        queries = queries[:: -(-queries.size // (NEIGHBOUR_QUERIES // 4))]
+        pool, queries = members[b_class], members[a_class]
+        if pool.size and queries.size:
+            searched.append(
+                (pool[:: -(-pool.size // NEIGHBOUR_POOL)], queries[:: -(-queries.size // (NEIGHBOUR_QUERIES // 4))])
+            )
+    if not searched:
+        return None
+
+    def X(at: NDArray[np.intp]) -> Array:
+        return _neighbour_inputs(signals, at, tol)
+
+    found_a, found_b = [], []
+    for pool, queries in searched:
         k = min(NEIGHBOUR_K, pool.size)
-        dist, idx = cKDTree(X[pool]).query(X[queries], k=k, p=np.inf, distance_upper_bound=1.0)
+        dist, idx = cKDTree(X(pool)).query(X(queries), k=k, p=np.inf, distance_upper_bound=1.0)
         dist, idx = dist.reshape(queries.size, k), idx.reshape(queries.size, k)
         hit = np.isfinite(dist)
         found_a.append(np.repeat(queries, k)[hit.ravel()])
@@ -416,12 +456,12 @@ def neighbour_scatter(signals: Signals, residual: Array, rows: NDArray[np.bool_]
     if not found_a:
         return None
     a_rows, b_rows = np.concatenate(found_a), np.concatenate(found_b)
-    pairs = np.unique(np.column_stack((np.minimum(a_rows, b_rows), np.maximum(a_rows, b_rows))), axis=0)
-    if len(pairs) < MIN_NEIGHBOUR_PAIRS:
+    code = np.unique(np.minimum(a_rows, b_rows) * np.int64(r.size) + np.maximum(a_rows, b_rows))  # each pair once
+    if code.size < MIN_NEIGHBOUR_PAIRS:
         return None
-    a_rows, b_rows = pairs[:, 0], pairs[:, 1]
+    a_rows, b_rows = code // r.size, code % r.size
     diff = r[a_rows] - r[b_rows]
-    dx = X[a_rows] - X[b_rows]
+    dx = X(a_rows) - X(b_rows)
     slope, *_ = np.linalg.lstsq(dx, diff, rcond=None)
     diff = diff - dx @ slope
     sep = np.abs(t[a_rows] - t[b_rows])
@@ -525,8 +565,9 @@ def estimate(
     """
     white = white_floor(residual)
     q = resolution(np.asarray(torque, float)) / math.sqrt(12.0)
+    tolerances = Tolerances.of(signals) if signals.timed else None
     if pieces is None:
-        pieces = still_segments(signals)
+        pieces = still_segments(signals, tolerances)
     found = still_scatter(residual, pieces)
     # the rounding counts only where it shows in the residual (a model that matches values on the grid exactly has none)
     r = np.asarray(residual, float)
@@ -536,7 +577,7 @@ def estimate(
     still, still_rows = (None, 0) if found is None else found
     if still is not None:
         candidates.append(("still", still))
-    paired = neighbour_scatter(signals, r, rows)
+    paired = neighbour_scatter(signals, r, rows, tolerances)
     if paired is not None:
         candidates.append(("neighbours", paired.value))
     method, value = max(candidates, key=lambda mv: mv[1])

@@ -1,0 +1,85 @@
+"""Benchmark: what the neighbour noise floor costs the diagnosis of a long log.
+
+The simulated log of ``benchmarks/fit_current.py`` (linear, saturation, Coulomb friction, cogging, thermal drift;
+1 kHz) of --rows rows is fitted once with linear+saturation; then, in the same process, the full diagnosis is timed
+with the neighbour estimate and with it switched off (the still and sample-to-sample estimates stay), the median of
+--repeats runs each, and the neighbour estimate alone. It prints the seconds and the ratio with / without.
+
+Run: .venv/bin/python benchmarks/noise_floor.py [--rows 1000000] [--repeats 3] [--json]
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import statistics
+import sys
+import tempfile
+import time
+from collections.abc import Callable
+from pathlib import Path
+
+sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
+
+
+def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
+    runs = []
+    for _ in range(repeats):
+        t0 = time.perf_counter()
+        fn()
+        runs.append(time.perf_counter() - t0)
+    return statistics.median(runs)
+
+
+def main() -> int:
+    parser = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    parser.add_argument("--rows", type=int, default=1_000_000)
+    parser.add_argument("--repeats", type=int, default=3)
+    parser.add_argument("--json", action="store_true")
+    args = parser.parse_args()
+
+    import numpy as np
+
+    import hound_id.dyno.current.noise as noise
+    from benchmarks.fit_current import make_log
+    from hound_id.dyno.current.diagnose import diagnose
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.fit import fit_model
+    from hound_id.dyno.logs import load_log
+
+    with tempfile.TemporaryDirectory() as folder:
+        path = Path(folder) / "log.parquet"
+        make_log(args.rows, path)
+        log = load_log(path)
+    signals = Signals.from_log(log)
+    fit = fit_model(signals, log.torque, ("linear", "saturation"))
+    residual = np.asarray(fit.residual)
+    real = noise.neighbour_scatter
+    with_it = _median_seconds(lambda: diagnose(signals, log.torque, fit), args.repeats)
+    noise.neighbour_scatter = lambda *a, **k: None  # type: ignore[assignment]
+    try:
+        without = _median_seconds(lambda: diagnose(signals, log.torque, fit), args.repeats)
+    finally:
+        noise.neighbour_scatter = real
+    alone = _median_seconds(lambda: real(signals, residual), args.repeats)
+    out = {
+        "schema": "hound-id/bench-noise-floor/1",
+        "rows": args.rows,
+        "diagnosis_with_neighbours_s": with_it,
+        "diagnosis_without_s": without,
+        "neighbours_alone_s": alone,
+        "ratio": with_it / without,
+    }
+    if args.json:
+        print(json.dumps(out, indent=2))
+    else:
+        print(
+            f"diagnosis of {args.rows} rows: {with_it:.3f} s with the neighbour floor, {without:.3f} s without "
+            f"(ratio {with_it / without:.3f}); the neighbour estimate alone {alone:.3f} s "
+            f"(median of {args.repeats})"
+        )
+    return 0
+
+
+if __name__ == "__main__":
+    raise SystemExit(main())
