@@ -12,23 +12,13 @@ from __future__ import annotations
 
 import argparse
 import json
-import statistics
 import sys
 import tempfile
-import time
-from collections.abc import Callable
 from pathlib import Path
 
 sys.path.insert(0, str(Path(__file__).resolve().parents[1]))
 
-
-def _median_seconds(fn: Callable[[], object], repeats: int) -> float:
-    runs = []
-    for _ in range(repeats):
-        t0 = time.perf_counter()
-        fn()
-        runs.append(time.perf_counter() - t0)
-    return statistics.median(runs)
+from benchmarks.timing import timed  # noqa: E402
 
 
 def main() -> int:
@@ -55,13 +45,13 @@ def main() -> int:
     fit = fit_model(signals, log.torque, ("linear", "saturation"))
     residual = np.asarray(fit.residual)
     real = noise.neighbour_scatter
-    with_it = _median_seconds(lambda: diagnose(signals, log.torque, fit), args.repeats)
+    with_it = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
     noise.neighbour_scatter = lambda *a, **k: None  # type: ignore[assignment]
     try:
-        without = _median_seconds(lambda: diagnose(signals, log.torque, fit), args.repeats)
+        without = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
     finally:
         noise.neighbour_scatter = real
-    alone = _median_seconds(lambda: real(signals, residual), args.repeats)
+    alone = timed(lambda: real(signals, residual), args.repeats)
     out = {
         "schema": "hound-id/bench-noise-floor/1",
         "rows": args.rows,
