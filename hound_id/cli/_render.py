@@ -22,8 +22,10 @@ def print_json(data: Any) -> None:
 
 
 def warn(message: str) -> None:
-    """A non-fatal remark on stderr."""
-    err_console.print(f"[yellow]warning:[/yellow] {message}", highlight=False, soft_wrap=True)
+    """A non-fatal remark on stderr (the message printed as written: a unit in brackets, ``time[ms]``, is no markup)."""
+    from rich.markup import escape
+
+    err_console.print(f"[yellow]warning:[/yellow] {escape(message)}", highlight=False, soft_wrap=True)
 
 
 def save_figure(fig: Any, path: Path) -> None:

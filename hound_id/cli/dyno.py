@@ -174,7 +174,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
         highlight=False,
     )
     if diagnosis.noise is not None:
-        console.print(diagnosis.noise.sentence(), highlight=False)
+        console.print(diagnosis.noise.sentence(), highlight=False, markup=False)
     pk = report["peak_torque"]
     console.print(pk["note"], highlight=False)
     exact, comp = report["compensation"], report["compensation_polynomial"]

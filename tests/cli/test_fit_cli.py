@@ -300,3 +300,10 @@ def test_the_plot_drops_missing_channels_and_shows_the_blocks(tmp_path):
         assert len(reds) == int(d.disagreeing.sum()) > 0  # the blocks after the motor was switched off
     proc = run_cli("fit-current", str(path), "--columns", COLUMNS, "--plot", str(tmp_path / "p.png"))
     assert proc.returncode == 0 and (tmp_path / "p.png").read_bytes().startswith(PNG_MAGIC)
+
+
+def test_a_warning_prints_units_in_brackets_as_written(capsys):
+    from hound_id.cli._render import warn
+
+    warn("the time column looks like milliseconds: write 'time[ms]' in the header")
+    assert "write 'time[ms]' in the header" in capsys.readouterr().err

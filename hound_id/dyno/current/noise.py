@@ -44,6 +44,11 @@ STILL_SIGMAS = 4.0
 #: between quantisation steps still holds still while it moves less than this). Calibrated on
 #: test_noise::test_still_stretches_are_found_on_a_held_plan_and_not_on_a_sweep.
 STILL_SHARE = 0.005
+#: ... and never wider than this share of the channel's range: a 1.5 Hz sweep logged at 20 Hz moves amps from one
+#: sample to the next, which a noise estimate from first differences takes for noise (a tolerance of 8 A on a 30 A
+#: sweep paired moments a missing saturation told apart). Calibrated on
+#: test_noise::test_a_sweep_logged_slowly_pairs_only_moments_whose_currents_agree.
+TOLERANCE_CAP = 0.02
 #: The rotor angle holds still while it moves less than this [rad] (1/400 turn: an eighth of a period of cogging up
 #: to order 50 per revolution), so that cogging is never counted as noise on a log that can show it. Calibrated on
 #: test_noise::test_a_rotating_rotor_is_never_still_when_the_log_has_its_angle.
@@ -89,6 +94,10 @@ MIN_NEIGHBOUR_PAIRS = 100
 #: comes from; the farthest as many again show a drift when they differ by more than DRIFT_FACTOR times as much.
 #: Calibrated on test_noise::test_a_drift_over_the_log_is_reported_and_not_counted_as_noise.
 NEIGHBOUR_K = 4
+#: Nearest rows in the inputs' space a searched row looks through for partners far enough in time (a long hold fills
+#: the nearest with rows of the same hold). Calibrated on
+#: test_noise::test_a_periodic_excitation_of_any_period_gives_pairs.
+NEIGHBOUR_SEARCH = 32
 NEAR_SHARE = 0.25
 DRIFT_FACTOR = 1.5
 #: Pair differences beyond this many robust standard deviations are left out of the neighbour estimate (its mean
@@ -104,17 +113,13 @@ _TRIMMED_SD = math.sqrt(
     / math.sqrt(2 * math.pi)
     / math.erf(PAIR_TRIM_SIGMAS / math.sqrt(2))
 )
-#: Bins of separation the drift's growth is fitted over, and the fewest pairs in one. Calibrated on
-#: test_noise::test_a_drift_over_the_log_is_reported_and_not_counted_as_noise.
-DRIFT_BINS = 8
-MIN_DRIFT_BIN = 20
-#: Most rows searched for a partner (evenly spaced); most rows a partner is searched among: the estimate needs
+#: Most rows searched for partners (evenly spaced); most rows partners are searched among: the estimate needs
 #: hundreds of pairs, not millions, and the search stays linear in the log's length (0.10-0.14 s for a million rows:
 #: benchmarks/noise_floor.py).
 #: Calibrated on test_noise::test_the_neighbour_floor_of_correlated_noise_on_a_sweep_is_its_standard_deviation (its
 #: 6,000 rows are all searched).
 NEIGHBOUR_QUERIES = 20_000
-NEIGHBOUR_POOL = 20_000
+NEIGHBOUR_POOL = 50_000
 
 
 @dataclass(frozen=True)
@@ -182,19 +187,16 @@ class NoiseFloor:
         paired = ""
         if self.paired is not None:
             lo, hi = self.paired.within
+            error = f"+- {self.paired.stderr:.1g} N m, " if self.paired.stderr > 0 else ""
             paired = (
                 f"the torque's scatter between moments {lo:.2g}-{hi:.2g} s apart whose inputs coincide "
-                f"(+- {self.paired.stderr:.1g} N m, {self.paired.pairs} pairs)"
+                f"({error}{self.paired.pairs} pairs)"
             )
-            if self.paired.extrapolated:
-                paired = (
-                    f"the torque's scatter between moments whose inputs coincide, as it grows with their separation, "
-                    f"read at {lo:.2g} s ({self.paired.pairs} pairs)"
-                )
         if self.method == "sample-to-sample":
             others = [f"{what} is {v:.3g} N m" for what, v in ((still, self.still), (paired, self.neighbours)) if v]
-            return f"noise floor {self.value:.3g} N m from sample-to-sample differences (white noise); " + ", ".join(
-                others
+            return (
+                f"noise floor {self.value:.3g} N m from sample-to-sample differences (right for white noise); "
+                + ", ".join(others)
             )
         head = f"noise floor {self.value:.3g} N m: {still if self.method == 'still' else paired}"
         ratio = self.correlation
@@ -210,11 +212,12 @@ class NoiseFloor:
             return ""
         p = self.paired
         lo, hi = p.far_within
+        error = f" +- {p.far_stderr:.1g}" if p.far_stderr > 0 else ""
         return (
-            f"; moments with the same inputs {lo:.2g}-{hi:.2g} s apart differ by {p.far:.2g} "
-            f"+- {p.far_stderr:.1g} N m, {p.far / self.value:.2g}x the floor: the torque drifts over the log (a motor "
-            "heating, an offset creeping) or remembers more than its last samples, which no model of these channels "
-            "follows"
+            f"; moments with the same inputs {lo:.2g}-{hi:.2g} s apart differ by {p.far:.2g}{error} N m, "
+            f"{p.far / self.value:.2g}x the floor: the torque drifts over the log (a motor heating, an offset "
+            "creeping), remembers more than its last samples, or follows a channel the log lacks; no model of these "
+            "channels follows it"
         )
 
     def to_dict(self) -> dict[str, object]:
@@ -234,7 +237,6 @@ class NoiseFloor:
             "far_apart_stderr": None if p is None else p.far_stderr,
             "far_apart_separation": None if p is None else list(p.far_within),
             "drift": None if p is None else p.drift,
-            "extrapolated": None if p is None else p.extrapolated,
             "quantisation": self.quantisation,
             "sentence": self.sentence(),
         }
@@ -264,9 +266,14 @@ def resolution(x: Array) -> float:
     return q if float(np.mean(np.abs(k - np.round(k)) <= ON_GRID_TOLERANCE)) >= ON_GRID_SHARE else 0.0
 
 
-def _tolerance(x: Array, floor: float = 0.0) -> float:
-    """How far a channel may move and still hold still: its own noise, its quantum, or a share of its range."""
-    return max(STILL_SIGMAS * noise_sigma(x), 2.0 * quantum(x), floor)
+def _tolerance(x: Array, floor: float = 0.0, cap: bool = False) -> float:
+    """How far a channel may move and still hold still: its own noise, its quantum, or a share of its range; with
+    ``cap`` (the current, for pairing far-apart moments) never more than :data:`TOLERANCE_CAP` of its range (on a
+    sweep logged slowly, the sample-to-sample motion that :func:`noise_sigma` reads is the signal, not its noise).
+    Holding still is judged uncapped, and the speed is never capped: on a held rotor its whole range is its noise."""
+    width = max(STILL_SIGMAS * noise_sigma(x), 2.0 * quantum(x), floor)
+    span = float(np.ptp(x)) if x.size else 0.0
+    return min(width, TOLERANCE_CAP * span) if cap and span > 0 else width
 
 
 @dataclass(frozen=True)
@@ -277,6 +284,8 @@ class Tolerances:
     velocity: float | None
     temperature: float | None
     position: float | None
+    current_paired: float = 0.0
+    """The current's tolerance for pairing far-apart moments: capped at :data:`TOLERANCE_CAP` of its range."""
 
     @classmethod
     def of(cls, signals: Signals) -> Tolerances:
@@ -291,6 +300,7 @@ class Tolerances:
             share(signals.velocity),
             share(signals.temperature),
             position,
+            _tolerance(signals.current, STILL_SHARE * float(np.ptp(signals.current)), cap=True),
         )
 
 
@@ -349,7 +359,8 @@ def _neighbour_inputs(signals: Signals, rows: NDArray[np.intp], tol: Tolerances)
     (two moments coincide within 1 on every column): the current now and its last samples, the speed, the
     temperature, the angle."""
     at = rows + NEIGHBOUR_LAGS
-    columns = [signals.current[at - k] / tol.current for k in range(NEIGHBOUR_LAGS + 1)]
+    amps = tol.current_paired if tol.current_paired > 0 else tol.current
+    columns = [signals.current[at - k] / amps for k in range(NEIGHBOUR_LAGS + 1)]
     for x, width in ((signals.velocity, tol.velocity), (signals.temperature, tol.temperature)):
         if x is not None and width is not None:
             columns.append(x[at] / width)
@@ -363,8 +374,7 @@ class Neighbours:
     """The residual's scatter between far-apart moments whose inputs coincide, near and far apart in time."""
 
     value: float
-    """Standard deviation from every pair, or from the pairs nearest in time when the far ones show a drift [N m]:
-    the noise floor's estimate."""
+    """Standard deviation from the pairs nearest in time [N m]: the noise floor's estimate."""
     pairs: int
     """Pairs it used."""
     within: tuple[float, float]
@@ -373,19 +383,19 @@ class Neighbours:
     """Standard deviation from the pairs farthest apart in time [N m]."""
     far_within: tuple[float, float]
     """Their separations [s]."""
-    extrapolated: bool = False
-    """True when :attr:`value` is the pairs' scatter fitted against their separation and read at the least one (a
-    drift)."""
     stderr: float = 0.0
-    """Standard error of :attr:`value` (a jackknife over the spans of the log) [N m]; of the nearest pairs' scatter
-    when :attr:`value` was read off their growth."""
+    """Standard error of :attr:`value` (a jackknife over the spans of the log) [N m]; 0 when the pairs come from too
+    few spans to say."""
     far_stderr: float = 0.0
     """Standard error of :attr:`far` [N m]."""
+    near_raw: float = 0.0
+    """The nearest pairs' scatter before a drift linear in time is taken out [N m] (:attr:`far` is compared with it)."""
 
     @property
     def drift(self) -> float | None:
         """far / value when the far pairs differ by more than :data:`DRIFT_FACTOR` times the floor's pairs."""
-        ratio = self.far / self.value if self.value > 0 else math.inf
+        near = self.near_raw if self.near_raw > 0 else self.value
+        ratio = self.far / near if near > 0 else math.inf
         return ratio if ratio > DRIFT_FACTOR else None
 
 
@@ -401,18 +411,16 @@ def neighbour_scatter(
     ``rows`` (True where a row may be paired) keeps a broken stretch out: paired with the rest of the log, a motor
     switched off or a torque amplifier gone wrong would read as noise, and the floor would hide it.
 
-    The log is cut into spans of the gap and the spans dealt round four classes; rows of classes 0 and 2 (and of 1
-    and 3) are at least one span apart, so a partner found in the other class of the couple is never close in time.
-    Each searched row takes its :data:`NEIGHBOUR_K` nearest partners there (Chebyshev distance in tolerances, at most
-    1). What the pair's channels still differ by, within tolerance, moves a missing effect's torque: that is taken out
-    of the differences by its slope over all pairs (a delay the model lacks is linear in the current's last samples).
-    The scatter is a trimmed root mean square (:func:`_pair_sigma`).
+    Each searched row takes, among its :data:`NEIGHBOUR_SEARCH` nearest rows (Chebyshev distance in tolerances, at
+    most 1), the first :data:`NEIGHBOUR_K` at least the gap away in time. What the pair's channels still differ by,
+    within tolerance, moves a missing effect's torque: that is taken out of the differences by its slope over all
+    pairs (a delay the model lacks is linear in the current's last samples). The scatter is a trimmed root mean
+    square (:func:`_pair_sigma`).
 
-    A drift over the log (a motor heating, an offset creeping) grows with the separation: when the pairs farthest
-    apart in time (the farthest :data:`NEAR_SHARE`, at least :data:`MIN_NEIGHBOUR_PAIRS`) scatter more than
-    :data:`DRIFT_FACTOR` times the nearest as many, and significantly so, the floor is read off the scatter's growth
-    at the least separation (:func:`_variogram_floor`, never above the nearest pairs' own) and the drift is reported
-    beside it, not counted as noise.
+    The floor comes from the pairs nearest in time (the nearest :data:`NEAR_SHARE`, at least
+    :data:`MIN_NEIGHBOUR_PAIRS`): a drift over the log (a motor heating, an offset creeping) grows with the
+    separation, so pairs close in time carry least of it. When the pairs farthest apart scatter more than
+    :data:`DRIFT_FACTOR` times those, the drift is reported beside the floor.
 
     Blind spot: an error that depends on the channels' history further back than :data:`NEIGHBOUR_LAGS` samples (a
     slow lag or a resonance the model lacks) varies between the pairs and counts as noise here; the still estimate
@@ -427,89 +435,60 @@ def neighbour_scatter(
     step = float(np.median(np.diff(t)))
     gap = max(NEIGHBOUR_GAP_S, NEIGHBOUR_GAP_ROWS * step)
     spans = np.floor((t - t[0]) / gap).astype(np.int64)
-    span = spans % 4
-    if rows is not None:
-        span[~np.asarray(rows, bool)[NEIGHBOUR_LAGS:]] = -1
+    eligible = np.arange(r.size) if rows is None else np.flatnonzero(np.asarray(rows, bool)[NEIGHBOUR_LAGS:])
+    if eligible.size < 2:
+        return None
     tol = Tolerances.of(signals) if tolerances is None else tolerances
-    members = [np.flatnonzero(span == c) for c in range(4)]
-    searched = []
-    for a_class, b_class in ((0, 2), (2, 0), (1, 3), (3, 1)):
-        pool, queries = members[b_class], members[a_class]
-        if pool.size and queries.size:
-            searched.append(
-                (pool[:: -(-pool.size // NEIGHBOUR_POOL)], queries[:: -(-queries.size // (NEIGHBOUR_QUERIES // 4))])
-            )
-    if not searched:
-        return None
-
-    def X(at: NDArray[np.intp]) -> Array:
-        return _neighbour_inputs(signals, at, tol)
-
-    found_a, found_b = [], []
-    for pool, queries in searched:
-        k = min(NEIGHBOUR_K, pool.size)
-        dist, idx = cKDTree(X(pool)).query(X(queries), k=k, p=np.inf, distance_upper_bound=1.0)
-        dist, idx = dist.reshape(queries.size, k), idx.reshape(queries.size, k)
-        hit = np.isfinite(dist)
-        found_a.append(np.repeat(queries, k)[hit.ravel()])
-        found_b.append(pool[np.minimum(idx, pool.size - 1)].ravel()[hit.ravel()])
-    if not found_a:
-        return None
-    a_rows, b_rows = np.concatenate(found_a), np.concatenate(found_b)
+    pool = eligible[:: -(-eligible.size // NEIGHBOUR_POOL)]
+    queries = eligible[:: -(-eligible.size // NEIGHBOUR_QUERIES)]
+    k = min(NEIGHBOUR_SEARCH, pool.size)
+    dist, idx = cKDTree(_neighbour_inputs(signals, pool, tol)).query(
+        _neighbour_inputs(signals, queries, tol), k=k, p=np.inf, distance_upper_bound=1.0
+    )
+    dist, idx = dist.reshape(queries.size, k), idx.reshape(queries.size, k)
+    partner = pool[np.minimum(idx, pool.size - 1)]
+    usable = np.isfinite(dist) & (np.abs(t[partner] - t[queries][:, None]) >= gap)
+    usable &= np.cumsum(usable, axis=1) <= NEIGHBOUR_K  # the first NEIGHBOUR_K far enough in time
+    a_rows, b_rows = np.broadcast_to(queries[:, None], usable.shape)[usable], partner[usable]
     code = np.unique(np.minimum(a_rows, b_rows) * np.int64(r.size) + np.maximum(a_rows, b_rows))  # each pair once
     if code.size < MIN_NEIGHBOUR_PAIRS:
         return None
     a_rows, b_rows = code // r.size, code % r.size
     diff = r[a_rows] - r[b_rows]
-    dx = X(a_rows) - X(b_rows)
+    dx = _neighbour_inputs(signals, a_rows, tol) - _neighbour_inputs(signals, b_rows, tol)
     slope, *_ = np.linalg.lstsq(dx, diff, rcond=None)
-    diff = diff - dx @ slope
+    drifting = diff - dx @ slope
+    # a drift linear in time (an offset creeping, Kt sagging as the motor warms) taken out as well, for the floor
+    dt = (t[a_rows] - t[b_rows]) / max(float(t[-1] - t[0]), step)
+    amps = 0.5 * (signals.current[a_rows + NEIGHBOUR_LAGS] + signals.current[b_rows + NEIGHBOUR_LAGS])
+    amps = amps / max(float(np.max(np.abs(amps))), 1e-300)
+    full = np.column_stack((dx, dt, dt * amps))
+    slope, *_ = np.linalg.lstsq(full, diff, rcond=None)
+    diff = diff - full @ slope
     sep = np.abs(t[a_rows] - t[b_rows])
     episode = (spans[a_rows], spans[b_rows])
     order = np.argsort(sep, kind="stable")
     count = max(MIN_NEIGHBOUR_PAIRS, int(NEAR_SHARE * order.size))
     near, far = order[:count], order[-count:]
-    fits = [_pair_sigma(diff[rows_], (episode[0][rows_], episode[1][rows_])) for rows_ in (near, far, order)]
-    if any(f is None for f in fits):
+
+    def scatter(values: Array, which: NDArray[np.intp]) -> tuple[float, float] | None:
+        return _pair_sigma(values[which], (episode[0][which], episode[1][which]))
+
+    every, near_fit, far_fit = scatter(diff, order), scatter(diff, near), scatter(diff, far)
+    # the drift is judged before its linear part is taken out: the near and far pairs as the inputs leave them
+    near_raw, far_raw = scatter(drifting, near), scatter(drifting, far)
+    if any(f is None for f in (every, near_fit, far_fit, near_raw, far_raw)):
         return None
-    (near_sigma, near_se), (far_sigma, far_se), (every, every_se) = fits  # type: ignore[misc]
-    if not every > 0:
+    assert every and near_fit and far_fit and near_raw and far_raw  # for the type checker
+    within = (float(sep.min()), float(sep.max()))
+    value, error, pairs = every[0], every[1], int(order.size)
+    if far_fit[0] > DRIFT_FACTOR * near_fit[0]:  # a drift that is not linear in time is left: the nearest pairs
+        value, error, pairs = near_fit[0], near_fit[1], int(near.size)
+        within = (float(sep[near].min()), float(sep[near].max()))
+    if not value > 0:
         return None
     far_within = (float(sep[far].min()), float(sep[far].max()))
-    # a drift: the far pairs scatter more than DRIFT_FACTOR times the near ones (reported with both errors; a missed
-    # drift would be counted as noise and could make a log look at its floor, a false one only lowers the floor)
-    if far_sigma > DRIFT_FACTOR * near_sigma:
-        # the floor is the pairs' scatter as it grows with the separation, read at the least separation
-        grown = _variogram_floor(diff, sep, episode)
-        within = (float(sep[near].min()), float(sep[near].max()))
-        return Neighbours(
-            min(near_sigma, grown), int(near.size), within, far_sigma, far_within, grown < near_sigma, near_se, far_se
-        )
-    return Neighbours(
-        every, int(diff.size), (float(sep.min()), float(sep.max())), far_sigma, far_within, False, every_se, far_se
-    )
-
-
-def _variogram_floor(diff: Array, sep: Array, episode: tuple[NDArray[np.int64], NDArray[np.int64]]) -> float:
-    """The pairs' noise standard deviation at their least separation [N m]: half their mean square in
-    :data:`DRIFT_BINS` bins of separation, fitted by a + b s + c s^2 (a, b, c >= 0: a drift that wanders or runs),
-    read at the least separation."""
-    from scipy.optimize import nnls
-
-    order = np.argsort(sep, kind="stable")
-    rows, values = [], []
-    for chunk in np.array_split(order, DRIFT_BINS):
-        fit = _pair_sigma(diff[chunk], (episode[0][chunk], episode[1][chunk]), least=MIN_DRIFT_BIN)
-        if fit is not None:
-            sigma = fit[0]
-            s_mid = float(np.median(sep[chunk]))
-            rows.append((1.0, s_mid, s_mid**2))
-            values.append(sigma**2)
-    if len(rows) < 3:
-        return math.inf
-    coef, _ = nnls(np.array(rows), np.array(values))
-    s0 = float(sep.min())
-    return math.sqrt(float(coef @ np.array([1.0, s0, s0**2])))
+    return Neighbours(value, pairs, within, far_raw[0], far_within, error, far_raw[1], near_raw[0])
 
 
 def _pair_sigma(

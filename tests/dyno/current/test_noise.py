@@ -230,3 +230,39 @@ def test_a_model_that_explains_the_log_is_at_the_floor_of_filtered_noise():
     assert fit.rmse_test > 2.5 * d.noise.white  # the old floor would call this far from the noise
     assert d.at_noise_floor, d.summary()
     assert "hold still" in d.summary() or "same inputs" in d.summary()
+
+
+def _review_sweep(rate: float, seconds: float, period: float | None = None) -> Signals:
+    """A sweep whose frequency rises from 0.05 to 1.5 Hz (or a periodic excitation of ``period`` seconds)."""
+    t = np.arange(0.0, seconds, 1.0 / rate)
+    if period:
+        i = 15 * np.sin(2 * np.pi * t / period) + 4 * np.sin(6 * np.pi * t / period)
+        w = 20 * np.sin(4 * np.pi * t / period + 0.3)
+    else:
+        i = 15 * np.sin(2 * np.pi * np.cumsum(0.05 + 1.45 * t / seconds) / rate) + 3 * np.sin(2 * np.pi * 0.037 * t + 1)
+        w = 20 * np.sin(2 * np.pi * 0.11 * t) + 5 * np.sin(2 * np.pi * 0.43 * t)
+    return Signals(time=t, current=i, velocity=w + np.random.default_rng(11).normal(0, 0.05, t.size))
+
+
+def test_a_sweep_logged_slowly_pairs_only_moments_whose_currents_agree():
+    """At 20 Hz a 1.5 Hz sweep moves amps from sample to sample; first differences read that as the current's noise.
+    Paired within such a tolerance, a missing saturation (tanh) was taken for noise and the log called at its floor."""
+    signals = _review_sweep(20.0, 60.0)
+    i = signals.current
+    noise = np.random.default_rng(12).normal(0, 0.02, i.size)
+    measured = 1.12 * np.tanh(i / 8) + noise
+    fit = fit_model(signals, measured, ("linear",))
+    d = diagnose(signals, measured, fit)
+    assert not d.at_noise_floor and fit.rmse_test > 3 * d.noise_floor
+    # no pair of moments whose currents differ by amps: the neighbour estimate does not take the saturation for noise
+    assert d.noise is not None and (d.noise.paired is None or d.noise.paired.value < 1.3 * 0.02)
+
+
+@pytest.mark.parametrize("period", [2.0, 4.0, 5.0])
+def test_a_periodic_excitation_of_any_period_gives_pairs(period):
+    """A period that is a multiple of the pairing's spans must not hide every partner."""
+    signals = _review_sweep(100.0, 40.0, period)
+    noise = ar1(signals.current.size, 0.02, 0.95, seed=13)
+    floor = estimate(signals, 0.14 * signals.current + noise, noise)
+    assert floor.paired is not None and floor.method == "neighbours"
+    assert floor.value == pytest.approx(float(noise.std()), rel=0.15)
