@@ -482,7 +482,8 @@ def neighbour_scatter(
     assert every and near_fit and far_fit and near_raw and far_raw  # for the type checker
     within = (float(sep.min()), float(sep.max()))
     value, error, pairs = every[0], every[1], int(order.size)
-    if far_fit[0] > DRIFT_FACTOR * near_fit[0]:  # a drift that is not linear in time is left: the nearest pairs
+    # a drift named, or one that is not linear in time left after the slope: the nearest pairs alone set the floor
+    if far_raw[0] > DRIFT_FACTOR * near_raw[0] or far_fit[0] > DRIFT_FACTOR * near_fit[0]:
         value, error, pairs = near_fit[0], near_fit[1], int(near.size)
         within = (float(sep[near].min()), float(sep[near].max()))
     if not value > 0:
