@@ -559,20 +559,8 @@ def _rmse_outside(stats: Stats, cols: list[int], lower: Array, upper: Array, dis
     out once, as for the whole log); None when no block or every block disagrees."""
     if not disagreeing.any() or disagreeing.all():
         return None
-    keep = ~disagreeing
-    blocks = stats.blocks
-    rows = np.diff(blocks.edges)
-    sse, n = 0.0, 0
-    for k in range(blocks.folds):
-        inside = blocks.fold == k
-        train, test = ~inside & keep, inside & keep
-        if not train.any() or not test.any():
-            continue
-        G, g, _ = stats.total(cols, train)
-        beta, _ = solve_bounded(G, g, lower, upper)
-        sse += float(stats.sse(cols, beta)[test].sum())
-        n += int(rows[test].sum())
-    return math.sqrt(sse / n) if n else None
+    cv = cross_validate(stats, stats, cols, lower, upper, use=~disagreeing)
+    return cv.rmse(np.diff(stats.blocks.edges))
 
 
 def _kt(fit: FitResult, agreeing: _Agreeing) -> float | None:

@@ -298,25 +298,48 @@ class CrossValidation:
 
     @property
     def sse(self) -> float:
-        return float(self.block_sse.sum())
+        """The held-out residual sum of squares over the blocks scored [N m^2]."""
+        return float(np.nansum(self.block_sse))
+
+    def rmse(self, rows: Array) -> float | None:
+        """The held-out RMSE over the blocks scored, given every block's row count [N m]; None when none was."""
+        scored = np.isfinite(self.block_sse)
+        n = float(rows[scored].sum())
+        return math.sqrt(self.sse / n) if n else None
 
 
-def cross_validate(fit_stats: Stats, stats: Stats, cols: Sequence[int], lower: Array, upper: Array) -> CrossValidation:
-    """Hold out each fold once, fit the others (``fit_stats``, possibly weighted) within bounds, score on ``stats``."""
+def cross_validate(
+    fit_stats: Stats,
+    stats: Stats,
+    cols: Sequence[int],
+    lower: Array,
+    upper: Array,
+    use: NDArray[np.bool_] | None = None,
+) -> CrossValidation:
+    """Hold out each fold once, fit the others (``fit_stats``, possibly weighted) within bounds, score on ``stats``.
+
+    ``use`` keeps only some blocks, for training and scoring alike; the others get a NaN ``block_sse``, and a fold
+    with no kept block on either side is skipped (NaN fold RMSEs, no coefficients).
+    """
     blocks = stats.blocks
     rows = np.diff(blocks.edges)
-    n = int(rows.sum())
-    block_sse = np.empty(blocks.count)
-    train, test, betas = np.empty(blocks.folds), np.empty(blocks.folds), []
+    kept = np.ones(blocks.count, dtype=bool) if use is None else np.asarray(use, dtype=bool)
+    n = int(rows[kept].sum())
+    block_sse = np.full(blocks.count, np.nan)
+    train, test = np.full(blocks.folds, np.nan), np.full(blocks.folds, np.nan)
+    betas: list[Array] = []
     for k in range(blocks.folds):
-        inside = blocks.fold == k
-        Gk, gk, _ = fit_stats.total(cols, ~inside)
+        inside = (blocks.fold == k) & kept
+        outside = (blocks.fold != k) & kept
+        if not inside.any() or not outside.any():
+            continue
+        Gk, gk, _ = fit_stats.total(cols, outside)
         beta_k, _ = solve_bounded(Gk, gk, lower, upper)
         sse = stats.sse(cols, beta_k)
         block_sse[inside] = sse[inside]
         n_in = int(rows[inside].sum())
         test[k] = math.sqrt(float(sse[inside].sum()) / max(n_in, 1))
-        train[k] = math.sqrt(float(sse[~inside].sum()) / max(n - n_in, 1))
+        train[k] = math.sqrt(float(sse[outside].sum()) / max(n - n_in, 1))
         betas.append(beta_k)
     return CrossValidation(block_sse, train, test, betas)
 
