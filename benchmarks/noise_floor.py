@@ -1,9 +1,10 @@
-"""Benchmark: what the neighbour noise floor costs the diagnosis of a long log.
+"""Benchmark: what the neighbour noise floor and its strata of the current cost the diagnosis of a long log.
 
 The simulated log of ``benchmarks/fit_current.py`` (linear, saturation, Coulomb friction, cogging, thermal drift;
 1 kHz) of --rows rows is fitted once with linear+saturation; then, in the same process, the full diagnosis is timed
-with the neighbour estimate and with it switched off (the still and sample-to-sample estimates stay), the median of
---repeats runs each, and the neighbour estimate alone. It prints the seconds and the ratio with / without.
+with the neighbour estimate and with it switched off (the still and sample-to-sample estimates stay), and with the
+strata of the current switched off (every estimate read over the whole log only), the median of --repeats runs each,
+and the neighbour estimate alone. It prints the seconds and the ratios with / without.
 
 Run: .venv/bin/python benchmarks/noise_floor.py [--rows 1000000] [--repeats 3] [--json]
 """
@@ -51,6 +52,12 @@ def main() -> int:
         without = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
     finally:
         noise.neighbour_scatter = real
+    strata = noise.Strata.of
+    noise.Strata.of = classmethod(lambda cls, current: None)  # type: ignore[method-assign,assignment]
+    try:
+        unstratified = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
+    finally:
+        noise.Strata.of = strata  # type: ignore[method-assign]
     alone = timed(lambda: real(signals, residual), args.repeats)
     out = {
         "schema": "hound-id/bench-noise-floor/1",
@@ -59,6 +66,8 @@ def main() -> int:
         "diagnosis_without_s": without,
         "neighbours_alone_s": alone,
         "ratio": with_it / without,
+        "diagnosis_without_strata_s": unstratified,
+        "strata_ratio": with_it / unstratified,
     }
     if args.json:
         print(json.dumps(out, indent=2))
@@ -66,7 +75,8 @@ def main() -> int:
         print(
             f"diagnosis of {args.rows} rows: {with_it:.3f} s with the neighbour floor, {without:.3f} s without "
             f"(ratio {with_it / without:.3f}); the neighbour estimate alone {alone:.3f} s "
-            f"(median of {args.repeats})"
+            f"(median of {args.repeats}); without the strata of the current {unstratified:.3f} s "
+            f"(ratio {with_it / unstratified:.3f})"
         )
     return 0
 

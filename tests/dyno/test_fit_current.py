@@ -73,3 +73,43 @@ def test_outputs_are_written_plot_first_and_the_plot_removed_when_out_fails(seed
     with pytest.raises(HoundIdError):
         write_outputs(result)
     assert not plot.exists()  # both or neither
+
+
+def _two_regimes(path, high_from: float):
+    """A sweep whose last stretch (from ``high_from`` s) goes to twice the current and follows another Kt there."""
+    import numpy as np
+
+    rng = np.random.default_rng(4)
+    t = np.arange(0.0, 60.0, 1.0 / 200.0)
+    late = t >= high_from
+    i = np.where(late, 12.0, 5.0) * np.sin(2 * np.pi * 0.4 * t) + rng.normal(0, 0.01, t.size)
+    w = 2.0 * np.sin(2 * np.pi * 0.13 * t)
+    torque = np.where(late, 0.7, 0.9) * i + rng.normal(0, 0.03, t.size)
+    rows = np.column_stack((t, i, torque, w))
+    np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
+    return path
+
+
+def test_a_stretch_that_holds_the_highest_currents_stays_in_the_headline(tmp_path):
+    """Left out, the stretch that reaches 12 A would leave a headline of currents up to 5 A and a curve extrapolated
+    beyond them; it stays in, flagged, and the whole log is the headline."""
+    result = fit_current(_two_regimes(tmp_path / "top.csv", 50.0), FitCurrentOptions(auto=True))
+    assert "headline" not in result.report, result.report.get("headline")
+    assert any(f.startswith("blocks") for f in result.report["flags"]), result.report["flags"]
+
+
+def test_a_flagged_stretch_within_the_current_range_is_left_out_of_the_headline(tmp_path):
+    """The same other regime at the currents the rest reaches: the headline is the part that agrees (Kt 0.9), and the
+    whole log's fit is beside it."""
+    import numpy as np
+
+    path = _two_regimes(tmp_path / "mid.csv", 50.0)
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    rows[:, 1] = np.where(rows[:, 0] >= 50.0, rows[:, 1] * 5.0 / 12.0, rows[:, 1])  # the late stretch back to 5 A
+    rows[:, 2] = np.where(rows[:, 0] >= 50.0, 0.7 * rows[:, 1], rows[:, 2])
+    np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
+    result = fit_current(path, FitCurrentOptions(auto=True))
+    report = result.report
+    assert report["left_out"] and all(s["time"][0] >= 49.0 for s in report["left_out"]), report.get("left_out")
+    assert result.fit.value("kt") == pytest.approx(0.9, rel=0.01)
+    assert report["whole_log"]["parameters"]["kt"]["value"] < 0.89 and "--whole-log" in report["headline"]["sentence"]

@@ -533,7 +533,7 @@ def diagnose(
     stretches = tuple(
         read(signals, design.torque, residual, int(edges[a]), int(edges[b]), kt) for a, b in runs(disagreeing)
     )
-    flags = tuple(_flags(fit, agreeing, floor, disagreeing, signals, stretches))
+    flags = tuple(_flags(fit, agreeing, noise, floor, disagreeing, signals, stretches))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
     return Diagnosis(
         fit.model,
@@ -620,12 +620,15 @@ def _disagreeing(agreeing: _Agreeing, floor: float, block_floor: Array) -> np.nd
 def _flags(
     fit: FitResult,
     agreeing: _Agreeing,
+    noise: NoiseFloor,
     floor: float,
     bad: np.ndarray,
     signals: Signals,
     stretches: Sequence[Stretch],
 ) -> list[str]:
-    """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out."""
+    """Disagreeing blocks (grouped in runs) and folds that fit their training rows much worse than their held-out,
+    each side judged against the noise it expects (a fold of quiet rows, where the noise grows with the load, is
+    not a fold the model fits better)."""
     r = agreeing.rmse
     edges = fit.blocks.edges
     ref = agreeing.typical
@@ -657,9 +660,18 @@ def _flags(
             "against a torque sensor that is loaded",
         )
     train, test = np.asarray(fit.fold_rmse_train), np.asarray(fit.fold_rmse_test)
-    ratio = train / np.maximum(test, 1e-300)
+    fold_of_row = np.repeat(fit.blocks.fold, np.diff(edges))
+    current = signals.current if fold_of_row.size == signals.current.size else np.zeros(fold_of_row.size)
+    shape = floor / noise.value if noise.value > 0 else 0.0  # the numerical floor of a noiseless log has no shape
+
+    def expect(rows: NDArray[np.bool_]) -> float:
+        return noise.expected(current, rows) * shape if shape > 0 else floor
+
+    expect_train = np.array([expect(fold_of_row != k) for k in range(train.size)])
+    expect_test = np.array([expect(fold_of_row == k) for k in range(train.size)])
+    ratio = (train / np.maximum(expect_train, 1e-300)) / np.maximum(test / np.maximum(expect_test, 1e-300), 1e-300)
     worst_fold = int(np.argmax(ratio))
-    if ratio[worst_fold] > BLOCK_FACTOR and train[worst_fold] > BLOCK_FACTOR * floor:
+    if ratio[worst_fold] > BLOCK_FACTOR and train[worst_fold] > BLOCK_FACTOR * expect_train[worst_fold]:
         out.append(
             f"the fit without fold {worst_fold + 1} of {train.size} is {ratio[worst_fold]:.3g}x worse on its own "
             f"training rows ({train[worst_fold]:.3g} N m) than on the fold it holds out ({test[worst_fold]:.3g} N m): "

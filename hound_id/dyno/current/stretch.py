@@ -47,8 +47,9 @@ SATURATED_SHARE = 0.3
 SATURATED_BAND = 0.005
 #: Kinds of stretch that show no torque per amp (leaving them out of a fit loses nothing).
 UNINFORMATIVE = ("replies frozen", "current frozen", "motor off")
-#: Kinds of stretch whose channels show a fault of the log (not of the model): the headline leaves them out. A motor
-#: switched off, a step transient or another regime may be what a missing effect looks like, and stay in.
+#: Kinds of stretch whose channels show a fault of the log (not of the model): the headline leaves them out first. A
+#: motor switched off, a step transient or another regime may be what a missing effect looks like: the headline leaves
+#: them out only after, and the whole log's fit beside it keeps them.
 FAULTS = ("replies frozen", "current frozen", "torque saturated", "torque ignores the current")
 #: A step is a change of current by this share of its span between two samples; the rows up to STEP_ROWS after it
 #: are its transient, which must hold TRANSIENT_SHARE of the stretch's squared error. Calibrated on

@@ -21,7 +21,8 @@ follows the public actuator logs described in ``physics-notes.md``:
   columns in ms, mA or N.mm, with or without a units row saying so;
 * options: the inertia of rotor and coupling between motor and sensor (seen while the opposing motor changes speed
   in steps), a torque ADC of coarse counts, a logger that writes every sample several times, and one column
-  that updates on a slower clock of its own (a stale channel).
+  that updates on a slower clock of its own (a stale channel), and a gear-mesh ripple: a share of the transmitted
+  torque at the mesh frequency of the output angle, which the log does not have (noise that grows with the load).
 
 The truth (:class:`Truth`) is the model the fit should recover: measured torque =
 kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w - inertia dw/dt, with the transducer's filter and lag.
@@ -82,6 +83,8 @@ class Rig:
     repeat: int = 1  # the logger writes every sample this many times
     stale: str | None = None  # a column that updates at a lower rate, on its own jittered clock ("torque_adc", ...)
     stale_every: float = 4.0  # polls per update of that column, on average
+    mesh_ripple: float = 0.0  # share of the transmitted torque
+    mesh_teeth: int = 36  # ripple periods per output turn
     seed: int = 0
 
 
@@ -157,6 +160,9 @@ def run(rig: Rig) -> pd.DataFrame:
         - tr.viscous * speed
         - tr.inertia * accel
     )
+    if rig.mesh_ripple > 0:  # the gear mesh: ripple with the output angle, in proportion to the torque carried
+        angle = np.cumsum(speed) / FINE_HZ
+        torque = torque * (1.0 + rig.mesh_ripple * np.sin(rig.mesh_teeth * angle))
     sensed = _butter2(torque, rig.torque_filter_hz, FINE_HZ)
     if rig.resonance_hz is not None:
         sensed = _mode(sensed, rig.resonance_hz, rig.resonance_zeta, FINE_HZ)

@@ -152,6 +152,27 @@ def test_the_noise_floor_of_a_filtered_transducer_is_honest_without_still_stretc
     assert ladder[0].fit.rmse_test > 5 * ladder[0].diagnosis.noise_floor
 
 
+@pytest.mark.parametrize("share", [0.01, 0.05])
+def test_a_gear_mesh_ripple_is_noise_that_grows_with_the_load_and_the_floor_counts_it(tmp_path, share):
+    """A ripple with the output angle (which the log does not have), in proportion to the torque carried: noise that
+    no model of the logged channels removes, loud at high current and quiet at none. Read over the whole log, the
+    pairs' robust scatter is the quiet rows' (0.47-0.82x what is left); read in strata of the current, it is the root
+    mean square the cross-validated RMSE is compared with."""
+    rig = Rig(truth=FRICTION, mesh_ripple=share, **FAST)
+    quiet = dataclasses.replace(rig, mesh_ripple=0.0)  # the same draws without the ripple
+    ripple = frame(rig).torque_adc - frame(quiet).torque_adc
+    honest = math.sqrt(rig.torque_noise**2 + (FRICTION.kt * rig.current_noise) ** 2 + float(np.mean(ripple**2)))
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    fit, d = ladder[-1].fit, ladder[-1].diagnosis
+    assert d.noise is not None and d.noise.load is not None, d.noise.sentence()
+    assert d.noise.load.sigma[-1] > 2 * d.noise.load.sigma[0]
+    assert d.noise_floor == pytest.approx(honest, rel=0.1), d.noise.sentence()
+    assert "grows with the load" in d.noise.sentence()
+    assert fit.value("kt") == pytest.approx(FRICTION.kt, rel=0.005)
+    assert fit.rmse_test < 1.1 * honest and d.at_noise_floor, d.summary()
+
+
 def test_a_first_order_transducer_lag_is_found_and_valued(tmp_path):
     rig = Rig(truth=FRICTION, lag_ms=6.0, current_late=False, **FAST)
     log = load(tmp_path, rig)
@@ -417,8 +438,11 @@ def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start
     assert report["whole_log"]["flags"]
     left = sorted(report["left_out"], key=lambda s: s["time"][0])
     assert start - 1.5 < left[0]["time"][0] <= start + seen + 1.0 and left[-1]["time"][1] > 59
-    assert {s["kind"] for s in left} == {kind}
-    # what stays flagged in the headline is the onset (the channels look ordinary there, so it is not left out)
+    # the fault is named from its channels; its onset, where the channels still look ordinary, is left out as what
+    # it looks like, and nothing before the break is
+    kinds = {s["kind"] for s in left}
+    assert kind in kinds and kinds <= {kind, "another regime", "step transient"}, kinds
+    assert all(s["time"][0] > start - 1.5 for s in left)
     for flag in (f for f in report["flags"] if f.startswith("blocks")):
         assert float(flag.split("t = ")[1].split("-")[0]) > start - 1.5, flag
     assert result.fit.value("kt") == pytest.approx(1.15, rel=0.005)

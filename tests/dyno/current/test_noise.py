@@ -266,3 +266,68 @@ def test_a_periodic_excitation_of_any_period_gives_pairs(period):
     floor = estimate(signals, 0.14 * signals.current + noise, noise)
     assert floor.paired is not None and floor.method == "neighbours"
     assert floor.value == pytest.approx(float(noise.std()), rel=0.15)
+
+
+@pytest.mark.parametrize("plan", ["held", "sweep"])
+@pytest.mark.parametrize("cutoff_hz", [None, 20.0])
+def test_a_noise_that_grows_with_the_load_is_counted_by_its_root_mean_square(plan, cutoff_hz):
+    """A torque ripple sampled too slowly to follow grows with the current: the median row's noise is then far below
+    the root mean square that a cross-validated RMSE is compared with, and every estimate has to read the latter."""
+    signals, clean = held_plan(seed=3) if plan == "held" else (sweep(), KT * sweep().current)
+    n = clean.size
+    unit = np.random.default_rng(11).normal(size=n) if cutoff_hz is None else filtered_noise(n, 1.0, cutoff_hz, seed=12)
+    noise = (0.01 + 0.02 * np.abs(signals.current)) * unit
+    rms = float(np.sqrt(np.mean(noise**2)))
+    floor = estimate(signals, clean + noise, noise)
+    assert floor.load is not None and floor.load.sigma[-1] > 3 * floor.load.sigma[0]
+    assert floor.value == pytest.approx(rms, rel=0.15), floor.sentence()
+    assert "grows with the load" in floor.sentence() and floor.to_dict()["load"]["sigma"] == list(floor.load.sigma)
+    # the same noise read as one size: the median row's noise, well below its root mean square
+    if cutoff_hz is None:
+        assert white_floor(noise) < 0.85 * rms
+
+
+def test_a_noise_of_one_size_is_not_called_load_dependent():
+    for seed in range(10):
+        signals, clean = held_plan(seed=seed)
+        for noise in (
+            np.random.default_rng(100 + seed).normal(0, 0.05, clean.size),
+            filtered_noise(clean.size, 0.05, 20.0, seed=200 + seed),
+        ):
+            floor = estimate(signals, clean + noise, noise)
+            assert floor.load is None, (seed, floor.sentence())
+        swept = sweep()
+        noise = ar1(swept.current.size, 0.05, 0.9, seed=300 + seed)
+        assert estimate(swept, KT * swept.current + noise, noise).load is None
+
+
+def test_a_right_model_on_a_load_dependent_noise_is_at_the_floor():
+    signals, clean = held_plan(seed=5)
+    noise = (0.01 + 0.02 * np.abs(signals.current)) * filtered_noise(clean.size, 1.0, 20.0, seed=6)
+    torque = clean + noise
+    fit = fit_model(signals, torque, ("linear",))
+    d = diagnose(signals, torque, fit)
+    assert d.noise is not None and d.noise.load is not None
+    assert fit.rmse_test > 1.3 * white_floor(noise)  # judged by the median row's noise it would miss something
+    assert d.at_noise_floor, d.summary()
+
+
+def test_a_fold_of_quiet_rows_is_not_a_fold_the_model_fits_better():
+    """The motor rests for the first tenth of the log, where a noise that grows with the load is small: the fit
+    without that fold is far worse on its own (loud) training rows than on the quiet fold, and that is the noise, not
+    rows the model does not follow."""
+    signals, clean = held_plan(seed=9)
+    rest = signals.time < 4.5
+    current = np.where(rest, np.random.default_rng(1).normal(0, 0.01, rest.size), signals.current)
+    velocity = np.where(rest, np.random.default_rng(2).normal(0, 0.02, rest.size), signals.velocity)
+    signals = Signals(time=signals.time, current=current, velocity=velocity)
+    clean = np.where(rest, 0.0, clean)
+    noise = (0.005 + 0.03 * np.abs(current)) * np.random.default_rng(3).normal(size=current.size)
+    torque = clean + noise
+    fit = fit_model(signals, torque, ("linear",))
+    d = diagnose(signals, torque, fit)
+    train, test = np.asarray(fit.fold_rmse_train), np.asarray(fit.fold_rmse_test)
+    assert train[0] > 3 * test[0]  # judged against one floor for every row, the quiet fold would be flagged
+    assert d.noise is not None and d.noise.load is not None
+    assert not any("worse on its own training rows" in f for f in d.flags), d.flags
+    assert d.at_noise_floor, d.summary()
