@@ -113,3 +113,22 @@ def test_a_flagged_stretch_within_the_current_range_is_left_out_of_the_headline(
     assert report["left_out"] and all(s["time"][0] >= 49.0 for s in report["left_out"]), report.get("left_out")
     assert result.fit.value("kt") == pytest.approx(0.9, rel=0.01)
     assert report["whole_log"]["parameters"]["kt"]["value"] < 0.89 and "--whole-log" in report["headline"]["sentence"]
+    # the verdict says it holds for the rest of the log only
+    assert report["summary"].startswith("the log as a whole does not follow one model: the headline leaves out t = ")
+    assert "another regime" in report["summary"] and "on the rest: " in report["summary"]
+
+
+def test_a_stretch_that_holds_most_of_the_high_currents_stays_in_the_headline(tmp_path):
+    """One early cycle reaches the top current, but the rows at high current are nearly all in the stretch that
+    follows another law: leaving it out would fit the curve's top to a handful of rows."""
+    import numpy as np
+
+    path = _two_regimes(tmp_path / "most.csv", 40.0)
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    t = rows[:, 0]
+    one = (t >= 10.0) & (t < 12.5)  # one cycle at 12 A early on, with the first law
+    rows[:, 1] = np.where(one, rows[:, 1] * 12.0 / 5.0, rows[:, 1])
+    rows[:, 2] = np.where(one, 0.9 * rows[:, 1], rows[:, 2])
+    np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
+    result = fit_current(path, FitCurrentOptions(auto=True))
+    assert not any(s["time"][0] >= 39.0 for s in result.report.get("left_out", [])), result.report.get("left_out")

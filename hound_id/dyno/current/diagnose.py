@@ -672,10 +672,18 @@ def _flags(
     ratio = (train / np.maximum(expect_train, 1e-300)) / np.maximum(test / np.maximum(expect_test, 1e-300), 1e-300)
     worst_fold = int(np.argmax(ratio))
     if ratio[worst_fold] > BLOCK_FACTOR and train[worst_fold] > BLOCK_FACTOR * expect_train[worst_fold]:
+        k = worst_fold
+        raw = train[k] / max(float(test[k]), 1e-300)
+        shaped = (
+            ""
+            if noise.load is None
+            else f", {ratio[k]:.3g}x against the noise each side expects ({expect_train[k]:.3g} and "
+            f"{expect_test[k]:.3g} N m: the noise changes with the load)"
+        )
         out.append(
-            f"the fit without fold {worst_fold + 1} of {train.size} is {ratio[worst_fold]:.3g}x worse on its own "
-            f"training rows ({train[worst_fold]:.3g} N m) than on the fold it holds out ({test[worst_fold]:.3g} N m): "
-            "the rows outside that fold do not follow the model"
+            f"the fit without fold {k + 1} of {train.size} is {raw:.3g}x worse on its own training rows "
+            f"({train[k]:.3g} N m) than on the fold it holds out ({test[k]:.3g} N m){shaped}: the rows outside that "
+            "fold do not follow the model"
         )
     return out
 

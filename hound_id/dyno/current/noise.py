@@ -21,7 +21,7 @@ Three estimates, and the floor says which it used:
 The floor is the largest estimate the log supports, and never below the torque channel's quantisation
 q / sqrt(12) (a rounded channel cannot be matched closer).
 
-Noise that grows with the load (a ripple with an angle the log lacks, a transducer whose noise scales with its
+Noise that changes with the load (a ripple with an angle the log lacks, a transducer whose noise scales with its
 reading) is read by each estimate in strata of the current's magnitude (:class:`Strata`) as well as over the whole
 log. When the strata differ by :data:`LOAD_FACTOR` or more, the estimate is their root mean square over the rows:
 what a cross-validated RMSE is compared with (a median over the log gives the typical row's noise instead, and a
@@ -137,11 +137,15 @@ NEIGHBOUR_POOL = 50_000
 #: test_polled_rig::test_a_gear_mesh_ripple_is_noise_that_grows_with_the_load_and_the_floor_counts_it.
 LOAD_STRATA = 4
 LOAD_STRATUM_ROWS = 100
-#: The noise is said to grow with the load when its largest stratum's size is this many times its smallest (no
+#: The noise is said to change with the load when its largest stratum's size is this many times its smallest (no
 #: noise of one size was so called in 120 synthetic logs, white, filtered at 20 and 8 Hz, and AR(1)). Calibrated on
 #: test_noise::test_a_noise_that_grows_with_the_load_is_counted_by_its_root_mean_square and
 #: test_noise::test_a_noise_of_one_size_is_not_called_load_dependent.
 LOAD_FACTOR = 1.5
+#: The strata of second differences are not read when the largest is within this many times the torque's rounding
+#: q / sqrt(12) (second differences of rounded values read rounding, more of it where the reading moves). Calibrated on
+#: test_noise::test_a_rounded_torque_at_rest_is_not_noise_that_grows_with_the_load.
+ROUNDING_DOMINATES = 3.0
 
 
 @dataclass(frozen=True)
@@ -167,11 +171,11 @@ class NoiseFloor:
     timed: bool = True
     """False for a steady-state table (no still stretches there: its rows are operating points)."""
     load: LoadProfile | None = None
-    """How the noise grows with the current's magnitude, when it does (every estimate is then the noise's root mean
+    """How the noise changes with the current's magnitude, when it does (every estimate is then the noise's root mean
     square over the rows); None for noise of one size."""
 
     def expected(self, current: Array, rows: NDArray[np.bool_]) -> float:
-        """The noise's root mean square over ``rows`` [N m]: the floor, shaped by the load when the noise grows with
+        """The noise's root mean square over ``rows`` [N m]: the floor, shaped by the load when the noise changes with
         it (quiet rows expect less than the log's floor, loud rows more)."""
         if self.load is None or not rows.any():
             return self.value
@@ -199,11 +203,19 @@ class NoiseFloor:
     def _load(self) -> str:
         if self.load is None:
             return ""
-        (lo, hi), (lo2, hi2), sg = self.load.current[0], self.load.current[-1], self.load.sigma
+        sg = self.load.sigma
+        lo, hi = int(np.argmin(sg)), int(np.argmax(sg))
+        quiet, loud = self.load.current[lo], self.load.current[hi]
+        grows = hi > lo
+        why = (
+            "a ripple with an angle the log lacks, or a transducer's noise that scales with its reading"
+            if grows
+            else "a backlash that rattles while the gears carry no load, or a vibration the load damps"
+        )
         return (
-            f"; the noise grows with the load ({self.load.method}: {sg[0]:.2g} N m at |i| {lo:.3g}-{hi:.3g} A, "
-            f"{sg[-1]:.2g} N m at {lo2:.3g}-{hi2:.3g} A; a ripple with an angle the log lacks, or a transducer's noise "
-            "that scales with its reading): the floor is its root mean square over the rows"
+            f"; the noise {'grows' if grows else 'falls'} with the load ({self.load.method}: {sg[lo]:.2g} N m at "
+            f"|i| {quiet[0]:.3g}-{quiet[1]:.3g} A, {sg[hi]:.2g} N m at {loud[0]:.3g}-{loud[1]:.3g} A; {why}): "
+            "the floor is its root mean square over the rows"
         )
 
     def _how(self) -> str:
@@ -316,7 +328,7 @@ class Strata:
         return cls(label, edges, tuple(float(c) / i.size for c in counts))
 
     def profile(self, method: str, sigma: dict[int, float]) -> LoadProfile | None:
-        """The noise's size by stratum when it grows with the load: two strata or more read, the largest
+        """The noise's size by stratum when it changes with the load: two strata or more read, the largest
         :data:`LOAD_FACTOR` times the smallest or more; None otherwise (noise of one size)."""
         if len(sigma) < 2 or max(sigma.values()) < LOAD_FACTOR * min(sigma.values()) or not max(sigma.values()) > 0:
             return None
@@ -372,19 +384,36 @@ def white_floor(residual: Array) -> float:
     return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
 
 
-def white_by_stratum(residual: Array, strata: Strata) -> dict[int, float]:
+def white_by_stratum(residual: Array, strata: Strata, model: Array | None = None) -> dict[int, float]:
     """:func:`white_floor` in each stratum with :data:`LOAD_STRATUM_ROWS` rows or more (second differences centred
-    on the stratum's rows) [N m]."""
+    on the stratum's rows) [N m].
+
+    With ``model`` (the fitted torque), a stratum where the model's own second differences are larger than the
+    residual's is not read: the torque moves faster there than its noise from sample to sample, and a small error of
+    the model's shape (a knee it lacks) shows in the residual's second differences as if it were noise."""
     r = np.asarray(residual, float)
     if r.size < 3:
         return {}
-    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
+
+    def second(x: Array) -> Array:
+        return x[2:] - 2.0 * x[1:-1] + x[:-2]
+
+    def robust(d: Array) -> float:
+        return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d))))
+
+    d2 = second(r)
+    m2 = None if model is None else second(np.asarray(model, float))
     label = strata.label[1:-1]
     out = {}
     for k in range(len(strata.share)):
-        d = d2[label == k]
-        if d.size >= LOAD_STRATUM_ROWS:
-            out[k] = MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d)))) / math.sqrt(6.0)
+        inside = label == k
+        d = d2[inside]
+        if d.size < LOAD_STRATUM_ROWS:
+            continue
+        sigma = robust(d)
+        if m2 is not None and robust(m2[inside]) > sigma:
+            continue
+        out[k] = sigma / math.sqrt(6.0)
     return out
 
 
@@ -543,7 +572,7 @@ class Neighbours:
     near_raw: float = 0.0
     """The nearest pairs' scatter before a drift linear in time is taken out [N m] (:attr:`far` is compared with it)."""
     load: LoadProfile | None = None
-    """The scatter in strata of the current's magnitude when it grows with the load (:attr:`value` is then their
+    """The scatter in strata of the current's magnitude when it changes with the load (:attr:`value` is then their
     root mean square over the rows)."""
 
     @property
@@ -578,7 +607,7 @@ def neighbour_scatter(
     separation, so pairs close in time carry least of it. When the pairs farthest apart scatter more than
     :data:`DRIFT_FACTOR` times those, the drift is reported beside the floor.
 
-    With ``strata``, the scatter is read in each stratum of the current's magnitude too, and when it grows with the
+    With ``strata``, the scatter is read in each stratum of the current's magnitude too, and when it changes with the
     load (:meth:`Strata.profile`) the floor is its root mean square over the log's rows.
 
     Blind spot: an error that depends on the channels' history further back than :data:`NEIGHBOUR_LAGS` samples (a
@@ -714,31 +743,41 @@ def estimate(
             typical one.
     """
     r = np.asarray(residual, float)
-    # noise that grows with the load: each estimate read in strata of |current| too, and their root mean square over
+    # noise that changes with the load: each estimate read in strata of |current| too, and their root mean square over
     # the rows taken when they differ (what a cross-validated RMSE is compared with, not the typical row's noise)
     strata = Strata.of(signals.current) if signals.timed else None
     white = white_floor(r)
     profiles: dict[str, LoadProfile] = {}
-    white_load = None if strata is None else strata.profile("sample-to-sample", white_by_stratum(r, strata))
-    if white_load is not None:
-        white, profiles["sample-to-sample"] = white_load.value, white_load
     q = resolution(np.asarray(torque, float)) / math.sqrt(12.0)
+    # the rounding counts only where it shows in the residual (a model that matches values on the grid exactly has none)
+    spread = float(np.std(r)) if r.size else 0.0
+    visible = q if spread >= QUANTISATION_SHOWS * q else 0.0
+    by_stratum = {} if strata is None else white_by_stratum(r, strata, np.asarray(torque, float) - r)
+    # where the rounding is what second differences read (a reading exactly on the grid at rest, rounded under load),
+    # the strata would tell rounding from rounding: not read
+    if by_stratum and max(by_stratum.values()) <= ROUNDING_DOMINATES * visible:
+        by_stratum = {}
+    white_load = None if strata is None else strata.profile("sample-to-sample", by_stratum)
     tolerances = Tolerances.of(signals) if signals.timed else None
     if pieces is None:
         pieces = still_segments(signals, tolerances)
     found = still_scatter(r, pieces)
-    # the rounding counts only where it shows in the residual (a model that matches values on the grid exactly has none)
-    spread = float(np.std(r)) if r.size else 0.0
-    visible = q if spread >= QUANTISATION_SHOWS * q else 0.0
-    candidates = [("sample-to-sample", white if math.isfinite(white) else 0.0), ("quantisation", visible)]
     still, still_rows = (None, 0) if found is None else found
     if still is not None and strata is not None:
         still_load = strata.profile("still", still_by_stratum(r, pieces, strata))
         if still_load is not None:
             still, profiles["still"] = still_load.value, still_load
+    paired = neighbour_scatter(signals, r, rows, tolerances, strata)
+    agnostic = [v for v in (still, None if paired is None else paired.value) if v is not None]
+    if white_load is not None:
+        # second differences read noise of any colour low: read in strata above every estimate that is blind to the
+        # noise's colour, they carry the model's error, and the log's own second differences stand
+        ceiling = max([white, *agnostic]) if agnostic else math.inf
+        if white_load.value <= ceiling:
+            white, profiles["sample-to-sample"] = white_load.value, white_load
+    candidates = [("sample-to-sample", white if math.isfinite(white) else 0.0), ("quantisation", visible)]
     if still is not None:
         candidates.append(("still", still))
-    paired = neighbour_scatter(signals, r, rows, tolerances, strata)
     if paired is not None:
         candidates.append(("neighbours", paired.value))
         if paired.load is not None:

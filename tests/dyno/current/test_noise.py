@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.signal import butter, lfilter
 
-from hound_id.dyno.current.diagnose import diagnose
+from hound_id.dyno.current.diagnose import auto, diagnose
 from hound_id.dyno.current.effects import Signals
 from hound_id.dyno.current.fit import fit_model
 from hound_id.dyno.current.noise import (
@@ -331,3 +331,47 @@ def test_a_fold_of_quiet_rows_is_not_a_fold_the_model_fits_better():
     assert d.noise is not None and d.noise.load is not None
     assert not any("worse on its own training rows" in f for f in d.flags), d.flags
     assert d.at_noise_floor, d.summary()
+
+
+def _lowpass(x: np.ndarray, a: float) -> np.ndarray:
+    return lfilter([1.0 - a], [1.0, -a], x)
+
+
+@pytest.mark.parametrize("seed", [0, 1])
+def test_a_knee_the_model_lacks_on_a_fast_current_is_not_read_as_noise_that_grows_with_the_load(seed):
+    """The current moves amps from sample to sample, and the torque flattens above 6 A in a way no effect of the
+    model follows: the residual's second differences there are the model's error. Read as noise that grows with the
+    load, they called the model at its floor."""
+    rng = np.random.default_rng(seed)
+    n = int(30 * RATE)
+    i = _lowpass(rng.uniform(-10, 10, n), 0.3) * 1.6
+    t = np.arange(n) / RATE
+    signals = Signals(time=t, current=i, velocity=0.01 * rng.standard_normal(n))
+    over = np.clip(np.abs(i) - 6, 0, None)
+    torque = 0.9 * i - np.sign(i) * 0.25 * over**2 + 0.03 * rng.standard_normal(n)
+    d = auto(signals, torque, fit_model(signals, torque, ("linear", "saturation")))[-1].diagnosis
+    assert d.noise is not None and (d.noise.load is None or d.noise.load.method != "sample-to-sample")
+    assert not d.at_noise_floor, d.summary()
+
+
+def test_a_noise_that_falls_with_the_load_is_said_to_fall():
+    """A backlash that rattles while the gears are unloaded: loud near zero current, quiet under load."""
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    i = 8 * np.sin(2 * np.pi * 0.3 * t)
+    signals = Signals(time=t, current=i, velocity=2 * np.cos(2 * np.pi * 0.3 * t))
+    noise = np.where(np.abs(i) < 2, 0.10, 0.03) * np.random.default_rng(5).standard_normal(t.size)
+    floor = estimate(signals, 0.9 * i + noise, noise)
+    assert floor.load is not None and "falls with the load" in floor.sentence(), floor.sentence()
+    assert "grows" not in floor.sentence()
+    assert floor.value == pytest.approx(float(np.sqrt(np.mean(noise**2))), rel=0.15)
+
+
+def test_a_rounded_torque_at_rest_is_not_noise_that_grows_with_the_load():
+    """The drive reports exactly 0 A at rest and the torque ADC rounds to 0.05 N m: second differences read nothing
+    at rest and rounding under load. That is the rounding, not a noise that grows with the load."""
+    t = np.arange(0.0, 60.0, 1.0 / RATE)
+    i = np.where((t % 10) < 5, 0.0, 8 * np.sin(2 * np.pi * 0.2 * (t % 10 - 5)))
+    signals = Signals(time=t, current=i, velocity=0.5 * i)
+    torque = np.round((0.9 * i + 0.005 * np.random.default_rng(6).standard_normal(t.size)) / 0.05) * 0.05
+    floor = estimate(signals, torque, torque - 0.9 * i)
+    assert floor.load is None and floor.method == "quantisation", floor.sentence()
