@@ -117,7 +117,7 @@ def _saturation_seen(fit: FitResult) -> tuple[bool, dict[str, float] | None]:
     95 % limit, or None when a term has no standard error). A curve without saturation terms counts as seen: its
     straight line is what the model says, and the advice is to add one."""
     values = fit.values()
-    upper = dict(values)
+    upper: dict[str, float] | None = dict(values)
     seen = not any(get(name).shape and name != "linear" for name in fit.model)
     for name in fit.model:
         e = get(name)
@@ -127,11 +127,14 @@ def _saturation_seen(fit: FitResult) -> tuple[bool, dict[str, float] | None]:
             if par.name == "kt":
                 continue
             est = fit.parameters[par.name]
+            # every term is looked at: one held at its bound says nothing of the next (a cubic term 10 standard
+            # errors from zero beside a quadratic one held at zero is a saturation seen)
             if est.stderr > 0 and abs(est.value) >= SATURATION_SIGMAS * est.stderr and not est.at_bound:
                 seen = True
             if est.at_bound or not est.stderr > 0:  # held at zero, or no error: no interval to bound it with
-                return seen, None
-            upper[par.name] = est.value + SATURATION_SIGMAS * est.stderr
+                upper = None
+            elif upper is not None:
+                upper[par.name] = est.value + SATURATION_SIGMAS * est.stderr
     return seen, upper
 
 

@@ -98,3 +98,19 @@ def test_a_peak_torque_needs_a_significant_saturation_term():
     signals, torque, _ = simulated(("linear", "saturation"), 3)
     full = peak_torque(fit_model(signals, torque, ("linear", "saturation")), float(np.abs(signals.current).max()))
     assert full.torque is not None and full.at_least is None
+
+
+def test_a_saturation_term_held_at_its_bound_does_not_hide_the_next_one():
+    """The quadratic term wants a negative value (held at zero), the cubic one is far from zero: saturation is seen,
+    and the peak torque is a number, not 'no saturation seen'."""
+    from hound_id.dyno.current.effects import Signals
+
+    rng = np.random.default_rng(3)
+    t = np.arange(0.0, 60.0, 1.0 / 200.0)
+    i = 20.0 * np.sin(2 * np.pi * 0.2 * t)
+    signals = Signals(time=t, current=i, velocity=2.0 * np.sin(2 * np.pi * 0.07 * t))
+    torque = 1.0 * i + 0.002 * i * np.abs(i) - 0.0004 * i**3 + rng.normal(0, 0.03, t.size)
+    fit = fit_model(signals, torque, ("linear", "saturation", "saturation_cubic"))
+    assert fit.parameters["k_sat"].at_bound and fit.parameters["k_sat3"].value > 10 * fit.parameters["k_sat3"].stderr
+    peak = peak_torque(fit, float(np.abs(i).max()))
+    assert peak.torque is not None and not peak.note.startswith("no saturation seen"), peak.note
