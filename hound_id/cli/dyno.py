@@ -213,7 +213,9 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
     console.print(st)
     if diagnosis.skipped:
         console.print(f"not tried: {'; '.join(diagnosis.skipped)}", highlight=False)
-    console.print(f"[bold]{diagnosis.summary()}[/bold]", highlight=False)
+    # the report's summary: the diagnosis's, and that it holds for the rest of the log when the headline left out
+    # stretches that follow another law
+    console.print(f"[bold]{escape(report['summary'])}[/bold]", highlight=False)
     for path, what in ((plot, "plot"), (out, "fitted motor")):
         if path is not None:
             console.print(f"{what} written to {path}", highlight=False)

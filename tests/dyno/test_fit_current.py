@@ -132,3 +132,23 @@ def test_a_stretch_that_holds_most_of_the_high_currents_stays_in_the_headline(tm
     np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
     result = fit_current(path, FitCurrentOptions(auto=True))
     assert not any(s["time"][0] >= 39.0 for s in result.report.get("left_out", [])), result.report.get("left_out")
+
+
+def test_the_printed_verdict_says_the_headline_left_a_stretch_out(tmp_path):
+    """The last line a user reads is the report's summary: 'at the noise floor' is said of the rest of the log."""
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    import numpy as np
+
+    path = _two_regimes(tmp_path / "mid.csv", 50.0)
+    rows = np.loadtxt(path, delimiter=",", skiprows=1)
+    rows[:, 1] = np.where(rows[:, 0] >= 50.0, rows[:, 1] * 5.0 / 12.0, rows[:, 1])
+    rows[:, 2] = np.where(rows[:, 0] >= 50.0, 0.7 * rows[:, 1], rows[:, 2])
+    np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
+    exe = Path(sys.executable).with_name("hound-id")
+    proc = subprocess.run([str(exe), "fit-current", str(path), "--auto"], capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    tail = " ".join(proc.stdout.split()[-80:])
+    assert "the log as a whole does not follow one model" in tail and "on the rest:" in tail, tail
