@@ -149,10 +149,11 @@ def fit_log(name: str, source: str, data: bytes, options: FitCurrentOptions) -> 
 
 @contextmanager
 def _quiet() -> Iterator[None]:
-    """Dask's own log lines below errors are not the user's business."""
+    """Dask's own log lines are not the user's business: a log that fails is reported by the fleet itself, and a
+    worker that loses its scheduler's heartbeat while the cluster closes logs a traceback at ERROR level."""
     logger = logging.getLogger("distributed")
     level = logger.level
-    logger.setLevel(logging.ERROR)
+    logger.setLevel(logging.CRITICAL)
     try:
         yield
     finally:
@@ -179,7 +180,7 @@ def client_for(scheduler: str | None, workers: int | None) -> Iterator[Client]:
                     threads_per_worker=1,
                     processes=True,
                     dashboard_address=None,
-                    silence_logs=logging.ERROR,
+                    silence_logs=logging.CRITICAL,
                 ) as cluster,
                 Client(cluster) as client,
             ):
