@@ -375,13 +375,22 @@ class LoadProfile:
         }
 
 
+def _second(x: Array) -> Array:
+    """Second differences of a series."""
+    return x[2:] - 2.0 * x[1:-1] + x[:-2]
+
+
+def _robust_sd(d: Array) -> float:
+    """Standard deviation from the median absolute deviation (steps and spikes barely move it)."""
+    return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d))))
+
+
 def white_floor(residual: Array) -> float:
     """Standard deviation of white measurement noise in a residual series [N m] (module docstring)."""
     r = np.asarray(residual, float)
     if r.size < MIN_FLOOR_ROWS:
         return float("nan")
-    d2 = r[2:] - 2.0 * r[1:-1] + r[:-2]
-    return float(MAD_TO_SIGMA * np.median(np.abs(d2 - np.median(d2))) / math.sqrt(6.0))
+    return _robust_sd(_second(r)) / math.sqrt(6.0)
 
 
 def white_by_stratum(residual: Array, strata: Strata, model: Array | None = None) -> dict[int, float]:
@@ -394,15 +403,8 @@ def white_by_stratum(residual: Array, strata: Strata, model: Array | None = None
     r = np.asarray(residual, float)
     if r.size < 3:
         return {}
-
-    def second(x: Array) -> Array:
-        return x[2:] - 2.0 * x[1:-1] + x[:-2]
-
-    def robust(d: Array) -> float:
-        return MAD_TO_SIGMA * float(np.median(np.abs(d - np.median(d))))
-
-    d2 = second(r)
-    m2 = None if model is None else second(np.asarray(model, float))
+    d2 = _second(r)
+    m2 = None if model is None else _second(np.asarray(model, float))
     label = strata.label[1:-1]
     out = {}
     for k in range(len(strata.share)):
@@ -410,8 +412,8 @@ def white_by_stratum(residual: Array, strata: Strata, model: Array | None = None
         d = d2[inside]
         if d.size < LOAD_STRATUM_ROWS:
             continue
-        sigma = robust(d)
-        if m2 is not None and robust(m2[inside]) > sigma:
+        sigma = _robust_sd(d)
+        if m2 is not None and _robust_sd(m2[inside]) > sigma:
             continue
         out[k] = sigma / math.sqrt(6.0)
     return out
