@@ -19,7 +19,9 @@ velocity=motor_measured_speed,torque_cmd=motor_torque_command
 
 Add ``--markdown`` for a table to paste into the README, ``--json`` for every report. The last line (``summary`` in
 the JSON) gives the figures over the fitted logs: the median cross-validated RMSE / noise floor, with and without the
-stretches each log flags, how the floors were found and on how many logs a drift is named.
+stretches each log flags, how the floors were found, on how many logs a drift is named, and for the logs above 2x
+their floor what the report names as the cause (a flagged stretch, a slow wander, fast noise, a drift) and which
+name none.
 """
 
 from __future__ import annotations
@@ -34,6 +36,7 @@ from pathlib import Path
 from typing import Any
 
 SUFFIXES = (".csv", ".parquet", ".txt", ".tsv")
+CAUSES = ("flagged stretch", "slow wander", "offset", "fast noise", "drift")
 #: Longest verdict in a Markdown table cell [characters].
 MARKDOWN_VERDICT = 150
 
@@ -56,6 +59,25 @@ def run_one(exe: str, path: Path, extra: list[str]) -> dict[str, Any]:
     return {"error": "unreachable", "exit": -1, "flipped": flipped}
 
 
+def excess(report: dict[str, Any]) -> str:
+    """What the report says the residual's excess over the floor is, in a few words ('-' when it names nothing)."""
+    wander = report.get("wander") or {}
+    said = []
+    if wander.get("share_slow", 0.0) > 0:
+        kind, share = wander["kind"], wander["share_slow"]
+        if kind == "slow":
+            said.append(f"{share:.0%} slow: wander {wander['slow_rms']:.3g} N m RMS")
+        elif kind == "offset":
+            said.append(f"{share:.0%} slow: offset {wander['mean']:+.3g} N m")
+        else:
+            said.append(f"{1 - share:.0%} fast ({wander['fast_ratio']:.2g}x the floor)")
+    elif wander.get("floor_is_wander"):
+        said.append(f"floor half or more slow: wander {wander['slow_rms']:.3g} N m RMS")
+    if (report.get("noise") or {}).get("drift"):
+        said.append("drift")
+    return "; ".join(said) or "-"
+
+
 def line(report: dict[str, Any]) -> dict[str, str]:
     """The fields of one output line."""
     if "error" in report:
@@ -64,6 +86,7 @@ def line(report: dict[str, Any]) -> dict[str, str]:
             "kt": "-",
             "effects": "-",
             "cv": "-",
+            "excess": "-",
             "verdict": f"exit {report['exit']}: {report['error']}",
         }
     kt = report["parameters"]["kt"]
@@ -89,8 +112,42 @@ def line(report: dict[str, Any]) -> dict[str, str]:
         "kt": f"{kt['value']:.4g} +- {err:.2g}" if err is not None else f"{kt['value']:.4g}",
         "effects": ("+" + "+".join(added) + ": " if added else "") + ", ".join(shown),
         "cv": f"{cv:.3g} / {floor:.3g} ({method})",
+        "excess": excess(report),
         "verdict": ("(flipped) " if report.get("flipped") else "") + _left_out(report) + verdict,
     }
+
+
+#: Above this cross-validated RMSE / floor a log's excess is looked for a named cause.
+EXCESS = 2.0
+
+
+def causes(report: dict[str, Any]) -> list[str]:
+    """What the report names as the cause of its excess over the floor: flagged stretches, a slow wander, an offset the
+    model lacks, fast noise the floor misses, a drift between moments with the same inputs (several may apply)."""
+    found = []
+    if report.get("flags"):
+        found.append("flagged stretch")
+    wander = report.get("wander") or {}
+    if wander and wander.get("share_slow", 0.0) > 0:
+        found.append({"slow": "slow wander", "offset": "offset"}.get(wander.get("kind", ""), "fast noise"))
+    if (report.get("noise") or {}).get("drift"):
+        found.append("drift")
+    return found
+
+
+HEADER = (
+    "| log | rows used/read | Kt [N m/A] | effects added, values (SI) | CV RMSE / floor [N m] | excess over the floor "
+    "| verdict |\n|---|---|---|---|---|---|---|"
+)
+
+
+def markdown_row(name: str, report: dict[str, Any]) -> str:
+    """One log's row of the Markdown table (the verdict cut at MARKDOWN_VERDICT characters; --json has every word)."""
+    f = line(report)
+    verdict = f["verdict"].replace("|", "/")
+    if len(verdict) > MARKDOWN_VERDICT:
+        verdict = verdict[: MARKDOWN_VERDICT - 3].rsplit(" ", 1)[0] + " ..."
+    return "| " + " | ".join([name, f["rows"], f["kt"], f["effects"], f["cv"], f["excess"], verdict]) + " |"
 
 
 def summary(results: list[dict[str, Any]]) -> dict[str, Any]:
@@ -104,6 +161,7 @@ def summary(results: list[dict[str, Any]]) -> dict[str, Any]:
         if r["noise_floor"] > 0
     ]
     noise = [r.get("noise") or {} for r in fitted]
+    above = [r for r in fitted if r["noise_floor"] > 0 and r["rmse"]["test"] / r["noise_floor"] > EXCESS]
     methods = [n.get("method", "sample-to-sample") for n in noise]
     return {
         "logs": len(results),
@@ -117,6 +175,9 @@ def summary(results: list[dict[str, Any]]) -> dict[str, Any]:
         "within_2x_outside_flagged": sum(x <= 2.0 for x in outside),
         "floor_methods": {m: methods.count(m) for m in sorted(set(methods))},
         "drift_named": sum(1 for n in noise if n.get("drift")),
+        "above_2x": len(above),
+        "causes_above_2x": {c: sum(c in causes(r) for r in above) for c in CAUSES},
+        "no_cause_above_2x": [r["log"] for r in above if not causes(r)],
     }
 
 
@@ -126,11 +187,13 @@ def summary_line(s: dict[str, Any]) -> str:
         return f"{s['logs']} logs, none fitted"
     lo, hi = s["ratio_range"]
     methods = ", ".join(f"{k} {v}" for k, v in s["floor_methods"].items())
+    causes = ", ".join(f"{k} {v}" for k, v in s["causes_above_2x"].items())
     return (
         f"{s['fitted']} of {s['logs']} logs fitted; cross-validated RMSE / noise floor: median {s['median_ratio']:.3g} "
         f"({lo:.3g} to {hi:.3g}), {s['within_2x']} within 2x, {s['within_1.2x']} within 1.2x, {s['at_noise_floor']} at "
         f"the floor; outside the flagged stretches: median {s['median_ratio_outside_flagged']:.3g}, "
-        f"{s['within_2x_outside_flagged']} within 2x; floor from {methods}; a drift named on {s['drift_named']}"
+        f"{s['within_2x_outside_flagged']} within 2x; floor from {methods}; a drift named on {s['drift_named']}; "
+        f"of the {s['above_2x']} above 2x, {causes} ({len(s['no_cause_above_2x'])} with no cause named)"
     )
 
 
@@ -168,24 +231,20 @@ def main() -> int:
         return 2
     results = []
     if args.markdown:
-        print("| log | rows used/read | Kt [N m/A] | effects added, values (SI) | CV RMSE / floor [N m] | verdict |")
-        print("|---|---|---|---|---|---|")
+        print(HEADER)
     for path in paths:
         report = run_one(exe, path, extra)
         name = str(path.relative_to(args.folder))
         results.append({"log": name, **report})
         if args.json:
             continue
-        f = line(report)
         if args.markdown:
-            verdict = f["verdict"].replace("|", "/")
-            if len(verdict) > MARKDOWN_VERDICT:  # the table stays readable; --json has every word
-                verdict = verdict[: MARKDOWN_VERDICT - 3].rsplit(" ", 1)[0] + " ..."
-            cells = [name, f["rows"], f["kt"], f["effects"], f["cv"], verdict]
-            print("| " + " | ".join(cells) + " |", flush=True)
+            print(markdown_row(name, report), flush=True)
         else:
+            f = line(report)
             print(
-                f"{name}: rows {f['rows']}; Kt {f['kt']}; {f['effects']}; CV/noise {f['cv']}; {f['verdict']}",
+                f"{name}: rows {f['rows']}; Kt {f['kt']}; {f['effects']}; CV/noise {f['cv']}; excess {f['excess']}; "
+                f"{f['verdict']}",
                 flush=True,
             )
     totals = summary(results)

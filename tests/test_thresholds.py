@@ -23,6 +23,7 @@ TUNED = (
     "hound_id/dyno/current/transducer.py",
     "hound_id/dyno/current/noise.py",
     "hound_id/dyno/current/stretch.py",
+    "hound_id/dyno/current/wander.py",
     "hound_id/dyno/fleet/scale.py",
     "hound_id/dyno/identify/engine.py",
     "hound_id/dyno/current/fit.py",

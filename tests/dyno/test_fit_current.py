@@ -152,3 +152,29 @@ def test_the_printed_verdict_says_the_headline_left_a_stretch_out(tmp_path):
     assert proc.returncode == 0, proc.stderr
     tail = " ".join(proc.stdout.split()[-80:])
     assert "the log as a whole does not follow one model" in tail and "on the rest:" in tail, tail
+
+
+def test_a_wandering_torque_is_named_in_the_printed_verdict_and_the_json(tmp_path):
+    """A user's log whose torque zero wanders over seconds (written by the independent polled rig, read through the
+    CLI as a user runs it): the last line says the excess is a slow wander with its size, --json carries it."""
+    import json
+    import subprocess
+    import sys
+    from pathlib import Path
+
+    from tests.dyno.acquire.polledrig import COLUMNS, Rig, Truth, run, write
+
+    rig = Rig(truth=Truth(coulomb=0.25, gear_friction=0.05), zero_wander=0.3, zero_wander_s=1.5, seed=1, seconds=30.0)
+    path = write(run(rig), tmp_path / "wandering.csv")
+    exe = str(Path(sys.executable).with_name("hound-id"))
+    args = [exe, "fit-current", str(path), "--auto", "--columns", COLUMNS]
+    proc = subprocess.run(args, capture_output=True, text=True, check=False)
+    assert proc.returncode == 0, proc.stderr
+    tail = " ".join(proc.stdout.split()[-120:])
+    assert "wander" in tail and "N m RMS" in tail, tail
+    out = subprocess.run([*args, "--json"], capture_output=True, text=True, check=False)
+    report = json.loads(out.stdout)
+    assert report["schema"] == "hound-id/fit/3"
+    w = report["wander"]
+    assert w["kind"] == "slow" or w["floor_is_wander"]
+    assert 0.2 < w["slow_rms"] < 0.4 and w["units"]["slow_rms"] == "N m"

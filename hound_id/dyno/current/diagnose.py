@@ -60,6 +60,7 @@ from hound_id.dyno.current.fit import (
 )
 from hound_id.dyno.current.noise import NoiseFloor, estimate, white_floor
 from hound_id.dyno.current.stretch import Stretch, read, runs
+from hound_id.dyno.current.wander import Wander, wander
 from hound_id.dyno.identify.engine import (
     ALPHA,
     MAX_STEPS,
@@ -180,6 +181,9 @@ class Diagnosis:
     rmse_outside: float | None = None
     """The cross-validated RMSE of the model fitted and scored without the disagreeing blocks [N m] (None when none
     disagrees): how far the model is from the floor where the flagged stretches do not count."""
+    wander: Wander | None = None
+    """How the held-out residual's excess over the floor, outside the flagged stretches, divides between a slow
+    wander and fast noise (None at the floor, on an untimed or a short log)."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -205,13 +209,22 @@ class Diagnosis:
             f"{self.rmse_outside / self.noise_floor:.2g}x the floor"
         )
 
+    def _wander(self) -> str:
+        """What the excess outside the flagged stretches is, when it is material."""
+        if self.wander is None:
+            return ""
+        left = self.rmse_outside if self.rmse_outside is not None else self.rmse_test
+        if left > FLOOR_FACTOR * self.noise_floor:
+            return f"; {self.wander.sentence()}"
+        return f"; {self.wander.floor_sentence()}" if self.wander.floor_is_wander else ""
+
     def summary(self) -> str:
         """One sentence on where the model stands."""
         ratio = self.rmse_test / self.noise_floor if self.noise_floor > 0 else math.inf
         if self.at_noise_floor:
             return (
                 f"the cross-validated residual ({self.rmse_test:.3g} N m) is at the noise floor "
-                f"({self.floor_label}); no missing effect is significant"
+                f"({self.floor_label}); no missing effect is significant{self._wander()}"
             )
         if self.best is not None:
             head = (
@@ -222,12 +235,15 @@ class Diagnosis:
         if self.outliers:
             return f"no candidate effect is significant, but {self.outliers}"
         if self.flags:
-            return f"part of the log does not follow any model tried: {self.flags[0]}{self._outside()}"
+            return f"part of the log does not follow any model tried: {self.flags[0]}{self._outside()}{self._wander()}"
         if ratio <= FLOOR_FACTOR:
-            return f"no candidate effect is significant and material; {self.rmse_test:.3g} N m is at the noise floor"
+            return (
+                f"no candidate effect is significant and material; {self.rmse_test:.3g} N m is at the noise floor"
+                f"{self._wander()}"
+            )
         head = (
             f"no candidate effect is significant, but the cross-validated residual is {ratio:.2g}x the noise floor "
-            f"({self.floor_label})"
+            f"({self.floor_label}){self._wander()}"
         )
         if self.skipped:
             return f"{head}; not tried: {'; '.join(self.skipped)}"
@@ -535,6 +551,13 @@ def diagnose(
     )
     flags = tuple(_flags(fit, agreeing, noise, floor, disagreeing, signals, stretches))
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
+    held_out = np.asarray(fit.held_out)
+    keep = np.repeat(~disagreeing, np.diff(edges))
+    time_scale = (
+        wander(signals.time, held_out, floor, keep)
+        if signals.timed and held_out.size == signals.time.size == keep.size
+        else None
+    )
     return Diagnosis(
         fit.model,
         fit.rmse_test,
@@ -551,6 +574,7 @@ def diagnose(
         kt,
         stretches,
         _rmse_outside(stats, cols, lower, upper, disagreeing),
+        time_scale,
     )
 
 

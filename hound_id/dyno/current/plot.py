@@ -131,6 +131,10 @@ def plot_fit(
         ax.set_ylabel("residual [N m]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, loc="upper right")
+        w = diagnosis.wander if diagnosis is not None else None
+        if label == along[0] and w is not None and (w.is_slow or w.floor_is_wander):
+            what = f"an offset of {w.mean:+.3g} N m" if w.is_offset else f"a slow wander of {w.slow:.3g} N m RMS"
+            ax.set_title(f"{what} over {w.fast:.3g} N m of noise faster than {w.window:.2g} s", fontsize=8)
     _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
     return fig
 

@@ -22,7 +22,8 @@ follows the public actuator logs described in ``physics-notes.md``:
 * options: the inertia of rotor and coupling between motor and sensor (seen while the opposing motor changes speed
   in steps), a torque ADC of coarse counts, a logger that writes every sample several times, and one column
   that updates on a slower clock of its own (a stale channel), and a gear-mesh ripple: a share of the transmitted
-  torque at the mesh frequency of the output angle, which the log does not have (noise that grows with the load).
+  torque at the mesh frequency of the output angle, which the log does not have (noise that grows with the load),
+  and a transducer zero that wanders over seconds (creep, heat: a Gauss-Markov process no logged channel follows).
 
 The truth (:class:`Truth`) is the model the fit should recover: measured torque =
 kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w - inertia dw/dt, with the transducer's filter and lag.
@@ -30,6 +31,7 @@ kt i - k_sat i|i| - sgn(w) (coulomb + gear |i|) - viscous w - inertia dw/dt, wit
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -85,6 +87,8 @@ class Rig:
     stale_every: float = 4.0  # polls per update of that column, on average
     mesh_ripple: float = 0.0  # share of the transmitted torque
     mesh_teeth: int = 36  # ripple periods per output turn
+    zero_wander: float = 0.0  # N m RMS: the transducer's zero wanders (creep, heat), a Gauss-Markov process
+    zero_wander_s: float = 1.5  # s: its correlation time
     seed: int = 0
 
 
@@ -181,6 +185,14 @@ def run(rig: Rig) -> pd.DataFrame:
     for j in range(1, n):
         ar[j] = rig.torque_noise_rho * ar[j - 1] + e[j]
     torque_read = sensed[k] + ar
+    if rig.zero_wander > 0:  # its own draws: the same rig without the wander gives the same noise
+        walk = np.random.default_rng(rig.seed + 7919).normal(0.0, 1.0, n)
+        decay = np.exp(-np.diff(polls, prepend=polls[0]) / rig.zero_wander_s)
+        zero = np.empty(n)
+        zero[0] = rig.zero_wander * walk[0]
+        for j in range(1, n):
+            zero[j] = decay[j] * zero[j - 1] + rig.zero_wander * math.sqrt(1.0 - decay[j] ** 2) * walk[j]
+        torque_read = torque_read + zero
     if rig.torque_fault_from is not None:
         torque_read = np.where(polls >= rig.torque_fault_from, rig.torque_fault_gain * torque_read, torque_read)
     if rig.torque_quantum > 0:

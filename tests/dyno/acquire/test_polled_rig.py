@@ -641,3 +641,37 @@ def test_a_coarse_torque_adc_sets_the_floor_at_its_rounding(tmp_path):
     d = diagnose(signals, log.torque, fit_model(signals, log.torque, (*DEFAULT, "coulomb", "gear_friction")))
     assert d.noise is not None and d.noise.quantisation == pytest.approx(q / math.sqrt(12), rel=1e-6)
     assert d.noise_floor >= q / math.sqrt(12) - 1e-12
+
+
+@pytest.mark.parametrize(("seed", "size", "seconds"), [(0, 0.1, 1.5), (1, 0.1, 1.5), (2, 0.3, 0.7), (0, 0.03, 1.5)])
+def test_a_transducer_zero_that_wanders_is_named_slow_with_its_size(tmp_path, seed, size, seconds):
+    """A strain-gauge zero that creeps over seconds (a Gauss-Markov process): no logged channel follows it, so no
+    effect may claim it. Either the residual stays above the floor and the excess is called slow, or a floor read
+    from far-apart moments holds the wander and the summary says half or more of that floor is the wander; either
+    way with its size, and Kt stays right."""
+    rig = Rig(truth=FRICTION, zero_wander=size, zero_wander_s=seconds, seed=seed, **FAST)
+    quiet = dataclasses.replace(rig, zero_wander=0.0)  # the same draws without the wander
+    zero = (frame(rig).torque_adc - frame(quiet).torque_adc).to_numpy()
+    log = load(tmp_path, rig)
+    signals, ladder = ladder_of(log)
+    fit, d = ladder[-1].fit, ladder[-1].diagnosis
+    assert d.wander is not None and d.wander.slow == pytest.approx(float(np.std(zero)), rel=0.15), (
+        d.wander,
+        float(np.std(zero)),
+    )
+    assert d.wander.fast < 0.5 * d.wander.slow or d.wander.slow < 2 * rig.torque_noise
+    if d.at_noise_floor:
+        assert d.wander.floor_is_wander and "half or more of that floor's variance is slow" in d.summary(), d.summary()
+    else:
+        assert d.wander.is_slow and "is slow: the residual wanders by" in d.summary(), d.summary()
+    assert_not_confidently_wrong(fit, d, FRICTION.kt)
+
+
+def test_no_wander_is_read_where_the_log_reaches_its_floor(tmp_path):
+    """AR(1) transducer noise (a correlation time of a few loops) is fast: no wander is claimed at the floor."""
+    log = load(tmp_path, Rig(truth=FRICTION, **FAST))
+    signals, ladder = ladder_of(log)
+    d = ladder[-1].diagnosis
+    assert d.at_noise_floor and d.wander is not None and not d.wander.floor_is_wander, d.summary()
+    assert d.wander.slow < 0.5 * d.wander.fast
+    assert "wander" not in d.summary()

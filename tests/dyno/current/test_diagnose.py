@@ -34,6 +34,9 @@ def test_noise_only_data_has_nothing_significant(rig):
     assert not any(s.significant for s in d.suggestions)
     assert d.at_noise_floor
     assert "noise floor" in d.summary()
+    # white noise has no time scale: no wander is read into it
+    assert d.wander is None or not d.wander.floor_is_wander, d.wander
+    assert "wander" not in d.summary() and "is slow" not in d.summary()
 
 
 def test_two_hidden_effects_are_found_one_after_the_other():
