@@ -214,6 +214,8 @@ def _split(
 ) -> tuple[NDArray[np.bool_], Array, float, float, float] | None:
     """The rows whose whole window of k samples is kept, the slow part there, the fast noise's standard deviation, the
     wander's variance and the samples m one draw of the noise stays correlated over; None when too few rows."""
+    if r.size < MIN_WINDOWS * k:  # (np.convolve's "same" is as long as the window when the window is longer)
+        return None
     kernel = np.ones(k)
     summed = np.convolve(np.where(kept, r, 0.0), kernel, mode="same")
     count = np.convolve(kept.astype(float), kernel, mode="same")

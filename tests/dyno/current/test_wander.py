@@ -78,6 +78,8 @@ def test_a_short_log_has_no_time_scale():
     assert wander(t, np.ones(t.size), 0.1) is None
     assert wander(np.zeros(500), np.ones(500), 0.1) is None  # untimed: every row at one instant
     assert wander(np.arange(500.0), np.ones(500), 0.0) is None  # no floor to speak against
+    # a burst of 40 rows a millisecond apart: the quarter-second window is longer than the log
+    assert wander(np.arange(40) * 1e-3, np.random.default_rng(0).normal(size=40), 0.1) is None
 
 
 @settings(max_examples=30, deadline=None)
