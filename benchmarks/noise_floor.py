@@ -3,8 +3,9 @@
 The simulated log of ``benchmarks/fit_current.py`` (linear, saturation, Coulomb friction, cogging, thermal drift;
 1 kHz) of --rows rows is fitted once with linear+saturation; then, in the same process, the full diagnosis is timed
 with the neighbour estimate and with it switched off (the still and sample-to-sample estimates stay), and with the
-strata of the current switched off (every estimate read over the whole log only), the median of --repeats runs each,
-and the neighbour estimate alone. It prints the seconds and the ratios with / without.
+strata of the current switched off (every estimate read over the whole log only), and with the residual's time scale
+(hound_id.dyno.current.wander) switched off, the median of --repeats runs each, and the neighbour estimate alone.
+It prints the seconds and the ratios with / without.
 
 Run: .venv/bin/python benchmarks/noise_floor.py [--rows 1000000] [--repeats 3] [--json]
 """
@@ -58,7 +59,18 @@ def main() -> int:
         unstratified = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
     finally:
         noise.Strata.of = strata  # type: ignore[method-assign]
+    import hound_id.dyno.current.diagnose as diagnosis
+
+    time_scale = diagnosis.wander
+    diagnosis.wander = lambda *a, **k: None  # type: ignore[assignment]
+    try:
+        still_scale = timed(lambda: diagnose(signals, log.torque, fit), args.repeats)
+    finally:
+        diagnosis.wander = time_scale
     alone = timed(lambda: real(signals, residual), args.repeats)
+    inputs = [x for x in (signals.current, signals.velocity) if x is not None]
+    held_out = np.asarray(fit.held_out)
+    scale_alone = timed(lambda: time_scale(signals.time, held_out, 0.05, None, inputs), args.repeats)
     out = {
         "schema": "hound-id/bench-noise-floor/1",
         "rows": args.rows,
@@ -68,6 +80,10 @@ def main() -> int:
         "ratio": with_it / without,
         "diagnosis_without_strata_s": unstratified,
         "strata_ratio": with_it / unstratified,
+        "diagnosis_without_wander_s": still_scale,
+        "wander_ratio": with_it / still_scale,
+        "wander_alone_s": scale_alone,
+        "wander_alone_share": scale_alone / with_it,
     }
     if args.json:
         print(json.dumps(out, indent=2))
@@ -76,7 +92,10 @@ def main() -> int:
             f"diagnosis of {args.rows} rows: {with_it:.3f} s with the neighbour floor, {without:.3f} s without "
             f"(ratio {with_it / without:.3f}); the neighbour estimate alone {alone:.3f} s "
             f"(median of {args.repeats}); without the strata of the current {unstratified:.3f} s "
-            f"(ratio {with_it / unstratified:.3f})"
+            f"(ratio {with_it / unstratified:.3f}); without the residual's time scale (slow or fast, what it "
+            f"follows) {still_scale:.3f} s (ratio {with_it / still_scale:.3f}: it is read only where the summary may "
+            f"say it, no significant effect left); that time scale alone {scale_alone:.3f} s, "
+            f"{scale_alone / with_it:.2f}x the diagnosis"
         )
     return 0
 

@@ -63,15 +63,18 @@ def excess(report: dict[str, Any]) -> str:
     """What the report says the residual's excess over the floor is, in a few words ('-' when it names nothing)."""
     wander = report.get("wander") or {}
     said = []
-    if wander.get("share_slow", 0.0) > 0:
+    sentence = wander.get("sentence") or ""
+    if sentence and not sentence.startswith("half or more of that floor"):
         kind, share = wander["kind"], wander["share_slow"]
         if kind == "slow":
-            said.append(f"{share:.0%} slow: wander {wander['slow_rms']:.3g} N m RMS")
+            follows = wander.get("follows_inputs")
+            known = "" if follows is None else f" ({follows:.0%} predicted by the inputs)"
+            said.append(f"{share:.0%} slow: wander {wander['slow_rms']:.3g} N m RMS{known}")
         elif kind == "offset":
             said.append(f"{share:.0%} slow: offset {wander['mean']:+.3g} N m")
         else:
             said.append(f"{1 - share:.0%} fast ({wander['fast_ratio']:.2g}x the floor)")
-    elif wander.get("floor_is_wander"):
+    elif sentence:
         said.append(f"floor half or more slow: wander {wander['slow_rms']:.3g} N m RMS")
     if (report.get("noise") or {}).get("drift"):
         said.append("drift")
@@ -128,7 +131,7 @@ def causes(report: dict[str, Any]) -> list[str]:
     if report.get("flags"):
         found.append("flagged stretch")
     wander = report.get("wander") or {}
-    if wander and wander.get("share_slow", 0.0) > 0:
+    if wander.get("kind") in ("slow", "offset", "fast") and wander.get("sentence"):
         found.append({"slow": "slow wander", "offset": "offset"}.get(wander.get("kind", ""), "fast noise"))
     if (report.get("noise") or {}).get("drift"):
         found.append("drift")

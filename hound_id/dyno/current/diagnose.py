@@ -183,7 +183,8 @@ class Diagnosis:
     disagrees): how far the model is from the floor where the flagged stretches do not count."""
     wander: Wander | None = None
     """How the held-out residual's excess over the floor, outside the flagged stretches, divides between a slow
-    wander and fast noise (None at the floor, on an untimed or a short log)."""
+    wander and fast noise, and what the inputs predict of it (None on an untimed or a short log, and while a
+    significant effect is to be added or a few rows carry the residual)."""
 
     @property
     def best(self) -> Suggestion | None:
@@ -209,14 +210,20 @@ class Diagnosis:
             f"{self.rmse_outside / self.noise_floor:.2g}x the floor"
         )
 
-    def _wander(self) -> str:
-        """What the excess outside the flagged stretches is, when it is material."""
-        if self.wander is None:
-            return ""
+    @property
+    def wander_said(self) -> str | None:
+        """What the summary says the excess outside the flagged stretches is (or, at the floor, that half of the floor
+        is slow); None when it says nothing of it: a significant effect or a few outlying rows come first."""
+        if self.wander is None or self.best is not None or self.outliers:
+            return None
         left = self.rmse_outside if self.rmse_outside is not None else self.rmse_test
-        if left > FLOOR_FACTOR * self.noise_floor:
-            return f"; {self.wander.sentence()}"
-        return f"; {self.wander.floor_sentence()}" if self.wander.floor_is_wander else ""
+        if left > FLOOR_FACTOR * self.noise_floor and self.wander.excess:
+            return self.wander.sentence()
+        return self.wander.floor_sentence() if self.wander.floor_is_wander else None
+
+    def _wander(self) -> str:
+        said = self.wander_said
+        return "" if said is None else f"; {said}"
 
     def summary(self) -> str:
         """One sentence on where the model stands."""
@@ -553,9 +560,14 @@ def diagnose(
     at_floor = bool(fit.rmse_test <= FLOOR_FACTOR * floor and not any(s.significant for s in suggestions) and not flags)
     held_out = np.asarray(fit.held_out)
     keep = np.repeat(~disagreeing, np.diff(edges))
+    outliers = _outliers(fit, floor, signals)
+    # read only where the summary may say it: no significant effect is to be added first, no few rows carry the residual
     time_scale = (
-        wander(signals.time, held_out, floor, keep)
-        if signals.timed and held_out.size == signals.time.size == keep.size
+        wander(signals.time, held_out, floor, keep, [x for x in (signals.current, signals.velocity) if x is not None])
+        if signals.timed
+        and held_out.size == signals.time.size == keep.size
+        and best(suggestions) is None
+        and outliers is None
         else None
     )
     return Diagnosis(
@@ -565,7 +577,7 @@ def diagnose(
         at_floor,
         tuple(suggestions),
         tuple(skipped),
-        _outliers(fit, floor, signals),
+        outliers,
         flags,
         block_floor,
         disagreeing,

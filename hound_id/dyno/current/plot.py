@@ -132,9 +132,16 @@ def plot_fit(
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, loc="upper right")
         w = diagnosis.wander if diagnosis is not None else None
-        if label == along[0] and w is not None and (w.is_slow or w.floor_is_wander):
-            what = f"an offset of {w.mean:+.3g} N m" if w.is_offset else f"a slow wander of {w.slow:.3g} N m RMS"
-            ax.set_title(f"{what} over {w.fast:.3g} N m of noise faster than {w.window:.2g} s", fontsize=8)
+        if label == along[0] and w is not None and diagnosis is not None and diagnosis.wander_said is not None:
+            noise = f"{w.fast:.3g} N m of noise faster than {w.window:.2g} s"
+            if w.is_offset:
+                title = f"an offset of {w.mean:+.3g} N m beside {noise}"
+            elif w.is_slow or not w.excess:
+                follows = " (it follows the current and speed)" if w.follows_inputs else ""
+                title = f"a slow part of {w.slow:.3g} N m RMS{follows} beside {noise}"
+            else:
+                title = f"the excess is fast: {noise}, {w.fast_ratio:.2g}x the floor"
+            ax.set_title(title, fontsize=8)
     _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
     return fig
 

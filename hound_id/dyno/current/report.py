@@ -148,10 +148,13 @@ def fit_report(
     estimate, the still rows and pieces, the neighbour pairs with their separations, standard errors and the drift,
     the torque channel's rounding, a sentence); and, added later still, ``rmse.outside_flagged`` (the
     cross-validated RMSE of the model fitted and scored without the blocks that disagree, null when none does) and
-    each block's ``disagrees``; and ``wander`` (null at the floor, on a short or untimed log): how the held-out
+    each block's ``disagrees``; and ``wander`` (null on a short or untimed log, and while a significant effect is to be
+    added or a few rows carry the residual): how the held-out
     residual's excess over the floor, outside the flagged stretches, divides between a slow wander and noise faster
     than ``window`` seconds (``share_slow``, ``slow_rms``, ``fast_sd``, ``fast_ratio``, ``sign_change_every``, ``mean``,
-    ``kind``: slow, offset or fast, ``floor_is_wander``, a sentence).
+    ``kind``: slow, offset, fast or none, ``floor_is_wander``, ``follows_inputs``: the share moments with the same
+    current and speed far apart in time predict, null when the log cannot say; ``sentence``: what the summary says of
+    it, null when it says nothing).
 
     Version 3 (from 2): ``current_curve`` is the fitted current-torque curve, ``compensation`` its exact inverse
     (method and error) and ``compensation_polynomial`` the odd polynomial that ``compensation`` was in version 2.
@@ -201,7 +204,7 @@ def fit_report(
         "outliers": diagnosis.outliers,
         "noise_floor": diagnosis.noise_floor,
         "noise": None if diagnosis.noise is None else diagnosis.noise.to_dict(),
-        "wander": None if diagnosis.wander is None else diagnosis.wander.to_dict(),
+        "wander": None if diagnosis.wander is None else diagnosis.wander.to_dict(diagnosis.wander_said),
         "at_noise_floor": diagnosis.at_noise_floor,
         "summary": diagnosis.summary(),
         "ladder": None if ladder is None else [step_dict(s) for s in ladder],

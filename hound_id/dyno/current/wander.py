@@ -18,6 +18,7 @@ read from the fast part's neighbouring samples), and the rest of the slow part's
 from __future__ import annotations
 
 import math
+from collections.abc import Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -46,13 +47,34 @@ SLOW_SHARE = 0.5
 #: test_polled_rig::test_a_transducer_zero_that_wanders_is_named_slow_with_its_size and
 #: test_polled_rig::test_no_wander_is_read_where_the_log_reaches_its_floor.
 FLOOR_WANDER = 1.0
-#: Largest neighbour correlation read from the fast part (0.95: noise correlated over 39 samples, past which the
-#: window no longer separates noise from a wander). Calibrated on
-#: test_wander::test_correlated_fast_noise_is_not_called_a_wander.
-MAX_RHO = 0.95
+#: The noise's autocorrelation is summed over the lags up to the first below this (a correlation of 0.05 adds less
+#: than a tenth of a sample to its correlation length). Calibrated on
+#: test_wander::test_correlated_fast_noise_is_not_called_a_wander and
+#: test_wander::test_a_transducer_filter_is_not_a_long_memory.
+NEGLIGIBLE_RHO = 0.05
+#: Moments at least this far apart in time (and twice the wander's sign-change interval), with the same current and
+#: speed, say whether the inputs predict the slow part: closer ones share a wander in time [s]. Calibrated on
+#: test_wander::test_a_wander_that_follows_the_current_is_not_blamed_on_a_channel_the_log_lacks.
+APART = 2.0
+#: The slow part follows the inputs when moments with the same inputs at other times predict this share of it; the
+#: test needs that share of the rows covered by such moments. Calibrated on
+#: test_wander::test_a_wander_that_follows_the_current_is_not_blamed_on_a_channel_the_log_lacks.
+FOLLOWS = 0.5
+COVERED = 0.3
+#: Two moments have the same inputs when each input differs by at most this share of its range (as the neighbour
+#: floor's cap). Calibrated on
+#: test_wander::test_a_wander_that_follows_the_current_is_not_blamed_on_a_channel_the_log_lacks.
+INPUT_TOLERANCE = 0.02
+#: At most SEARCHED rows are searched for moments with the same inputs, among at most TREE_ROWS (both evenly spread),
+#: and the noise's correlation length is read on the first CORRELATION_ROWS rows: a 10^6-row log costs what a
+#: 20,000-row one does. Calibrated on benchmarks/noise_floor.py.
+SEARCHED = 5_000
+TREE_ROWS = 20_000
+CORRELATION_ROWS = 1 << 17
 #: The window spans at least this many of the noise's correlation lengths (m samples, read from the fast part), widened
 #: up to MAX_WIDENINGS times: a transducer filtered to a few hertz has noise that a 0.25 s average keeps. Calibrated on
-#: test_wander::test_correlated_fast_noise_is_not_called_a_wander.
+#: test_wander::test_correlated_fast_noise_is_not_called_a_wander and
+#: test_wander::test_a_transducer_filter_is_not_a_long_memory.
 WINDOW_CORRELATIONS = 8.0
 MAX_WIDENINGS = 3
 #: The slow part is called an offset when its mean is at least this share of its RMS (0.8: nearly two thirds of its
@@ -91,6 +113,12 @@ class Wander:
     """Rows whose whole window was kept (outside flagged stretches and gaps)."""
     mean: float = 0.0
     """Mean of the slow part over those rows [N m] (an offset the model lacks, when it is most of :attr:`slow`)."""
+    excess: bool = False
+    """The residual's variance exceeds the floor's by MIN_EXCESS of it or more (:attr:`share` divides that excess)."""
+    follows: float | None = None
+    """Share of the residual's variance beyond its noise (the smaller of the floor and the fast part) that moments with
+    the same current (and speed) at least :data:`APART` seconds away predict, 0-1, the larger of the current alone and
+    with the speed; None when too few moments come back to the same inputs."""
 
     @property
     def is_slow(self) -> bool:
@@ -103,7 +131,35 @@ class Wander:
         return self.slow >= FLOOR_WANDER * self.fast
 
     def _every(self) -> str:
-        return f", changing sign every {self.crossing:.2g} s on average" if self.crossing is not None else " one way"
+        if self.crossing is None:
+            return ", changing sign at most once"
+        return f", changing sign every {self.crossing:.2g} s on average"
+
+    @property
+    def follows_inputs(self) -> bool:
+        """Moments with the same inputs at other times predict most of it: a shape in the inputs, not a wander."""
+        return self.follows is not None and self.follows >= FOLLOWS
+
+    def _cause(self) -> str:
+        """What the slow part follows, as far as the log can say."""
+        if self.is_offset:
+            return ""
+        if self.follows_inputs:
+            return (
+                f"; moments with the same current and speed at other times predict {self.follows:.0%} of it, so it "
+                "follows the inputs: a shape of the curve in the current or the speed that the model's terms cannot "
+                "bend to (a ripple or a kink: look at the residual against the current), not something the log lacks"
+            )
+        if self.follows is not None:
+            return (
+                f"; moments with the same current and speed at other times predict {self.follows:.0%} of it, so no "
+                f"logged channel follows it: {_LACKS}"
+            )
+        return (
+            "; the log does not come back to the same current and speed far enough apart in time, so it cannot tell a "
+            f"curve bumpier than the model's terms from something the log lacks ({_SOURCES}): repeat the sweep, or log "
+            "the angle and a temperature"
+        )
 
     @property
     def is_offset(self) -> bool:
@@ -119,14 +175,11 @@ class Wander:
             )
         return f"wanders by {self.slow:.3g} N m RMS{self._every()}"
 
-    def _lacks(self) -> str:
-        return "" if self.is_offset else f"; {_LACKS}"
-
     def floor_sentence(self) -> str:
         """What a floor that holds the wander is made of."""
         return (
             f"half or more of that floor's variance is slow: the residual {self._how()}, beside {self.fast:.3g} N m "
-            f"of noise faster than {self.window:.2g} s{self._lacks()}"
+            f"of noise faster than {self.window:.2g} s{self._cause()}"
         )
 
     def sentence(self) -> str:
@@ -134,15 +187,32 @@ class Wander:
         if self.is_slow:
             return (
                 f"{self.share:.0%} of the excess over the floor is slow: the residual {self._how()}, while its part "
-                f"faster than {self.window:.2g} s is {self.fast_ratio:.2g}x the floor{self._lacks()}"
+                f"faster than {self.window:.2g} s is {self.fast_ratio:.2g}x the floor{self._cause()}"
+            )
+        head = (
+            f"{1.0 - self.share:.0%} of the excess over the floor is faster than {self.window:.2g} s (that part is "
+            f"{self.fast_ratio:.2g}x the floor)"
+        )
+        if self.follows_inputs:
+            return (
+                f"{head}, and moments with the same current and speed at other times predict {self.follows:.0%} of "
+                "the excess: a shape of the curve in the current or the speed that the model's terms cannot bend to, "
+                "swept quickly (look at the residual against the current)"
             )
         return (
-            f"{1.0 - self.share:.0%} of the excess over the floor is faster than {self.window:.2g} s (that part is "
-            f"{self.fast_ratio:.2g}x the floor): noise the floor reads low (a transducer that filters its noise), "
-            "ringing, or a channel updated late"
+            f"{head}: noise the floor reads low (a transducer that filters its noise), ringing, or a channel updated "
+            "late"
         )
 
-    def to_dict(self) -> dict[str, Any]:
+    @property
+    def kind(self) -> str:
+        """slow, offset or fast (the excess), or none (within the floor, and the floor not mostly slow)."""
+        if self.excess:
+            return ("offset" if self.is_offset else "slow") if self.is_slow else "fast"
+        return ("offset" if self.is_offset else "slow") if self.floor_is_wander else "none"
+
+    def to_dict(self, said: str | None = None) -> dict[str, Any]:
+        """JSON-ready; ``said`` is the sentence the summary carries (None when it carries none)."""
         return {
             "window": self.window,
             "samples": self.samples,
@@ -153,23 +223,28 @@ class Wander:
             "sign_change_every": self.crossing,
             "rows": self.rows,
             "mean": self.mean,
-            "kind": ("offset" if self.is_offset else "slow") if self.is_slow else "fast",
+            "kind": self.kind,
             "floor_is_wander": self.floor_is_wander,
-            "sentence": self.sentence() if self.share > 0 else self.floor_sentence(),
+            "follows_inputs": self.follows,
+            "sentence": said,
             "units": {"window": "s", "slow_rms": "N m", "fast_sd": "N m", "sign_change_every": "s", "mean": "N m"},
         }
 
 
-_LACKS = (
-    "no logged channel follows the wander, so the torque follows something the log lacks (the rotor's angle through "
-    "cogging or the gear mesh, a transducer's creep or zero drift, heat) or a curve bumpier than the model's terms: "
-    "log the angle and a temperature, or repeat the sweep, to tell them apart"
-)
+_SOURCES = "the rotor's angle through cogging or the gear mesh, a transducer's creep or zero drift, heat"
+_LACKS = f"the torque follows something the log lacks ({_SOURCES}): log the angle and a temperature to tell them apart"
 
 
-def wander(time: Array, residual: Array, floor: float, keep: NDArray[np.bool_] | None = None) -> Wander | None:
+def wander(
+    time: Array,
+    residual: Array,
+    floor: float,
+    keep: NDArray[np.bool_] | None = None,
+    inputs: Sequence[Array] = (),
+) -> Wander | None:
     """Split ``residual``'s excess over ``floor`` (white noise's standard deviation) into slow and fast; rows outside
-    ``keep`` (flagged stretches) are left out with every window that touches them. None when the log is too short
+    ``keep`` (flagged stretches) are left out with every window that touches them; ``inputs`` (the current, the speed)
+    say whether moments with the same inputs far apart in time predict the excess. None when the log is too short
     or untimed."""
     r = np.asarray(residual, dtype=float)
     t = np.asarray(time, dtype=float)
@@ -196,6 +271,17 @@ def wander(time: Array, residual: Array, floor: float, keep: NDArray[np.bool_] |
     full, slow_part, fast, slow_var, _ = split
     excess = float(np.mean(r[full] ** 2)) - floor**2
     share = min(max(slow_var / excess, 0.0), 1.0) if excess > MIN_EXCESS * floor**2 else 0.0
+    crossing = _crossing(t[full], slow_part, CROSSING_SIGMAS * fast / math.sqrt(k))
+    apart = max(APART, 2.0 * crossing) if crossing is not None else APART
+    # the current alone, then with the speed: a ripple in the current is predicted by the moments with the same
+    # current, which the same speed as well may leave too few of on a sweep that comes back at other speeds
+    noise = min(floor, fast) ** 2
+    shares = [
+        min(max(got[0] / max(got[1] - noise, 1e-300), 0.0), 1.0)
+        for got in (_predicted(t, r, full, inputs[:n], apart) for n in range(1, len(inputs) + 1))
+        if got is not None
+    ]
+    follows = max(shares) if shares else None
     return Wander(
         window=k * dt,
         samples=k,
@@ -203,10 +289,50 @@ def wander(time: Array, residual: Array, floor: float, keep: NDArray[np.bool_] |
         slow=math.sqrt(slow_var),
         fast=fast,
         fast_ratio=fast / floor,
-        crossing=_crossing(t[full], slow_part, CROSSING_SIGMAS * fast / math.sqrt(k)),
+        crossing=crossing,
         rows=int(full.sum()),
         mean=float(np.mean(slow_part)),
+        excess=excess > MIN_EXCESS * floor**2,
+        follows=follows,
     )
+
+
+def _predicted(
+    time: Array, r: Array, full: NDArray[np.bool_], inputs: Sequence[Array], apart: float
+) -> tuple[float, float] | None:
+    """Variance of ``r`` that moments with the same inputs at least ``apart`` seconds away predict (the mean of up to
+    eight such moments, each input within INPUT_TOLERANCE of its range), and r's mean square, over the rows that have
+    three or more; None without inputs or when fewer than COVERED of the searched rows have them."""
+    from scipy.spatial import cKDTree
+
+    if not inputs:
+        return None
+    rows = np.flatnonzero(full)
+    rows = rows[np.unique(np.linspace(0, rows.size - 1, min(rows.size, TREE_ROWS)).astype(int))]
+    X = np.column_stack([np.asarray(x, dtype=float)[rows] for x in inputs])
+    span = np.ptp(X, axis=0)
+    if not np.all(span > 0):
+        X, span = X[:, span > 0], span[span > 0]
+    if X.shape[1] == 0:
+        return None
+    Z = X / (INPUT_TOLERANCE * span)  # the same inputs: within 1 in every column
+    tree = cKDTree(Z)
+    searched = np.unique(np.linspace(0, rows.size - 1, min(rows.size, SEARCHED)).astype(int))
+    _, near = tree.query(Z[searched], k=min(64, rows.size), p=np.inf, distance_upper_bound=1.0)
+    near = np.atleast_2d(near)
+    valid = near < rows.size
+    t, y = time[rows], r[rows]
+    picked = np.where(valid, near, 0)
+    far = valid & (np.abs(t[picked] - t[searched][:, None]) >= apart)
+    # the first eight far-enough moments of each searched row
+    far &= np.cumsum(far, axis=1) <= 8
+    count = far.sum(axis=1)
+    covered = count >= 3
+    if covered.mean() < COVERED:
+        return None
+    guess = (np.where(far, y[picked], 0.0).sum(axis=1) / np.maximum(count, 1))[covered]
+    own = y[searched][covered]
+    return float(np.mean(own**2) - np.mean((own - guess) ** 2)), float(np.mean(own**2))
 
 
 def _split(
@@ -216,11 +342,10 @@ def _split(
     wander's variance and the samples m one draw of the noise stays correlated over; None when too few rows."""
     if r.size < MIN_WINDOWS * k:  # (np.convolve's "same" is as long as the window when the window is longer)
         return None
-    kernel = np.ones(k)
-    summed = np.convolve(np.where(kept, r, 0.0), kernel, mode="same")
-    count = np.convolve(kept.astype(float), kernel, mode="same")
+    summed = _centred_sum(np.where(kept, r, 0.0), k)
+    count = _centred_sum(kept.astype(float), k)
     # a window across a gap in time (a dropped stretch of the log) averages moments that are not neighbours
-    across = np.convolve(gap.astype(float), kernel, mode="same") > 0
+    across = _centred_sum(gap.astype(float), k) > 0.5
     full = kept & (count >= k - 0.5) & ~across
     if int(full.sum()) < MIN_WINDOWS * k:
         return None
@@ -229,24 +354,57 @@ def _split(
     # noise of variance s^2 leaves about s^2 (1 - m/k) outside the average and s^2 m/k in it, where m = (1 + rho) /
     # (1 - rho) is the number of samples one draw of AR(1) noise stays correlated over (1 for white noise): read rho
     # from the fast part's neighbouring samples, so a filtered transducer's noise is not called a wander
-    rho = _lag_one(fast_part, full)
-    m = (1.0 + rho) / (1.0 - rho)
+    m = _correlation_length(fast_part, full, k)
     share_out = max(1.0 - m / k, 0.5)
     fast = math.sqrt(float(np.mean(fast_part**2)) / share_out)
     slow_var = max(float(np.mean(slow_part**2)) - fast**2 * (1.0 - share_out), 0.0)
     return full, slow_part, fast, slow_var, m
 
 
-def _lag_one(x: Array, full: NDArray[np.bool_]) -> float:
-    """Correlation of neighbouring samples of ``x`` (the rows of ``full``, pairs adjacent in the log only), in
-    [0, MAX_RHO]."""
+def _centred_sum(x: Array, k: int) -> Array:
+    """Sum of x over the centred window of k (odd) samples at every row, cut at the ends (np.convolve's "same" in
+    O(n) from a running sum)."""
+    half = k // 2
+    c = np.concatenate([[0.0], np.cumsum(x)])
+    index = np.arange(x.size)
+    lo = np.clip(index - half, 0, x.size)
+    hi = np.clip(index + half + 1, 0, x.size)
+    return c[hi] - c[lo]  # type: ignore[no-any-return]
+
+
+def _correlation_length(x: Array, full: NDArray[np.bool_], k: int) -> float:
+    """Samples one draw of the noise in ``x`` stays correlated over: 1 + 2 sum of its autocorrelations over the lags
+    up to the first that falls below NEGLIGIBLE_RHO (1 for white noise, (1 + rho) / (1 - rho) for AR(1) noise; a
+    second-order transducer filter correlates its neighbours strongly but only over a few lags, which a one-lag reading
+    would take for a long memory). Lags are read within runs of rows adjacent in the log, up to a quarter window."""
     rows = np.flatnonzero(full)
-    pair = np.diff(rows) == 1
-    a, b = x[:-1][pair], x[1:][pair]
-    denominator = float(a @ a)
-    if a.size < 2 or not denominator > 0:
-        return 0.0
-    return min(max(float(a @ b) / denominator, 0.0), MAX_RHO)
+    span = rows < rows[0] + CORRELATION_ROWS if rows.size else rows.astype(bool)
+    rows, x = rows[span], x[span]  # the noise's memory is read on the first stretch of the log
+    if rows.size < 2:
+        return 1.0
+    # back on the log's own grid, zero where a row is not kept, and every lag's sums at once (FFT): a pair counts only
+    # when both its rows are kept
+    on_grid = np.zeros(int(rows[-1] - rows[0]) + 1)
+    mask = np.zeros_like(on_grid)
+    on_grid[rows - rows[0]] = x
+    mask[rows - rows[0]] = 1.0
+    lags = max(k // 4, 1)
+    size = 1 << int(np.ceil(np.log2(2 * on_grid.size)))
+    fx, fm, fxx = np.fft.rfft(on_grid, size), np.fft.rfft(mask, size), np.fft.rfft(on_grid**2, size)
+    products = np.fft.irfft(fx * np.conj(fx), size)[: lags + 1]
+    # each lag's own variances, over the rows that pair at it: sum of x^2 at the first and at the second of a pair
+    first = np.fft.irfft(fxx * np.conj(fm), size)[: lags + 1]
+    second = np.fft.irfft(fm * np.conj(fxx), size)[: lags + 1]
+    m = 1.0
+    for lag in range(1, lags + 1):
+        denominator = math.sqrt(max(float(first[lag]) * float(second[lag]), 0.0))
+        if not denominator > 0:
+            break
+        rho = float(products[lag]) / denominator
+        if rho < NEGLIGIBLE_RHO:
+            break
+        m += 2.0 * rho
+    return m
 
 
 def _crossing(time: Array, slow: Array, band: float) -> float | None:

@@ -53,8 +53,8 @@ def test_correlated_fast_noise_is_not_called_a_wander(rho):
     low = 0.1 * math.sqrt(1 - rho) if rho > 0 else 0.05  # what second differences read
     w = wander(t, x, low)
     assert w is not None and not w.is_slow, w
-    assert f"faster than {w.window:.2g} s" in w.sentence() and w.slow < 0.3 * w.fast
-    assert w.window >= 0.25 and (rho < 0.9 or w.window > 0.5)
+    assert f"faster than {w.window:.2g} s" in w.sentence() and w.slow < 0.5 * w.fast
+    assert w.window >= 0.25 and (rho < 0.9 or w.window > 0.3)  # widened past a quarter second
     at_floor = wander(t, x, float(np.std(x)))
     assert at_floor is not None and not at_floor.floor_is_wander and at_floor.share == 0.0
 
@@ -113,3 +113,46 @@ def test_an_offset_the_model_lacks_is_called_an_offset():
     assert "sits +0.601 N m off zero throughout" in w.sentence() and "wander" not in w.sentence()
     moving = wander(t, gauss_markov(rng, n, 0.5, 1.0) + rng.normal(0.0, 0.1, n), 0.1)
     assert moving is not None and "wanders by" in moving.sentence()
+
+
+def _sweep(n: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    t = np.arange(n) / RATE
+    return t, 8 * np.sin(2 * np.pi * 0.23 * t), 3 * np.sin(2 * np.pi * 0.13 * t)
+
+
+@pytest.mark.parametrize("seed", range(3))
+def test_a_wander_that_follows_the_current_is_not_blamed_on_a_channel_the_log_lacks(seed):
+    """A ripple of 0.2 N m in the current (period 4 A) on a sweep that comes back to every current: moments with the
+    same current and speed far apart in time predict it, so the sentence says it follows the inputs. A wander in time
+    of the same size on the same sweep is predicted by none of them; on a one-way ramp the log cannot tell."""
+    rng = np.random.default_rng(seed)
+    n = int(60 * RATE)
+    t, i, w = _sweep(n)
+    noise = rng.normal(0.0, 0.05, n)
+    ripple = wander(t, 0.2 * np.sin(2 * np.pi * i / 4.0) + noise, 0.05, None, [i, w])
+    assert ripple is not None and ripple.follows_inputs and ripple.follows > 0.9, ripple
+    assert "follows the inputs" in ripple.sentence() or "shape of the curve" in ripple.sentence()
+    assert "something the log lacks" not in ripple.sentence()
+    drifting = wander(t, gauss_markov(rng, n, 0.2, 2.0) + noise, 0.05, None, [i, w])
+    assert drifting is not None and drifting.follows is not None and drifting.follows < 0.2, drifting
+    assert "no logged channel follows it" in drifting.sentence()
+    ramp = wander(t, gauss_markov(rng, n, 0.2, 2.0) + noise, 0.05, None, [np.linspace(0.0, 18.0, n)])
+    assert ramp is not None and ramp.follows is None
+    assert "cannot tell a curve bumpier than the model's terms from something the log lacks" in ramp.sentence()
+
+
+@pytest.mark.parametrize("seconds", [0.5, 1.0, 2.0])
+def test_a_transducer_filter_is_not_a_long_memory(seconds):
+    """Noise through a second-order 20 Hz filter at 200 Hz correlates neighbouring samples at 0.9 but only over a few
+    lags: the window stays near a quarter second and a wander of 0.2 N m reads within 15 %."""
+    from scipy.signal import butter
+
+    rng = np.random.default_rng(5)
+    n = int(60 * RATE)
+    t = np.arange(n) / RATE
+    b, a = butter(2, 20.0 / (RATE / 2))
+    filtered = lfilter(b, a, rng.normal(0.0, 1.0, n))
+    noise = 0.05 * filtered / np.std(filtered)
+    w = wander(t, gauss_markov(rng, n, 0.2, seconds) + noise, 0.02)
+    assert w is not None and w.window < 0.5, w
+    assert w.slow == pytest.approx(0.2, rel=0.15) and w.is_slow
