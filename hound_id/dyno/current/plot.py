@@ -141,7 +141,7 @@ def plot_fit(
                 title = f"a slow part of {w.slow:.3g} N m RMS{follows} beside {noise}"
             else:
                 title = f"the excess is fast: {noise}, {w.fast_ratio:.2g}x the floor"
-            ax.set_title(title, fontsize=8)
+            ax.set_title("\n".join(textwrap.wrap(title, 60)), fontsize=8)
     _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
     return fig
 
