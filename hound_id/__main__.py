@@ -1,3 +1,3 @@
-from hound_id.cli import main
+from hound_id.cli import run
 
-main()
+run()
