@@ -585,6 +585,22 @@ class Neighbours:
         return ratio if ratio > DRIFT_FACTOR else None
 
 
+def far_partners(
+    pool: Array, queries: Array, pool_time: Array, query_time: Array, gap: float, search: int, keep: int
+) -> tuple[NDArray[np.intp], NDArray[np.bool_]]:
+    """For each query row, among its ``search`` nearest ``pool`` rows in the inputs (Chebyshev distance at most 1: the
+    columns already divided by their tolerances), the first ``keep`` at least ``gap`` away in time: the pool index of
+    every candidate (queries, search) and True where it is one of those."""
+    from scipy.spatial import cKDTree
+
+    k = min(search, len(pool))
+    dist, idx = cKDTree(pool).query(queries, k=k, p=np.inf, distance_upper_bound=1.0)
+    dist, idx = dist.reshape(len(queries), k), np.minimum(idx.reshape(len(queries), k), len(pool) - 1)
+    usable = np.isfinite(dist) & (np.abs(pool_time[idx] - query_time[:, None]) >= gap)
+    usable &= np.cumsum(usable, axis=1) <= keep  # the first ``keep`` far enough in time
+    return idx, usable
+
+
 def neighbour_scatter(
     signals: Signals,
     residual: Array,
@@ -616,8 +632,6 @@ def neighbour_scatter(
     slow lag or a resonance the model lacks) varies between the pairs and counts as noise here; the still estimate
     and the diagnosis's own tests of those effects do not share it.
     """
-    from scipy.spatial import cKDTree
-
     if not signals.timed or signals.current.size < 4 * NEIGHBOUR_GAP_ROWS:
         return None
     r = np.asarray(residual, float)[NEIGHBOUR_LAGS:]
@@ -631,14 +645,16 @@ def neighbour_scatter(
     tol = Tolerances.of(signals) if tolerances is None else tolerances
     pool = eligible[:: -(-eligible.size // NEIGHBOUR_POOL)]
     queries = eligible[:: -(-eligible.size // NEIGHBOUR_QUERIES)]
-    k = min(NEIGHBOUR_SEARCH, pool.size)
-    dist, idx = cKDTree(_neighbour_inputs(signals, pool, tol)).query(
-        _neighbour_inputs(signals, queries, tol), k=k, p=np.inf, distance_upper_bound=1.0
+    idx, usable = far_partners(
+        _neighbour_inputs(signals, pool, tol),
+        _neighbour_inputs(signals, queries, tol),
+        t[pool],
+        t[queries],
+        gap,
+        NEIGHBOUR_SEARCH,
+        NEIGHBOUR_K,
     )
-    dist, idx = dist.reshape(queries.size, k), idx.reshape(queries.size, k)
-    partner = pool[np.minimum(idx, pool.size - 1)]
-    usable = np.isfinite(dist) & (np.abs(t[partner] - t[queries][:, None]) >= gap)
-    usable &= np.cumsum(usable, axis=1) <= NEIGHBOUR_K  # the first NEIGHBOUR_K far enough in time
+    partner = pool[idx]
     a_rows, b_rows = np.broadcast_to(queries[:, None], usable.shape)[usable], partner[usable]
     code = np.unique(np.minimum(a_rows, b_rows) * np.int64(r.size) + np.maximum(a_rows, b_rows))  # each pair once
     if code.size < MIN_NEIGHBOUR_PAIRS:

@@ -131,8 +131,8 @@ def plot_fit(
         ax.set_ylabel("residual [N m]")
         ax.grid(alpha=0.3)
         ax.legend(fontsize=6, loc="upper right")
-        w = diagnosis.wander if diagnosis is not None else None
-        if label == along[0] and w is not None and diagnosis is not None and diagnosis.wander_said is not None:
+        w = diagnosis.wander if diagnosis is not None and diagnosis.wander_said is not None else None
+        if label == along[0] and w is not None:
             noise = f"{w.fast:.3g} N m of noise faster than {w.window:.2g} s"
             if w.is_offset:
                 title = f"an offset of {w.mean:+.3g} N m beside {noise}"

@@ -3,16 +3,17 @@
 When no candidate effect is significant and the cross-validated residual stays above the floor, the excess is one of
 two things, and the residual's time structure tells them apart:
 
-* **slow**: the residual wanders over seconds. Neither the current nor the speed follows it (no candidate did), so
-  the torque follows something the log lacks: the rotor's angle (cogging, the gear mesh at a stall, where the rotor
-  turns only as the coupling winds up), a transducer's creep or zero drift, heat. On a sweep that never revisits
-  its inputs such a wander cannot be told from a curve the model's terms cannot bend to; the sentence says so.
+* **slow**: the residual wanders over seconds. Moments with the same current and speed far apart in time say what
+  follows it: when they predict it, a shape of the curve the model's terms cannot bend to; when they do not, something
+  the log lacks: the rotor's angle (cogging, the gear mesh at a stall, where the rotor turns only as the coupling
+  winds up), a transducer's creep or zero drift, heat. On a sweep that never comes back to its inputs the two cannot
+  be told apart; the sentence says so.
 * **fast**: the excess lives within a fraction of a second: noise the floor reads low (a filtered transducer),
   ringing, a channel updated late.
 
 The split is a centred moving average of :data:`WINDOW` seconds over the held-out residual: white noise of standard
 deviation s leaves s^2/k of variance in the average of k samples (noise correlated over m samples, s^2 m/k, with m
-read from the fast part's neighbouring samples), and the rest of the slow part's variance is the wander's.
+summed from the autocorrelation of what the average leaves), and the rest of the slow part's variance is the wander's.
 """
 
 from __future__ import annotations
@@ -303,7 +304,7 @@ def _predicted(
     """Variance of ``r`` that moments with the same inputs at least ``apart`` seconds away predict (the mean of up to
     eight such moments, each input within INPUT_TOLERANCE of its range), and r's mean square, over the rows that have
     three or more; None without inputs or when fewer than COVERED of the searched rows have them."""
-    from scipy.spatial import cKDTree
+    from hound_id.dyno.current.noise import far_partners
 
     if not inputs:
         return None
@@ -316,16 +317,10 @@ def _predicted(
     if X.shape[1] == 0:
         return None
     Z = X / (INPUT_TOLERANCE * span)  # the same inputs: within 1 in every column
-    tree = cKDTree(Z)
     searched = np.unique(np.linspace(0, rows.size - 1, min(rows.size, SEARCHED)).astype(int))
-    _, near = tree.query(Z[searched], k=min(64, rows.size), p=np.inf, distance_upper_bound=1.0)
-    near = np.atleast_2d(near)
-    valid = near < rows.size
     t, y = time[rows], r[rows]
-    picked = np.where(valid, near, 0)
-    far = valid & (np.abs(t[picked] - t[searched][:, None]) >= apart)
-    # the first eight far-enough moments of each searched row
-    far &= np.cumsum(far, axis=1) <= 8
+    # among the 64 nearest in the inputs, the first eight far enough in time
+    picked, far = far_partners(Z, Z[searched], t, t[searched], apart, 64, 8)
     count = far.sum(axis=1)
     covered = count >= 3
     if covered.mean() < COVERED:
