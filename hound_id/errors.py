@@ -13,11 +13,17 @@ from __future__ import annotations
 
 from typing import Any
 
+#: The longest message an error keeps [characters]; the middle of a longer one is cut and the cut said.
+MESSAGE_LIMIT = 2000
+
 
 class HoundIdError(Exception):
     """Base of every error hound-id raises on bad input or an impossible request."""
 
     def __init__(self, message: str, **details: Any) -> None:
+        if len(message) > MESSAGE_LIMIT:  # a value rendered whole (a list of millions) stays a line, not a page
+            cut = len(message) - MESSAGE_LIMIT
+            message = f"{message[: MESSAGE_LIMIT // 2]} ... [{cut} characters cut] ... {message[-MESSAGE_LIMIT // 2 :]}"
         super().__init__(message)
         self.message = message
         self.details = details

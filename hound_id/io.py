@@ -10,6 +10,7 @@ import json
 import os
 import re
 import shutil
+import stat
 import tempfile
 from collections.abc import Callable, Iterator, Sequence
 from contextlib import contextmanager
@@ -18,7 +19,17 @@ from typing import IO, Any
 
 import yaml
 
-from hound_id.errors import OutputError, SpecError
+from hound_id.errors import HoundIdError, OutputError, SpecError
+
+#: The largest YAML file read (a motor spec, a robot, a rig, a plan, a bundle) [bytes]: the biggest one a user
+#: writes is a few kB; megabytes are a wrong path, not a spec.
+YAML_MAX_BYTES = 1 << 20
+#: The most values a YAML document may expand to through its aliases, and its deepest nesting: a spec's own
+#: structure is a few hundred values four levels deep; nine levels of nine aliases would be 387 million.
+YAML_MAX_VALUES = 100_000
+YAML_MAX_DEPTH = 64
+#: The largest URDF, foot.json or effects file read [bytes]: a leg's URDF is tens of kB (meshes are separate files).
+TEXT_MAX_BYTES = 16 << 20
 
 
 @contextmanager
@@ -35,7 +46,7 @@ def atomic_path(path: str | os.PathLike[str]) -> Iterator[Path]:
         fd, tmp_name = tempfile.mkstemp(prefix=f".{target.name}.", suffix=".part", dir=folder)
         os.close(fd)
         tmp = Path(tmp_name)
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; outputs get the usual permissions
+        os.chmod(tmp, 0o666 & ~umask())  # mkstemp makes 0600; outputs get the usual permissions
         yield tmp
         os.replace(tmp, target)
     except OSError as err:
@@ -78,7 +89,8 @@ def file_stem(name: object, where: str) -> str:
     return name
 
 
-def _umask() -> int:
+def umask() -> int:
+    """The process's umask (read without changing it)."""
     mask = os.umask(0)
     os.umask(mask)
     return mask
@@ -101,6 +113,13 @@ def check_output(
     if path is None:
         return
     target = Path(path)
+    kind = special_kind(target)
+    if kind is not None:
+        raise OutputError(
+            f"{target}: is {kind}, not a regular file; outputs are written beside it and renamed onto it: "
+            "give the path of a file",
+            path=str(target),
+        )
     for source in inputs:
         if source is not None and target.exists() and Path(source).exists() and os.path.samefile(target, source):
             raise OutputError(
@@ -114,6 +133,93 @@ def check_output(
             path=str(target),
         )
     _file_folder(target)
+
+
+_KINDS = (
+    (stat.S_ISFIFO, "a FIFO (named pipe)"),
+    (stat.S_ISCHR, "a character device"),
+    (stat.S_ISBLK, "a block device"),
+    (stat.S_ISSOCK, "a socket"),
+)
+
+
+def special_kind(path: str | os.PathLike[str]) -> str | None:
+    """What ``path`` is when it exists and is neither a regular file nor a folder ("a FIFO (named pipe)", "a
+    character device", ...; symlinks followed), else None. Such a file is never opened: a FIFO blocks until a
+    writer comes, a device such as /dev/zero never ends."""
+    try:
+        mode = os.stat(path).st_mode
+    except (OSError, ValueError):
+        return None
+    if stat.S_ISREG(mode) or stat.S_ISDIR(mode):
+        return None
+    return next((name for test, name in _KINDS if test(mode)), "not a regular file")
+
+
+def check_input(
+    path: str | os.PathLike[str],
+    what: str,
+    error: type[HoundIdError] = SpecError,
+    max_bytes: int | None = None,
+    option: str | None = None,
+) -> int:
+    """Fail in one line unless ``path`` is a regular file of at most ``max_bytes``; return its size [bytes].
+
+    Args:
+        path: The input file.
+        what: What it should be ("motor spec YAML", "URDF"), for the message.
+        error: The error type raised (the caller's family member).
+        max_bytes: The largest size accepted (None: any).
+        option: The option that named the file ("--urdf"), said before its path.
+    """
+    source = Path(path)
+    name = f"{option} {source}" if option else str(source)
+    try:
+        info = os.stat(source)
+    except FileNotFoundError as err:
+        raise error(f"{name}: file not found; expected a {what} file", path=str(source)) from err
+    except (OSError, ValueError) as err:
+        raise error(f"{name}: cannot read it ({getattr(err, 'strerror', None) or err})", path=str(source)) from err
+    if stat.S_ISDIR(info.st_mode):
+        raise error(f"{name}: is a folder; expected a {what} file", path=str(source))
+    kind = special_kind(source)
+    if kind is not None:
+        raise error(
+            f"{name}: is {kind}, not a regular file; expected a {what} file (a pipe or device is never read: "
+            "save what it gives to a file first)",
+            path=str(source),
+        )
+    if max_bytes is not None and info.st_size > max_bytes:
+        raise error(
+            f"{name}: is {info.st_size / 1e6:.3g} MB; a {what} file is at most {max_bytes / 1e6:.3g} MB: "
+            "is this the right file?",
+            path=str(source),
+        )
+    return info.st_size
+
+
+def read_bounded_text(
+    path: str | os.PathLike[str], what: str, max_bytes: int, error: type[HoundIdError] = SpecError
+) -> str:
+    """The text (UTF-8) of a regular file of at most ``max_bytes``, else a one-line error of type ``error``.
+
+    The bound holds while reading too: a file that grows, or reports no size (as /proc files do), is cut off."""
+    source = Path(path)
+    check_input(source, what, error, max_bytes)
+    try:
+        with open(source, "rb") as handle:
+            data = handle.read(max_bytes + 1)
+        if len(data) > max_bytes:
+            raise error(
+                f"{source}: holds more than {max_bytes / 1e6:.3g} MB; a {what} file is at most that: is this the "
+                "right file?",
+                path=str(source),
+            )
+        return data.decode("utf-8")
+    except FileNotFoundError as err:
+        raise error(f"{source}: file not found; expected a {what} file", path=str(source)) from err
+    except (OSError, UnicodeDecodeError) as err:
+        raise error(f"{source}: cannot read the {what} file ({err})", path=str(source)) from err
 
 
 def _file_folder(target: Path) -> Path:
@@ -173,7 +279,10 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
 
     The files of one command appear together or not at all: a failure while writing (or
     Ctrl-C) leaves ``path`` as it was. The staging folder sits at the same depth as ``path``,
-    so relative paths computed from ``path`` hold for files written into it.
+    so relative paths computed from ``path`` hold for files written into it. Files in
+    subfolders of the staging folder go to the same subfolders of ``path`` (created); each
+    replaces the file of its name there, and the other files of ``path`` are kept. A staged
+    file that would land on a folder, or a subfolder on a file, fails before the first move.
 
     Raises:
         OutputError: ``path`` is a file, its parent is missing, or it cannot be created or written.
@@ -186,13 +295,33 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
         staging = Path(tempfile.mkdtemp(prefix=f".{folder.name}.", dir=parent))
         yield staging
         make_folder(folder, option)
-        for item in sorted(staging.iterdir()):
-            os.replace(item, folder / item.name)
+        moves = [(item, folder / item.relative_to(staging)) for item in sorted(staging.rglob("*")) if not item.is_dir()]
+        for _, target in moves:  # every clash before the first move: a clash leaves ``path`` as it was
+            _check_clash(folder, target, option)
+        for item, target in moves:
+            target.parent.mkdir(parents=True, exist_ok=True)
+            os.replace(item, target)
     except OSError as err:
         raise _cannot_write(err, f"{option} {folder}") from err
     finally:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
+
+
+def _check_clash(folder: Path, target: Path, option: str) -> None:
+    """Raise when the staged file ``target`` (in ``folder``) would land on a folder, or its folder on a file."""
+    if target.is_dir():
+        raise OutputError(
+            f"{option} {folder}: {target} is a folder where a file goes; move it away or choose another {option}",
+            path=str(folder),
+        )
+    for parent in target.relative_to(folder).parents:
+        if (folder / parent).exists() and not (folder / parent).is_dir():
+            raise OutputError(
+                f"{option} {folder}: {folder / parent} is a file where a folder goes; move it away or choose another "
+                f"{option}",
+                path=str(folder),
+            )
 
 
 def write_text(path: str | os.PathLike[str], text: str) -> None:
@@ -225,10 +354,51 @@ class DuplicateKeyError(yaml.YAMLError):
         self.key, self.line = key, line
 
 
+class YamlShapeError(yaml.YAMLError):
+    """A document hound-id does not read: a key that is not a plain value, nesting or alias expansion past the
+    bounds, an alias inside itself."""
+
+    def __init__(self, problem: str, line: int) -> None:
+        super().__init__(problem)
+        self.problem, self.line = problem, line
+
+
 class _UniqueKeyLoader(yaml.SafeLoader):
+    """Safe YAML, with plain keys only, each once, nesting at most :data:`YAML_MAX_DEPTH` deep and at most
+    :data:`YAML_MAX_VALUES` values once the aliases are expanded (checked before anything is built)."""
+
+    _depth = 0
+
+    def compose_node(self, parent: yaml.Node | None, index: object) -> yaml.Node:
+        self._depth += 1
+        try:
+            if self._depth > YAML_MAX_DEPTH:
+                mark = self.peek_event().start_mark  # type: ignore[no-untyped-call]
+                raise YamlShapeError(f"nested more than {YAML_MAX_DEPTH} levels deep", mark.line + 1)
+            return super().compose_node(parent, index)  # type: ignore[no-untyped-call,no-any-return]
+        finally:
+            self._depth -= 1
+
+    def get_single_node(self) -> yaml.Node | None:
+        node = super().get_single_node()  # type: ignore[no-untyped-call]
+        if node is not None:
+            count = _expanded(node, {}, set())
+            if count > YAML_MAX_VALUES:
+                raise YamlShapeError(
+                    f"its aliases (*name) expand it to {count:,} values; at most {YAML_MAX_VALUES:,} are read: "
+                    "write the repeated parts out, or fewer of them",
+                    node.start_mark.line + 1,
+                )
+        return node  # type: ignore[no-any-return]
+
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[object, object]:
         seen = set()
         for key_node, _ in node.value:
+            if not isinstance(key_node, yaml.ScalarNode):
+                raise YamlShapeError(
+                    "a key that is a list or mapping ('? [a, b]' or '[a, b]: ...'); keys are plain names",
+                    key_node.start_mark.line + 1,
+                )
             key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
             if key in seen:
                 raise DuplicateKeyError(key, key_node.start_mark.line + 1)
@@ -236,27 +406,49 @@ class _UniqueKeyLoader(yaml.SafeLoader):
         return super().construct_mapping(node, deep=deep)
 
 
+def _expanded(node: yaml.Node, sizes: dict[int, int], open_nodes: set[int]) -> int:
+    """How many values ``node`` holds once its aliases are expanded (each shared node counted once per use);
+    linear in the distinct nodes (their counts are kept in ``sizes``)."""
+    key = id(node)
+    if key in sizes:
+        return sizes[key]
+    if key in open_nodes:
+        raise YamlShapeError(
+            "an alias inside the value it names (*name within &name): it never ends", node.start_mark.line + 1
+        )
+    open_nodes.add(key)
+    if isinstance(node, yaml.SequenceNode):
+        count = 1 + sum(_expanded(item, sizes, open_nodes) for item in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        count = 1 + sum(_expanded(k, sizes, open_nodes) + _expanded(v, sizes, open_nodes) for k, v in node.value)
+    else:
+        count = 1
+    open_nodes.discard(key)
+    sizes[key] = count
+    return count
+
+
 def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
     """Read a YAML file, turning I/O and syntax problems into one-line :class:`SpecError`.
+
+    The file must be a regular file of at most :data:`YAML_MAX_BYTES`; its keys plain values, each once; its
+    nesting and alias expansion bounded (:class:`_UniqueKeyLoader`).
 
     Args:
         path: File to read.
         what: What the file should be ("motor spec", "robot"), for messages.
     """
     source = Path(path)
-    if source.is_dir():
-        raise SpecError(f"{source}: is a folder; expected a {what} YAML file", path=str(source))
-    try:
-        text = source.read_text(encoding="utf-8")
-    except FileNotFoundError as err:
-        raise SpecError(f"{source}: file not found; expected a {what} YAML file", path=str(source)) from err
-    except (OSError, UnicodeDecodeError) as err:
-        raise SpecError(f"{source}: cannot read the {what} file ({err})", path=str(source)) from err
+    text = read_bounded_text(source, f"{what} YAML", YAML_MAX_BYTES)
     try:
         return yaml.load(text, Loader=_UniqueKeyLoader)  # noqa: S506 - a SafeLoader subclass
     except DuplicateKeyError as err:
         raise SpecError(
             f"{source}: line {err.line}: key '{err.key}' appears twice; keep one", path=str(source)
+        ) from err
+    except YamlShapeError as err:
+        raise SpecError(
+            f"{source}: line {err.line}: {err.problem}; the {what} file cannot be read", path=str(source)
         ) from err
     except yaml.YAMLError as err:
         mark = getattr(err, "problem_mark", None)

@@ -107,8 +107,7 @@ def read_table_info(path: str | Path) -> Table:
         raise TableError(f"{p}: is a folder; expected a .csv or .parquet file", path=str(p))
     if suffix not in SUFFIXES:
         raise TableError(f"{p}: unknown table format {suffix or '(no suffix)'}; expected .csv or .parquet", path=str(p))
-    if not p.is_file():
-        raise TableError(f"{p}: file not found", path=str(p))
+    io.check_input(p, "table (.csv or .parquet)", TableError)
     notes: tuple[str, ...] = ()
     try:
         if suffix != ".csv":
@@ -319,8 +318,7 @@ class TableBatches:
             raise TableError(
                 f"{p}: unknown table format {suffix or '(no suffix)'}; expected .csv or .parquet", path=str(p)
             )
-        if not p.is_file():
-            raise TableError(f"{p}: file not found", path=str(p))
+        io.check_input(p, "table (.csv or .parquet)", TableError)
         self.path = p
         self.numeric = tuple(numeric)
         self.text = text

@@ -159,6 +159,10 @@ def as_number(value: Any) -> float | None:
     return None
 
 
+#: A quantity's text starts with its number (pint would read "N*m/A" alone as 1 N m/A).
+_LEADING_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+|inf|nan)([eE][+-]?\d+)?", re.IGNORECASE)
+
+
 def _parse_string(text: str, kind: str, loc: str) -> float:
     import pint
 
@@ -180,6 +184,12 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
                 found=text,
                 expected=si_unit,
             )
+    if not _LEADING_NUMBER.match(text):  # pint reads a bare unit as 1 of it
+        raise UnitError(
+            f"{loc}: found {text!r}, a unit without a number; expected {label} such as {example}",
+            found=text,
+            expected=si_unit,
+        )
     target = ureg.Unit(si_unit)
     if quantity.dimensionality != target.dimensionality:
         raise UnitError(

@@ -44,6 +44,11 @@ def record_cmd(
     ),
     rate: float = typer.Option(500.0, "--rate", help="Sampling rate [Hz], 0.01 to 10000."),
     flush: float = typer.Option(0.25, "--flush", help="Longest time between writes to disk [s], 0.05 to 60."),
+    overwrite: bool = typer.Option(
+        False,
+        "--overwrite",
+        help="Replace a log already at --out, once the first sample is in (kept if none comes).",
+    ),
     json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON (schema hound-id/record/2)."),
 ) -> None:
     """Poll the rig at a fixed rate into a CSV that fit-current reads; Ctrl-C stops cleanly.
@@ -67,7 +72,15 @@ def record_cmd(
                 info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed} missed, {r.failed} in gaps",
             )
 
-        result = record_rig(rig, out, rate_hz=rate, duration=duration, flush_interval=flush, on_progress=on_progress)
+        result = record_rig(
+            rig,
+            out,
+            rate_hz=rate,
+            duration=duration,
+            flush_interval=flush,
+            overwrite=overwrite,
+            on_progress=on_progress,
+        )
     meta = dict(result.metadata)  # what the sidecar says
     if json_out:
         print_json(meta)
@@ -90,9 +103,11 @@ def record_cmd(
         console.print(table)
         for gap in meta["gaps"][:10]:
             warn(f"gap {gap['start']:.3f}-{gap['end']:.3f} s ({gap['ticks']} ticks): {gap['reason']}")
-        console.print(f"metadata in {result.sidecar}", highlight=False)
+        if not result.kept_existing:
+            console.print(f"metadata in {result.sidecar}", highlight=False)
     if result.status == "failed":
-        raise HoundIdError(f"{out}: recording stopped: {result.message} (the file holds what was recorded)")
+        held = "" if result.kept_existing else " (the file holds what was recorded)"
+        raise HoundIdError(f"{out}: recording stopped: {result.message}{held}")
 
 
 @app.command("simulate-rig")

@@ -43,7 +43,9 @@ def fleet(
         False, "--whole-log", help="Each log's headline is the whole log, even where part of it disagrees."
     ),
     workers: Optional[int] = typer.Option(
-        None, "--workers", help="Worker processes of the local Dask cluster (default: one per core)."
+        None,
+        "--workers",
+        help="Worker processes of the local Dask cluster (default: one per usable core; at most one per core and log).",
     ),
     scheduler: Optional[str] = typer.Option(
         None, "--scheduler", metavar="ADDRESS", help="An existing Dask scheduler (tcp://host:8786) instead."
@@ -57,7 +59,7 @@ def fleet(
     reports: Optional[Path] = typer.Option(
         None, "--reports", help="Folder: each log's fit report (what fit-current --json prints)."
     ),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fleet/1)."),
+    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fleet/2)."),
 ) -> None:
     """Fit every log with the same model on Dask (local cores, or --scheduler), compare the actuators with the
     fleet's median and flag the outliers with their physical reading. Exit 1 when a log failed."""
@@ -225,6 +227,8 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         + (f"; fitted again with the fleet's model: {', '.join(engine['refitted'])}" if engine["refitted"] else ""),
         highlight=False,
     )
+    if engine["capped"]:
+        console.print(f"note: {escape(engine['capped'])}", highlight=False)
     if report.flags:
         console.print(f"[bold]flagged ({len(flagged)} actuator{'s' if len(flagged) != 1 else ''}):[/bold]")
         for f in report.flags:

@@ -217,7 +217,7 @@ def fit_current(
     Raises:
         HoundIdError: A bad input (log, option, spec, output path), or a fit the log cannot support.
     """
-    from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model
+    from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model, parse_start_model
     from hound_id.dyno.current.report import check_kt, fitted_motor, spec_checks, summarize
     from hound_id.dyno.logs import load_log, parse_windows
     from hound_id.mor.spec import load_motor_spec
@@ -243,7 +243,7 @@ def fit_current(
     sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet
     for path in options.effects_files:
         load_effects_file(path)
-    names = list(parse_model(options.model))
+    names = list(parse_start_model(options.model))
     for extra in options.add:
         for effect_name in parse_model(extra):
             if effect_name in names:
@@ -584,14 +584,14 @@ def _figure(
     signals: Signals, torque: Any, fit: FitResult, start: FitResult, diagnosis: Diagnosis, options: FitCurrentOptions
 ) -> FitFigure:
     """The fits the plot compares: before/after when the model changed, else the top suggestion's effect."""
-    from hound_id.dyno.current.effects import parse_model
+    from hound_id.dyno.current.effects import parse_start_model
     from hound_id.dyno.current.fit import fit_model
 
     order = fit.hypers.get("cogging_order") or next(
         (s.hypers.get("cogging_order") for s in diagnosis.suggestions if s.effect == "cogging" and s.significant),
         None,
     )
-    base = tuple(parse_model(options.model))
+    base = tuple(parse_start_model(options.model))
     before: FitResult | None = None
     if options.auto or tuple(fit.model) != base:  # compare against the model the user started from
         before = start if options.auto else _fit_or_none(signals, torque, base, options.robust)

@@ -39,6 +39,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.errors import SpecError
+from hound_id.io import TEXT_MAX_BYTES, check_input
 from hound_id.mor.current_curve import polynomial
 from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import Robot
@@ -321,6 +322,7 @@ def _nan_to_none(values: Any) -> list[float | None]:
 
 def foot_from_json(path: Path) -> dict[str, Any]:
     """The foot part of a bundle from ``hound-id foot --optimise``'s foot.json."""
+    check_input(path, "foot.json", SpecError, TEXT_MAX_BYTES, option="--foot")
     try:
         data = json.loads(path.read_text())
     except OSError as err:

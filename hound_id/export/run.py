@@ -76,8 +76,7 @@ def prepare(
     robot = load_robot(robot_path)
     robot = apply_fits(robot, [load_motor_spec(f) for f in fits])
     if urdf is not None:
-        if not urdf.is_file():
-            raise SpecError(f"--urdf {urdf}: file not found")
+        io.check_input(urdf, "URDF", SpecError, io.TEXT_MAX_BYTES, option="--urdf")
         robot = replace(robot, urdf=str(urdf.resolve()))
     sources = {
         "robot": str(Path(robot_path).resolve()),

@@ -24,6 +24,7 @@ from pathlib import Path
 from typing import Any
 
 from hound_id.errors import SpecError
+from hound_id.foot.urdf import parse_urdf
 
 
 @dataclass(frozen=True)
@@ -54,8 +55,7 @@ def load_leg(path: str | Path) -> Any:
     import pinocchio as pin
 
     p = Path(path)
-    if not p.is_file():
-        raise SpecError(f"{p}: file not found; expected a leg URDF", path=str(p))
+    parse_urdf(p)  # a regular file of bounded size, its inertials those of rigid bodies
     try:
         return pin.buildModelFromUrdf(str(p))
     except (RuntimeError, ValueError) as err:

@@ -22,6 +22,7 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SpecError
 from hound_id.foot.geometry import MassProperties
+from hound_id.io import TEXT_MAX_BYTES, check_input
 
 
 @dataclass(frozen=True)
@@ -71,8 +72,7 @@ def rebase_meshes(root: ET.Element, source: Path, out_dir: Path | None) -> None:
 
 def parse_urdf(path: Path) -> ET.Element:
     """The <robot> element of a URDF file, comments kept (SpecError if missing or not a URDF)."""
-    if not path.is_file():
-        raise SpecError(f"{path}: file not found; expected a leg URDF", path=str(path))
+    check_input(path, "leg URDF", SpecError, TEXT_MAX_BYTES)
     try:
         tree = ET.parse(path, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
         root = tree.getroot()
@@ -80,7 +80,56 @@ def parse_urdf(path: Path) -> ET.Element:
         raise SpecError(f"{path}: not valid XML ({err})", path=str(path)) from err
     if root is None or root.tag != "robot":
         raise SpecError(f"{path}: expected a URDF <robot> document", path=str(path))
+    check_inertials(root, str(path))
     return root
+
+
+def check_inertials(root: ET.Element, source: str) -> None:
+    """Every link's ``<inertial>``: a positive finite mass, a finite inertia tensor that is positive
+    semi-definite and meets the triangle inequality (Ixx + Iyy >= Izz, ...), as a rigid body's must; else a
+    one-line SpecError naming the link. A massless link has no ``<inertial>``."""
+    for link in root.iter("link"):
+        inertial = link.find("inertial")
+        if inertial is None:
+            continue
+        name = link.get("name", "?")
+        fix = f"fix the <inertial> of link '{name}' (a massless link has none)"
+        mass = inertial.find("mass")
+        raw = None if mass is None else mass.get("value")
+        value = _number(raw)
+        if value is None or not value > 0:
+            raise SpecError(
+                f"{source}: link '{name}': <mass value={raw!r}>, expected a positive finite mass [kg]; {fix}"
+            )
+        tensor = inertial.find("inertia")
+        if tensor is None:
+            continue
+        got = {key: _number(tensor.get(key, "0")) for key in _INERTIA}  # ixx ixy ixz iyy iyz izz
+        bad = [key for key, v in got.items() if v is None]
+        if bad:
+            raise SpecError(
+                f"{source}: link '{name}': <inertia {bad[0]}={tensor.get(bad[0])!r}>, expected a finite number "
+                f"[kg m^2]; {fix}"
+            )
+        xx, xy, xz, yy, yz, zz = (float(got[key] or 0.0) for key in _INERTIA)
+        matrix = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        eig = np.linalg.eigvalsh(matrix)
+        tol = 1e-9 * max(float(np.max(np.abs(eig))), 1e-300)
+        if eig[0] < -tol or eig[0] + eig[1] < eig[2] - tol:
+            raise SpecError(
+                f"{source}: link '{name}': the inertia tensor (ixx {xx:g}, iyy {yy:g}, izz {zz:g}, ixy {xy:g}, "
+                f"ixz {xz:g}, iyz {yz:g} kg m^2) has principal moments {', '.join(f'{e:.3g}' for e in eig)}: a rigid "
+                f"body's are >= 0 and no one exceeds the sum of the other two; {fix}"
+            )
+
+
+def _number(text: str | None) -> float | None:
+    """A finite float from an attribute's text, else None."""
+    try:
+        value = float(text) if text is not None else math.nan
+    except ValueError:
+        return None
+    return value if math.isfinite(value) else None
 
 
 def _rotation(rpy: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -41,7 +41,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.errors import HoundIdError, RobotError, TransmissionError
-from hound_id.io import file_stem, read_yaml
+from hound_id.io import TEXT_MAX_BYTES, check_input, file_stem, read_yaml
 from hound_id.mor.spec import MotorSpec, load_motor_spec
 from hound_id.mor.transmission import Transmission, from_matrix, from_ratios, hollow_shaft
 from hound_id.units import as_number
@@ -180,8 +180,9 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
     if urdf is not None:
         if not isinstance(urdf, str) or not urdf:
             raise _err(source, "field 'urdf'", f"found {urdf!r}, expected the path of the robot's URDF")
-        if not (base / urdf).is_file():
+        if not (base / urdf).exists():
             raise _err(source, "field 'urdf'", f"{base / urdf} not found; the path is relative to the robot file")
+        check_input(base / urdf, "URDF", RobotError, TEXT_MAX_BYTES)
         urdf = str((base / urdf).resolve())
     return Robot(
         name=name,

@@ -515,12 +515,19 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names", field="assumed"
         )
     for entry in assumed:
+        if not isinstance(entry, str):
+            raise SpecError(
+                f"{where(source, 'assumed')}: found {entry!r} in the list, expected field names (kt, kv, ...)",
+                field="assumed",
+            )
         if entry not in _QUANTITY_KEYS and entry != "pole_pairs":
             raise SpecError(
                 f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
             )
     extrapolated = data.get("extrapolated", [])
-    if not isinstance(extrapolated, list) or any(e not in _QUANTITY_KEYS for e in extrapolated):
+    if not isinstance(extrapolated, list) or any(
+        not isinstance(e, str) or e not in _QUANTITY_KEYS for e in extrapolated
+    ):
         raise SpecError(
             f"{where(source, 'extrapolated')}: found {extrapolated!r}, expected a list of spec fields "
             "(e.g. [peak_torque])",

@@ -44,7 +44,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert foot["schema"] == "hound-id/foot/2" and all(c["satisfied"] for c in foot["constraints"].values())
     assert step["optimise the foot"]["mass_ratio"] == foot["mass_ratio"] < 1
     fleet = json.loads((tmp_path / "out" / "fleet.json").read_text())  # every planted fault, no healthy actuator
-    assert fleet["schema"] == "hound-id/fleet/1" and fleet["fitted"] == 12 and fleet["engine"]["workers"] >= 1
+    assert fleet["schema"] == "hound-id/fleet/2" and fleet["fitted"] == 12 and fleet["engine"]["workers"] >= 1
     assert step["compare a fleet"]["planted_found"] == 4 and step["compare a fleet"]["healthy_flagged"] == 0
     compare = json.loads((tmp_path / "out" / "compare_ilm85_sag.json").read_text())
     assert compare["schema"] == "hound-id/mor-compare/2" and compare["added"] == ["bus_sag"]

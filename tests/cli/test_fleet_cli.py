@@ -37,7 +37,7 @@ def test_the_sample_fleet_from_the_command_line(sample_run):
     out, proc = sample_run
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout)
-    assert data["schema"] == "hound-id/fleet/1" and data["fitted"] == 12 and data["failed"] == []
+    assert data["schema"] == "hound-id/fleet/2" and data["fitted"] == 12 and data["failed"] == []
     assert {(f["actuator"], f["metric"]) for f in data["flags"]} == PLANTED
     assert data["engine"]["local_cluster"] and data["engine"]["workers"] == 2
     assert set(data["model"]) == {"linear", "saturation", "offset", "coulomb", "viscous", "gear_friction", "cogging"}

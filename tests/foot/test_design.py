@@ -154,7 +154,12 @@ BODY = """<inertial><mass value="0.1"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="
     [
         ("0 0 -0.2", BODY, "toe", "no link named 'toe'"),
         ("0.05 0 -0.2", BODY, "foot", "expected the foot on the calf's -z axis"),
-        ("0 0 -0.2", "<inertial><mass value='0.1'/><inertia ixx='1'/></inertial>", "foot", "no <collision> sphere"),
+        (
+            "0 0 -0.2",
+            "<inertial><mass value='0.1'/><inertia ixx='1' iyy='1' izz='1'/></inertial>",
+            "foot",
+            "no <collision> sphere",
+        ),
         (
             "0 0 -0.2",
             '<collision><geometry><sphere radius="0.02"/></geometry></collision>',
@@ -162,7 +167,7 @@ BODY = """<inertial><mass value="0.1"/><inertia ixx="1e-5" ixy="0" ixz="0" iyy="
             "has no <inertial>",
         ),
         ("0 0 -0.2 1", BODY, "foot", "expected 3 finite numbers"),
-        ("0 0 -0.2", BODY.replace('value="0.1"', 'value="-0.1"'), "foot", "expected a positive mass"),
+        ("0 0 -0.2", BODY.replace('value="0.1"', 'value="-0.1"'), "foot", "expected a positive finite mass"),
         (
             "0 0 -0.2",
             BODY.replace('<geometry><sphere radius="0.02"/>', '<geometry><cylinder radius="0.03" length="0.1"/>'),

@@ -58,7 +58,7 @@ def test_bad_inputs(tmp_path):
     with pytest.raises(SpecError, match="file not found"):
         load_leg(tmp_path / "none.urdf")
     (tmp_path / "bad.urdf").write_text("<robot name='x'><link></robot>")
-    with pytest.raises(SpecError, match="cannot load the URDF"):
+    with pytest.raises(SpecError, match="not valid XML"):
         load_leg(tmp_path / "bad.urdf")
     with pytest.raises(SpecError, match="no joint named 'knee'"):
         leg_properties(load_leg(LEG), knee_joint="knee")

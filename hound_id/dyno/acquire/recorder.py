@@ -31,8 +31,11 @@ disk), missed ticks, gap ticks, gaps (an open gap has ``"end": null``) and fault
 status (``recording``, ``complete``, ``interrupted``, ``failed``).
 
 Output safety: the CSV is locked (``flock``) for the whole run, so a second recorder on
-the same file is refused before it writes anything. A write error (disk full, file size
-limit) stops the run: the file is cut back to its last whole row, the sidecar says
+the same file is refused before it writes anything. A log that is already there is refused
+unless ``overwrite`` says to replace it, and even then it is replaced (with its sidecar)
+only once the first sample is in hand: until then the run writes to a hidden file beside it,
+so a rig that answers nothing, or a Ctrl-C before the first sample, leaves it as it was.
+A write error (disk full, file size limit) stops the run: the file is cut back to its last whole row, the sidecar says
 ``failed``, and :class:`~hound_id.errors.OutputError` is raised with the counts.
 """
 
@@ -44,6 +47,7 @@ import json
 import math
 import os
 import stat
+import tempfile
 import threading
 import time
 from collections.abc import Callable, Mapping, Sequence
@@ -130,6 +134,9 @@ class RecordResult:
     metadata: Mapping[str, Any] = field(default_factory=lambda: MappingProxyType({}))
     """What the final sidecar says (schema ``hound-id/record/2``), read-only; empty in the running totals
     given to ``on_progress``."""
+    kept_existing: bool = False
+    """True when the run replaced nothing: ``overwrite`` was given, no sample came, and the log already at
+    ``out`` (and its sidecar) was left as it was; the final sidecar was not written."""
 
 
 def check_settings(rate_hz: float, duration: float | None, flush_interval: float) -> None:
@@ -172,38 +179,44 @@ def sidecar_path(out: Path) -> Path:
 class CsvLog:
     """The CSV file of a run: locked against a second recorder, written in whole rows only, LF line endings.
 
-    The file is opened without truncation, locked with ``flock`` (a second recorder on the same
-    file is refused with the PID of the first), and only then emptied and given its header. The
-    lock is held until :meth:`close`.
+    A new file (or an empty one) is opened without truncation, locked with ``flock`` (a second recorder on the
+    same file is refused with the PID of the first) and given its header. A log already at ``path`` is refused
+    unless ``overwrite``; then it is locked, and the run writes to a hidden file beside it (:attr:`writing`)
+    that replaces it (and its sidecar) with the first rows: until then it is untouched. The locks are held
+    until :meth:`close`.
 
     Raises:
-        OutputError: The file cannot be created or written, or another recorder holds it.
+        OutputError: The file cannot be created or written, another recorder holds it, or a log is already
+            there and ``overwrite`` was not given.
     """
 
-    def __init__(self, path: Path, columns: Sequence[str]) -> None:
+    def __init__(self, path: Path, columns: Sequence[str], overwrite: bool = False) -> None:
         io.check_output(path, (".csv",), "log")
+        check_free(path)  # another recorder's file: say so first
+        check_existing(path, overwrite)
         self.path = path
         self.columns = ["time", *columns]
         self.rows = 0
         """Whole rows in the file."""
-        try:
-            fd = os.open(path, os.O_WRONLY | os.O_CREAT | os.O_CLOEXEC, 0o666)
-        except OSError as err:
-            raise OutputError(
-                f"{path}: cannot write ({err.strerror or err}); choose another --out", path=str(path)
-            ) from err
-        try:
-            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
-        except BlockingIOError as err:
-            os.close(fd)
-            raise _locked(path) from err
-        except OSError as err:
-            os.close(fd)
-            raise OutputError(
-                f"{path}: cannot lock the file ({err.strerror or err}); record to a local disk", path=str(path)
-            ) from err
-        self._fd = fd
+        self._old_fd = -1
         self._size = 0
+        self.writing = path
+        """The file being written: ``path``, or the hidden file that replaces it with the first rows."""
+        if _holds_data(path):
+            self._old_fd = _open_locked(path, os.O_RDONLY)  # the old log: no second recorder, kept till replaced
+            try:
+                fd, name = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".recording", dir=path.parent)
+                os.fchmod(fd, 0o666 & ~io.umask())
+            except OSError as err:
+                self.close()
+                raise OutputError(
+                    f"{path.parent}: cannot write ({err.strerror or err}); choose another --out", path=str(path)
+                ) from err
+            self.writing = Path(name)
+            fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)  # a file only this process knows: never held
+        else:
+            fd = _open_locked(path, os.O_WRONLY | os.O_CREAT)
+        self._fd = fd
         try:
             if stat.S_ISREG(os.fstat(fd).st_mode):
                 os.ftruncate(fd, 0)
@@ -217,6 +230,11 @@ class CsvLog:
             ) from err
         self.rows = 0
 
+    @property
+    def replaced(self) -> bool:
+        """Whether the file at :attr:`path` is this run's (False while an old log waits for the first rows)."""
+        return self.writing == self.path
+
     def append(self, rows: Sequence[str]) -> None:
         """Write whole rows (each ending in a newline).
 
@@ -225,7 +243,26 @@ class CsvLog:
                 whole row and :attr:`rows` counts the rows in it.
         """
         if rows:
-            self._write("".join(rows), len(rows))
+            try:
+                self._write("".join(rows), len(rows))
+            finally:  # rows in hand, even when a write failed part-way: they replace the old log
+                if self.rows and not self.replaced:
+                    self._replace_old()
+
+    def _replace_old(self) -> None:
+        """Move the hidden file (which now holds rows) onto the old log, and drop the old log's sidecar with
+        it: the next sidecar write describes this run."""
+        hidden = self.writing
+        os.replace(hidden, self.path)
+        self.writing = self.path
+        for stale in (sidecar_path(hidden), sidecar_path(self.path)):
+            try:
+                stale.unlink()
+            except FileNotFoundError:
+                pass
+        old, self._old_fd = self._old_fd, -1
+        if old >= 0:
+            os.close(old)
 
     def _write(self, text: str, n: int) -> None:
         data = text.encode("utf-8")
@@ -253,10 +290,64 @@ class CsvLog:
         os.fsync(self._fd)
 
     def close(self) -> None:
-        """Close the file and release the lock (idempotent)."""
-        fd, self._fd = self._fd, -1
+        """Close the file and release the locks (idempotent); a hidden file that never replaced the old log is
+        removed with its sidecar, so the old log stays as it was."""
+        fd, self._fd = getattr(self, "_fd", -1), -1
         if fd >= 0:
             os.close(fd)
+        if not self.replaced:
+            for leftover in (self.writing, sidecar_path(self.writing)):
+                try:
+                    leftover.unlink()
+                except FileNotFoundError:
+                    pass
+        old, self._old_fd = self._old_fd, -1
+        if old >= 0:
+            os.close(old)
+
+
+def _holds_data(path: Path) -> bool:
+    """Whether ``path`` is a regular file with something in it (an empty file is not a log)."""
+    try:
+        info = os.stat(path)
+    except OSError:
+        return False
+    return stat.S_ISREG(info.st_mode) and info.st_size > 0
+
+
+def _open_locked(path: Path, flags: int) -> int:
+    """``path`` opened with ``flags`` and locked (flock, not blocking)."""
+    try:
+        fd = os.open(path, flags | os.O_CLOEXEC, 0o666)
+    except OSError as err:
+        message = f"{path}: cannot write ({err.strerror or err}); choose another --out"
+        raise OutputError(message, path=str(path)) from err
+    try:
+        fcntl.flock(fd, fcntl.LOCK_EX | fcntl.LOCK_NB)
+    except BlockingIOError as err:
+        os.close(fd)
+        raise _locked(path) from err
+    except OSError as err:
+        os.close(fd)
+        raise OutputError(
+            f"{path}: cannot lock the file ({err.strerror or err}); record to a local disk", path=str(path)
+        ) from err
+    return fd
+
+
+def check_existing(path: Path, overwrite: bool) -> None:
+    """Refuse a log already at ``path`` unless ``overwrite`` (before connecting to the rig).
+
+    Raises:
+        OutputError: ``path`` holds data and ``overwrite`` is False.
+    """
+    if not overwrite and _holds_data(path):
+        size = os.stat(path).st_size
+        raise OutputError(
+            f"{path}: already holds {size:,} bytes (a recorded log?); choose another --out, or pass --overwrite to "
+            "replace it once the first sample is in (it is kept if none comes)",
+            path=str(path),
+        )
 
 
 def check_free(path: Path) -> None:
@@ -468,6 +559,7 @@ def record(
     duration: float | None = None,
     policy: RetryPolicy = RetryPolicy(),
     flush_interval: float = 0.25,
+    overwrite: bool = False,
     metadata: Mapping[str, Any] | None = None,
     live: Callable[[], Mapping[str, Any]] | None = None,
     on_progress: Callable[[RecordResult], None] | None = None,
@@ -483,6 +575,7 @@ def record(
         duration: Stop after this many seconds (None: until interrupted).
         policy: Retries, when to give up, when a blocked read is a hung peer.
         flush_interval: Longest time between writes of rows to disk [s] (what a SIGKILL can lose).
+        overwrite: Replace a log already at ``out`` once the first sample is in (:class:`CsvLog`).
         metadata: Extra fields for the sidecar (rig file, ...).
         live: Extra fields read at every sidecar rewrite (transport error counters); called from the
             writer thread.
@@ -500,7 +593,7 @@ def record(
             error carries ``rows`` and ``result``.
     """
     check_settings(rate_hz, duration, flush_interval)
-    log = CsvLog(out, columns)
+    log = CsvLog(out, columns, overwrite)
     side = sidecar_path(out)
     started = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
     period = 1.0 / rate_hz
@@ -545,8 +638,8 @@ def record(
         }
         return r, data
 
-    def write_sidecar() -> None:
-        _write_sidecar(side, snapshot()[1])
+    def write_sidecar() -> None:  # beside the hidden file until it replaces an old log
+        _write_sidecar(sidecar_path(log.writing), snapshot()[1])
 
     def progress() -> None:
         if on_progress is not None:
@@ -557,7 +650,7 @@ def record(
     except OSError as err:
         log.close()
         raise OutputError(
-            f"{side}: cannot write ({err.strerror or err}); choose another --out", path=str(side)
+            f"{sidecar_path(log.writing)}: cannot write ({err.strerror or err}); choose another --out", path=str(side)
         ) from err
     writer = _Writer(log, state, write_sidecar, flush_interval, progress if on_progress is not None else None)
     writer.start()
@@ -642,10 +735,15 @@ def record(
             message = "no sample was read" + (f"; last error: {state.faults[-1]}" if state.faults else "")
         if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
             status, message = "failed", "the recorder stopped on an unexpected error"
+        kept = not log.replaced
+        if kept and log.rows == 0 and status != "failed":  # Ctrl-C before the first sample
+            message = "stopped before the first sample"
+        if kept:
+            message = f"{message}; {out} was left as it was" if message else f"{out} was left as it was"
         final, data = snapshot()
-        final = dataclasses.replace(final, metadata=MappingProxyType(data))
+        final = dataclasses.replace(final, metadata=MappingProxyType(data), kept_existing=kept)
         try:
-            _write_sidecar(side, data)
+            _write_sidecar(sidecar_path(log.writing), data)
         except OSError as err:
             if write_error is None:
                 write_error = err

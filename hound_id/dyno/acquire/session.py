@@ -11,7 +11,7 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hound_id.dyno.acquire.recorder import RecordResult, check_free, check_settings, record
+from hound_id.dyno.acquire.recorder import RecordResult, check_existing, check_free, check_settings, record
 from hound_id.errors import DynoDataError
 from hound_id.io import check_output
 
@@ -26,16 +26,19 @@ def record_rig(
     rate_hz: float,
     duration: float | None,
     flush_interval: float,
+    overwrite: bool = False,
     on_progress: Callable[[Any], None] | None = None,
 ) -> RecordResult:
     """Check the output and the settings, load the rig file, open its transports and record until ``duration``
-    [s] (or Ctrl-C); the sidecar carries the rig file, its name and the transports' error counts."""
+    [s] (or Ctrl-C); the sidecar carries the rig file, its name and the transports' error counts. A log already
+    at ``out`` is refused unless ``overwrite``, and then replaced only once the first sample is in."""
     from hound_id.dyno.acquire.rig import load_rig
     from hound_id.dyno.acquire.transport import RigReader
 
-    check_output(out, (".csv",), "log")
+    check_output(out, (".csv",), "log", inputs=(rig,))
     check_settings(rate_hz, duration, flush_interval)
     check_free(out)
+    check_existing(out, overwrite)
     rig_spec = load_rig(rig)
     with RigReader(rig_spec) as reader:
         return record(
@@ -45,6 +48,7 @@ def record_rig(
             rate_hz=rate_hz,
             duration=duration,
             flush_interval=flush_interval,
+            overwrite=overwrite,
             metadata={"rig": str(rig.resolve()), "rig_name": rig_spec.name},
             live=lambda: {"transport_errors": reader.faults()},
             on_progress=on_progress,

@@ -34,6 +34,7 @@ from numpy.typing import NDArray
 
 from hound_id.dyno.current.transducer import DAMPING_RANGE, frequency_range, overshoot
 from hound_id.errors import FitError
+from hound_id.io import TEXT_MAX_BYTES, check_input
 from hound_id.parameter import Parameter
 
 #: Smoothing speed of the friction sign function sgn(w) = tanh(w / EPS_SPEED) [rad/s].
@@ -246,6 +247,19 @@ def parse_model(text: str) -> tuple[str, ...]:
     return names
 
 
+def parse_start_model(text: str) -> tuple[str, ...]:
+    """The ``--model`` a fit starts from: :func:`parse_model`, and it holds ``linear`` (Kt, which every report,
+    the fitted spec and the peak torque are built on; the other effects bend the line, none replaces it)."""
+    names = parse_model(text)
+    if "linear" not in names:
+        raise FitError(
+            f"--model {text}: every model holds 'linear' (torque = Kt i; the other effects bend that line); "
+            f"write linear+{'+'.join(names)}",
+            model=text,
+        )
+    return names
+
+
 def load_effects_file(path: str | Path) -> list[str]:
     """Import a user's Python file that calls :func:`register`; returns the names it added.
 
@@ -253,8 +267,7 @@ def load_effects_file(path: str | Path) -> list[str]:
     you trust.
     """
     p = Path(path)
-    if not p.is_file():
-        raise FitError(f"{p}: effects file not found")
+    check_input(p, "effects (Python)", FitError, TEXT_MAX_BYTES)
     before = set(REGISTRY)
     spec = importlib.util.spec_from_file_location(f"hound_id_user_effects_{p.stem}", p)
     if spec is None or spec.loader is None:
@@ -764,6 +777,7 @@ __all__ = [
     "get",
     "load_effects_file",
     "parse_model",
+    "parse_start_model",
     "register",
     "requirements_missing",
     "sgn",

@@ -545,7 +545,7 @@ def _neighbour_inputs(signals: Signals, rows: NDArray[np.intp], tol: Tolerances)
     amps = tol.current_paired if tol.current_paired > 0 else tol.current
     columns = [signals.current[at - k] / amps for k in range(NEIGHBOUR_LAGS + 1)]
     for x, width in ((signals.velocity, tol.velocity), (signals.temperature, tol.temperature)):
-        if x is not None and width is not None:
+        if x is not None and width is not None and width > 0:  # a zero width: a channel that never moves
             columns.append(x[at] / width)
     if signals.position is not None:  # cogging is never noise on a log that can show it
         columns.append(np.mod(signals.position[at], 2 * math.pi) / (STILL_ANGLE / 2))

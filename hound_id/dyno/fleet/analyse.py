@@ -31,7 +31,9 @@ from typing import Any
 from hound_id.dyno.fleet.scale import ScaleGroup, scale_groups, sentence
 from hound_id.errors import FleetError
 
-SCHEMA = "hound-id/fleet/1"
+#: /2: ``engine`` has ``workers_asked`` and ``capped`` (a local cluster's worker count capped at the usable CPUs and
+#: the logs).
+SCHEMA = "hound-id/fleet/2"
 
 #: Modified z-score above which a value is an outlier (Iglewicz and Hoaglin, 1993).
 Z_THRESHOLD = 3.5
@@ -280,7 +282,7 @@ class FleetReport:
         return tuple(f for f in self.flags if f.actuator == name)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready report, schema ``hound-id/fleet/1`` (SI units)."""
+        """JSON-ready report, schema ``hound-id/fleet/2`` (SI units)."""
         rows = []
         for a in self.actuators:
             row: dict[str, Any] = {"name": a.name, "source": a.source, "ok": a.ok, "seconds": _num(a.seconds)}

@@ -1,11 +1,13 @@
 """Fit many actuator logs in parallel on Dask (``dask.distributed``): a local cluster, or an existing one.
 
 The same code path runs in both cases: a :class:`dask.distributed.Client` on a
-:class:`~dask.distributed.LocalCluster` of one single-threaded worker process per core (the
-default), or on the scheduler at ``--scheduler ADDRESS``. Each log's bytes are read here and
-shipped with its task, so workers on other machines need hound-id installed but no shared file
-system. At most two tasks per worker are in flight, so a fleet of thousands of logs never sits in
-memory at once. A log that fails (a bad input, or a worker that dies) is reported and the others go on.
+:class:`~dask.distributed.LocalCluster` of one single-threaded worker process per usable CPU (the
+default), or on the scheduler at ``--scheduler ADDRESS``. A local cluster never has more workers than
+the CPUs this process may run on, nor than logs (:func:`local_workers`); a remote cluster has the
+workers it has. Each log's bytes are read here and shipped with its task, so workers on other
+machines need hound-id installed but no shared file system. At most two tasks per worker are in
+flight, so a fleet of thousands of logs never sits in memory at once. A log that fails (a bad input,
+or a worker that dies) is reported and the others go on.
 
 With ``--auto`` every log first climbs its own ladder of effects; the fleet is then compared on one
 model, the effects more than half of the logs needed (:func:`common_model`), and the logs that ended with
@@ -31,6 +33,7 @@ from typing import TYPE_CHECKING, Any
 
 from hound_id.dyno.fleet.analyse import ActuatorFit
 from hound_id.errors import FleetError, HoundIdError
+from hound_id.io import check_input
 
 if TYPE_CHECKING:
     from dask.distributed import Client
@@ -67,6 +70,60 @@ class FleetRun:
     """Actuators fitted a second time with the common model (``auto`` only)."""
     notes: tuple[str, ...] = ()
     """What the user should know about the run (worker versions)."""
+    workers_asked: int | None = None
+    """The local cluster's worker count the caller asked for (None: the default, or a cluster at a scheduler)."""
+    capped: str | None = None
+    """Why the local cluster has fewer workers than asked, in one sentence (None: it has what was asked)."""
+
+
+@dataclass(frozen=True)
+class LocalWorkers:
+    """How many worker processes a local cluster starts, and why."""
+
+    count: int
+    """Worker processes to start (one thread each)."""
+    asked: int | None
+    """The count asked for (None: the default, one per usable CPU)."""
+    capped: str | None
+    """Why ``count`` is below ``asked``, in one sentence (None when it is not)."""
+
+
+def usable_cpus() -> int:
+    """The CPUs this process may run on: its affinity mask where the system has one (Linux), else the machine's."""
+    affinity = getattr(os, "sched_getaffinity", None)
+    if affinity is not None:
+        return max(1, len(affinity(0)))
+    return os.cpu_count() or 1
+
+
+def local_workers(asked: int | None, logs: int | None = None, cpus: int | None = None) -> LocalWorkers:
+    """A local cluster's worker count: ``asked`` (default: one per CPU), at most one per usable CPU and per log.
+
+    A worker is one single-threaded process, so more workers than CPUs only share them (and each costs a process
+    start and its memory: ``--workers 100000`` would start no work for minutes); a worker beyond the logs would idle.
+
+    Args:
+        asked: Workers asked for (``--workers``); None for the default.
+        logs: Logs to fit (None: no limit from them).
+        cpus: Usable CPUs (None: :func:`usable_cpus`).
+
+    Raises:
+        FleetError: ``asked`` is not positive.
+    """
+    if asked is not None and asked < 1:
+        raise FleetError(f"--workers: found {asked}, expected 1 or more")
+    cpus = usable_cpus() if cpus is None else cpus
+    limit = cpus if logs is None else max(1, min(cpus, logs))
+    count = limit if asked is None else min(asked, limit)
+    if asked is None or count == asked:
+        return LocalWorkers(count, asked, None)
+    per_log = "" if logs is None else f" and per log ({logs})"
+    return LocalWorkers(
+        count,
+        asked,
+        f"--workers {asked} capped at {count}: a local cluster has at most one worker per usable CPU ({cpus} here)"
+        + per_log,
+    )
 
 
 def find_logs(items: Sequence[str | Path]) -> list[Path]:
@@ -87,6 +144,9 @@ def find_logs(items: Sequence[str | Path]) -> list[Path]:
                 )
         elif path.is_file():
             matches = [path]
+        elif path.exists():  # a FIFO or device: never read (it would block or never end)
+            check_input(path, "log (.csv or .parquet)", FleetError)
+            matches = []
         elif glob.has_magic(str(item)):
             matches = sorted(Path(p) for p in glob.glob(str(item), recursive=True) if Path(p).is_file())
             if not matches:
@@ -162,7 +222,10 @@ def _quiet() -> Iterator[None]:
 
 @contextmanager
 def client_for(scheduler: str | None, workers: int | None) -> Iterator[Client]:
-    """A Dask client: on a new local cluster (``workers`` processes, default one per core) or at ``scheduler``.
+    """A Dask client: on a new local cluster or at ``scheduler``.
+
+    The local cluster has ``workers`` processes (default one per usable CPU), capped at the usable CPUs
+    (:func:`local_workers`); a cluster at ``scheduler`` has its own workers.
 
     Raises:
         FleetError: ``workers`` is not positive, or the scheduler cannot be reached or has no worker.
@@ -173,7 +236,7 @@ def client_for(scheduler: str | None, workers: int | None) -> Iterator[Client]:
         raise FleetError(f"--workers: found {workers}, expected 1 or more")
     with _quiet():
         if scheduler is None:
-            n = workers or os.cpu_count() or 1
+            n = local_workers(workers).count
             with (
                 LocalCluster(
                     n_workers=n,
@@ -289,25 +352,27 @@ def run_fleet(
         logs: The logs (:func:`find_logs`).
         options: ``fit-current``'s options for every log (no plot, fitted-motor output or spec sheet).
         scheduler: Address of an existing Dask scheduler; None starts a local cluster.
-        workers: Worker processes of the local cluster (default: one per core).
+        workers: Worker processes of the local cluster (default: one per usable CPU); capped at the usable CPUs and
+            the logs (:func:`local_workers`, said in ``FleetRun.capped``).
         on_result: Called with each outcome, the count done and the count in this pass.
         on_pass: Called with a description and the log count when a pass starts.
 
     Raises:
         FleetError: Options a fleet cannot take, or a cluster that cannot be had.
     """
-    from hound_id.dyno.current.effects import parse_model
+    from hound_id.dyno.current.effects import parse_model, parse_start_model
 
     for given, option in ((options.plot, "--plot"), (options.out, "--out"), (options.spec, "--spec")):
         if given is not None:
             raise FleetError(f"{option}: not taken by a fleet run; fit one log with 'hound-id fit-current' for it")
     if options.effects_files:
         raise FleetError("--effects-file: not taken by a fleet run (workers cannot run your file)")
-    start_model = [*parse_model(options.model)]
+    start_model = [*parse_start_model(options.model)]
     for extra in options.add:
         start_model += [e for e in parse_model(extra) if e not in start_model]
     jobs = list(zip(actuator_names(logs), logs, strict=True))
-    with client_for(scheduler, workers) as client:
+    local = local_workers(workers, len(jobs)) if scheduler is None else None  # a remote cluster decides its own
+    with client_for(scheduler, workers if local is None else local.count) as client:
         address = str(client.scheduler.address)
         versions = client.run(_version)
         count = len(versions)
@@ -354,6 +419,8 @@ def run_fleet(
         seconds=seconds,
         refitted=tuple(sorted(name for name, _ in again)),
         notes=notes,
+        workers_asked=None if local is None else local.asked,
+        capped=None if local is None else local.capped,
     )
 
 

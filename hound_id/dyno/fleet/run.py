@@ -29,7 +29,7 @@ class FleetOptions:
     scheduler: str | None = None
     """Address of an existing Dask scheduler (None: a local cluster)."""
     workers: int | None = None
-    """Worker processes of the local cluster (None: one per core)."""
+    """Worker processes of the local cluster (None: one per usable CPU); capped at the usable CPUs and the logs."""
     z: float = Z_THRESHOLD
     """Modified z-score limit of an outlier."""
     tolerance: str | Mapping[str, float] | None = None
@@ -54,7 +54,7 @@ class FleetResult:
     """The options it ran with."""
 
     def to_dict(self) -> dict[str, Any]:
-        """The JSON of ``fleet --json`` (schema ``hound-id/fleet/1``)."""
+        """The JSON of ``fleet --json`` (schema ``hound-id/fleet/2``)."""
         run = self.run
         out = self.report.to_dict()
         per_log = seconds_per_log(run)
@@ -62,6 +62,8 @@ class FleetResult:
             "scheduler": run.scheduler,
             "local_cluster": self.options.scheduler is None,
             "workers": run.workers,
+            "workers_asked": run.workers_asked,
+            "capped": run.capped,
             "seconds": run.seconds,
             "seconds_per_log": None if math.isnan(per_log) else per_log,
             "refitted": list(run.refitted),
@@ -75,7 +77,7 @@ class FleetResult:
 
 def check_fit_options(options: FitCurrentOptions) -> None:
     """Fail once, before any work, on a model, window or column option every log would fail on."""
-    from hound_id.dyno.current.effects import parse_model
+    from hound_id.dyno.current.effects import parse_model, parse_start_model
     from hound_id.dyno.logs import parse_mapping, parse_windows
 
     if options.flip_torque and options.auto_sign:
@@ -85,7 +87,7 @@ def check_fit_options(options: FitCurrentOptions) -> None:
             "--flip-torque and --auto-sign: found both; pass --flip-torque to negate every log's torque, or "
             "--auto-sign to let each log's own slope decide"
         )
-    parse_model(options.model)
+    parse_start_model(options.model)
     for extra in options.add:
         parse_model(extra)
     parse_windows(options.window)

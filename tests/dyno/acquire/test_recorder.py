@@ -236,16 +236,21 @@ def test_a_file_being_recorded_is_refused_to_a_second_recorder(tmp_path):
         assert out.read_bytes() == b"time,current\n0.0,1.0\n"  # untouched: not even truncated
     finally:
         first.close()
-    record(sine_sampler(), ["current"], out, rate_hz=10.0, duration=0.2)  # free again
+    record(sine_sampler(), ["current"], out, rate_hz=10.0, duration=0.2, overwrite=True)  # free again
 
 
-def test_a_device_that_is_full_fails_at_the_header_in_one_line(tmp_path):
+def test_a_device_as_the_output_is_refused_before_it_is_opened(tmp_path):
+    """/dev/full (or a FIFO, which would block the open until a reader came) is not a log file."""
     if not os.path.exists("/dev/full"):
         pytest.skip("no /dev/full")
     out = tmp_path / "full.csv"
     out.symlink_to("/dev/full")
-    with pytest.raises(OutputError, match="full.csv: cannot write the header .No space left on device"):
+    with pytest.raises(OutputError, match="full.csv: is a character device, not a regular file"):
         record(sine_sampler(), ["current"], out, rate_hz=10.0, duration=0.2)
+    fifo = tmp_path / "pipe.csv"
+    os.mkfifo(fifo)
+    with pytest.raises(OutputError, match=r"pipe.csv: is a FIFO \(named pipe\), not a regular file"):
+        record(sine_sampler(), ["current"], fifo, rate_hz=10.0, duration=0.2)
 
 
 def test_a_write_error_cuts_the_file_back_to_whole_rows(tmp_path):
@@ -497,3 +502,98 @@ def test_an_error_in_a_progress_callback_stops_the_run_and_is_raised(tmp_path):
     assert time.monotonic() - started < 2.0
     meta = json.loads(sidecar_path(out).read_text())
     assert meta["status"] == "failed" and meta["samples"] == len(pd.read_csv(out))
+
+
+# --- a log already at --out ---------------------------------------------------------------------------------------
+
+
+def old_log(tmp_path):
+    """A recorded log and its sidecar, as a previous run left them: (path, its bytes, the sidecar's bytes)."""
+    out = tmp_path / "run.csv"
+    out.write_text("time,current\n" + "".join(f"{k / 100:.2f},{k}.0\n" for k in range(5000)))
+    sidecar_path(out).write_text(json.dumps({"status": "complete", "samples": 5000}))
+    return out, out.read_bytes(), sidecar_path(out).read_bytes()
+
+
+def hidden_files(folder):
+    return sorted(p.name for p in folder.iterdir() if p.name.startswith("."))
+
+
+def test_a_log_already_there_is_refused_without_overwrite_and_left_as_it_was(tmp_path):
+    out, data, meta = old_log(tmp_path)
+    with pytest.raises(OutputError, match=r"run.csv: already holds 6[0-9,]+ bytes .*pass --overwrite"):
+        record(sine_sampler(), ["current"], out, rate_hz=50.0, duration=0.2)
+    assert out.read_bytes() == data and sidecar_path(out).read_bytes() == meta
+    empty = tmp_path / "empty.csv"
+    empty.touch()  # an empty file is not a log: recorded into without --overwrite
+    assert record(sine_sampler(), ["current"], empty, rate_hz=50.0, duration=0.2).samples > 0
+
+
+@pytest.mark.parametrize("how", ["no-answer", "ctrl-c"])
+def test_overwrite_keeps_the_old_log_until_the_first_sample_is_in(tmp_path, how):
+    """A rig that answers nothing (or Ctrl-C before the first sample) replaces nothing: the old log, its sidecar
+    and the folder are as they were."""
+    out, data, meta = old_log(tmp_path)
+
+    def dead():
+        if how == "ctrl-c":
+            raise KeyboardInterrupt
+        raise ReadError("Modbus 127.0.0.1:1 unit 1: connection refused")
+
+    result = record(dead, ["current"], out, rate_hz=50.0, duration=0.3, overwrite=True, policy=RetryPolicy(retries=0))
+    assert result.kept_existing and result.samples == 0
+    assert result.status == ("failed" if how == "no-answer" else "interrupted")
+    assert f"{out} was left as it was" in result.message
+    assert out.read_bytes() == data and sidecar_path(out).read_bytes() == meta
+    assert hidden_files(tmp_path) == []
+
+
+def test_overwrite_replaces_the_old_log_and_its_sidecar_with_the_first_rows(tmp_path):
+    out, data, _ = old_log(tmp_path)
+    seen = []
+
+    def sampler():  # what the folder holds while the first reads come in: the old log, untouched
+        seen.append(out.read_bytes() == data)
+        return {"current": 1.0}
+
+    result = record(sampler, ["current"], out, rate_hz=50.0, duration=0.4, overwrite=True)
+    assert seen[0] and not result.kept_existing and result.status == "complete"
+    frame = pd.read_csv(out)
+    assert list(frame.columns) == ["time", "current"] and len(frame) == result.samples > 5
+    assert json.loads(sidecar_path(out).read_text())["samples"] == result.samples
+    assert hidden_files(tmp_path) == []
+
+
+def test_the_recorder_refuses_to_write_its_log_over_the_rig_file(tmp_path):
+    """``dyno record --rig r.csv --out r.csv``: the rig file is an input; refused before anything is read."""
+    rig = tmp_path / "r.csv"
+    rig.write_text("devices: {}\n")
+    proc = subprocess.run(
+        [sys.executable, "-m", "hound_id", "dyno", "record", "--rig", str(rig), "--out", str(rig), "--overwrite"],
+        capture_output=True,
+        text=True,
+        timeout=60,
+    )
+    assert_one_line(proc, "r.csv: is also an input of this command")
+    assert rig.read_text() == "devices: {}\n"
+
+
+def test_the_command_line_keeps_an_old_log_when_the_rig_answers_nothing(rig_process, tmp_path):
+    """A rig file whose devices are not there: exit 2 in one line, and the old log is what it was."""
+    _, rig_file = rig_process
+    mapping = yaml.safe_load(rig_file.read_text())
+    for device in mapping["devices"].values():
+        if "port" in device:
+            device["port"] = 1  # nothing listens there
+    dead_rig = tmp_path / "dead-rig.yaml"
+    dead_rig.write_text(yaml.safe_dump(mapping))
+    out, data, meta = old_log(tmp_path)
+    args = [sys.executable, "-m", "hound_id", "dyno", "record", "--rig", str(dead_rig), "--out", str(out)]
+    refused = subprocess.run([*args, "--duration", "1"], capture_output=True, text=True, timeout=60)
+    assert_one_line(refused, "run.csv: already holds", "--overwrite")
+    kept = subprocess.run([*args, "--duration", "1", "--overwrite"], capture_output=True, text=True, timeout=60)
+    assert kept.returncode == 2 and "Traceback" not in kept.stderr, kept.stderr
+    errors = [line for line in kept.stderr.splitlines() if line.startswith("hound-id: error")]
+    assert len(errors) == 1 and "no sample was read" in errors[0] and "was left as it was" in errors[0]
+    assert out.read_bytes() == data and sidecar_path(out).read_bytes() == meta
+    assert hidden_files(tmp_path) == []

@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import logging
 import shutil
 
 import pytest
@@ -56,16 +55,6 @@ def test_a_bad_log_fails_alone_with_the_message_fit_current_gives(tmp_path):
     assert not fit.ok and not fit.bug
     assert fit.error is not None and fit.error.startswith(str(bad)) and "torque" in fit.error
     assert "hound-id-fleet-" not in fit.error  # the worker's copy is never named
-
-
-@pytest.fixture(scope="module")
-def cluster():
-    from dask.distributed import LocalCluster
-
-    with LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=True, dashboard_address=None, silence_logs=logging.ERROR
-    ) as c:
-        yield c
 
 
 def test_a_two_worker_cluster_gives_the_fits_of_this_process(tmp_path, cluster):

@@ -1,0 +1,257 @@
+"""The bad-input catalogue by class: every input slot of every command against each kind of file that is not
+what it should be (a FIFO, a device, a folder, a file far too large), every YAML slot against each structure
+hound-id does not read (aliases that expand exponentially or into themselves, keys that are lists, nesting
+thousands deep), and every model the command line accepts.
+
+Each case runs the real entry point in this process and must exit 2 with one line naming the file, print no
+traceback, leave no file behind and never block: a FIFO is opened for writing from a watchdog thread after
+:data:`WATCHDOG` seconds, so that a command that regressed to reading it gets an end of file (and fails this
+test on its message) instead of hanging the suite; devices are links to /dev/null for the same reason.
+"""
+
+from __future__ import annotations
+
+import contextlib
+import errno
+import os
+import threading
+from collections.abc import Callable, Iterator
+from pathlib import Path
+
+import pytest
+
+from tests.cli.test_bad_input_catalogue import (
+    COMMANDS,
+    DYNO,
+    DYNO_COLUMNS,
+    ENVELOPE_COLUMNS,
+    files_under,
+    invoke,
+)
+from tests.conftest import MOTOR, ROBOT, run_cli
+
+#: Seconds after which a FIFO input gets a writer (and so an end of file), should a command open it.
+WATCHDOG = 20.0
+
+#: Every input file slot: (id, argv with IN.<suffix> where the file goes).
+SLOTS: dict[str, tuple[str, ...]] = {
+    "mor-spec": ("mor", "--spec", "IN.yaml"),
+    "fit-spec": ("fit-current", str(DYNO), "--columns", DYNO_COLUMNS, "--spec", "IN.yaml"),
+    "fit-log": ("fit-current", "IN.csv", "--columns", DYNO_COLUMNS),
+    "fit-effects-file": ("fit-current", str(DYNO), "--columns", DYNO_COLUMNS, "--effects-file", "IN.py"),
+    "compare-log": ("mor", "--spec", str(MOTOR), "--compare", "IN.csv", "--columns", ENVELOPE_COLUMNS),
+    "saturate-commands": ("saturate", "IN.csv", "--robot", str(ROBOT)),
+    "saturate-robot": ("saturate", str(COMMANDS), "--robot", "IN.yaml"),
+    "foot-gait": ("foot", "--gait", "IN.csv"),
+    "foot-leg": ("foot", "--optimise", "--leg", "IN.urdf", "--angles", "30,40"),
+    "foot-material": ("foot", "--optimise", "--material", "IN.yaml"),
+    "export-robot": ("export", "--robot", "IN.yaml", "--out", "bundle"),
+    "export-fit": ("export", "--robot", str(ROBOT), "--fit", "IN.yaml", "--out", "bundle"),
+    "export-urdf": ("export", "--robot", str(ROBOT), "--urdf", "IN.urdf", "--out", "bundle"),
+    "export-foot": ("export", "--robot", str(ROBOT), "--foot", "IN.json", "--out", "bundle"),
+    "record-rig": ("dyno", "record", "--rig", "IN.yaml", "--out", "log.csv", "--duration", "1"),
+    "simulate-rig-plan": ("dyno", "simulate-rig", "--plan", "IN.yaml", "--duration", "1", "--port", "0"),
+    "fleet-log": ("fleet", "IN.csv", "--workers", "1"),
+}
+YAML_SLOTS = {key: argv for key, argv in SLOTS.items() if "IN.yaml" in argv}
+
+
+def _in_name(argv: tuple[str, ...]) -> str:
+    return next(a for a in argv if a.startswith("IN."))
+
+
+@contextlib.contextmanager
+def fifo_watchdog(fifo: Path) -> Iterator[None]:
+    """Open ``fifo`` for writing (and close it) once a reader holds it, after :data:`WATCHDOG` seconds."""
+    done = threading.Event()
+
+    def release() -> None:
+        if done.wait(WATCHDOG):
+            return
+        while not done.is_set():
+            try:
+                fd = os.open(fifo, os.O_WRONLY | os.O_NONBLOCK)
+            except OSError as err:  # ENXIO: nobody reads it
+                if err.errno != errno.ENXIO:
+                    return
+                done.wait(0.1)
+                continue
+            os.close(fd)
+
+    thread = threading.Thread(target=release, daemon=True)
+    thread.start()
+    try:
+        yield
+    finally:
+        done.set()
+        thread.join()
+
+
+def run_case(tmp_path: Path, monkeypatch, argv: tuple[str, ...], make: Callable[[Path], None], *names: str) -> str:
+    """Make the input, run ``hound-id argv`` in ``tmp_path``; the one error line (asserted: exit 2, nothing left)."""
+    target = tmp_path / _in_name(argv)
+    make(target)
+    before = files_under(tmp_path)
+    monkeypatch.chdir(tmp_path)
+    monkeypatch.setenv("COLUMNS", "200")
+    guard = fifo_watchdog(target) if target.is_fifo() else contextlib.nullcontext()
+    with guard:
+        code, _, err = invoke(list(argv))
+    lines = err.strip().splitlines()
+    assert code == 2, (code, err)
+    assert "Traceback" not in err, err
+    assert len(lines) == 1, err
+    for name in names:
+        assert name in lines[0], (name, lines[0])
+    assert files_under(tmp_path) == before, files_under(tmp_path) ^ before
+    return lines[0]
+
+
+# --- special files ------------------------------------------------------------------------------------------------
+
+SPECIAL: dict[str, tuple[Callable[[Path], None], str]] = {
+    "fifo": (lambda p: os.mkfifo(p), "is a FIFO (named pipe), not a regular file"),
+    "device": (lambda p: p.symlink_to("/dev/null"), "is a character device, not a regular file"),
+    "folder": (lambda p: p.mkdir(), "is a folder"),
+}
+
+
+#: Slots where a folder is an input too: what they say of a folder without what they look for.
+FOLDER_TAKEN = {("fleet-log", "folder"): "the folder holds no log"}
+
+
+@pytest.mark.parametrize("kind", sorted(SPECIAL))
+@pytest.mark.parametrize("slot", sorted(SLOTS))
+def test_an_input_that_is_not_a_regular_file_is_refused_before_it_is_opened(slot, kind, tmp_path, monkeypatch):
+    argv = SLOTS[slot]
+    make, said = SPECIAL[kind]
+    said = FOLDER_TAKEN.get((slot, kind), said)
+    run_case(tmp_path, monkeypatch, argv, make, _in_name(argv), said)
+
+
+def test_a_spec_that_is_an_endless_device_ends_at_once():
+    """``mor --spec /dev/zero`` grew to 12 GB in 18 s: now refused before a byte is read (a process of its own,
+    so that a regression is a timeout here, not the suite's memory)."""
+    proc = run_cli("mor", "--spec", "/dev/zero")
+    assert proc.returncode == 2 and proc.stderr.strip() == (
+        "hound-id: error: /dev/zero: is a character device, not a regular file; expected a motor spec YAML file "
+        "(a pipe or device is never read: save what it gives to a file first)"
+    ), proc.stderr
+
+
+@pytest.mark.parametrize("slot", sorted(YAML_SLOTS))
+def test_a_yaml_input_of_megabytes_is_refused_by_its_size(slot, tmp_path, monkeypatch):
+    argv = YAML_SLOTS[slot]
+    run_case(tmp_path, monkeypatch, argv, lambda p: p.write_text("# padding\n" * 120_000), _in_name(argv), "MB")
+
+
+# --- YAML structures ----------------------------------------------------------------------------------------------
+
+
+def _laughs(levels: int, key: str) -> str:
+    """Nine levels of nine aliases under ``key``: 9**levels strings once expanded, a few hundred bytes as text."""
+    lines = ['l0: &l0 ["lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol", "lol"]']
+    for k in range(1, levels):
+        lines.append(f"l{k}: &l{k} [" + ", ".join([f"*l{k - 1}"] * 9) + "]")
+    lines.append(f"{key}: [" + ", ".join([f"*l{levels - 1}"] * 9) + "]")
+    return "\n".join(lines) + "\n"
+
+
+STRUCTURES: dict[str, tuple[str, str]] = {
+    "alias-bomb-in-name": (_laughs(9, "name"), "expand it to"),
+    "alias-bomb-in-joints": (_laughs(9, "joints"), "expand it to"),
+    "recursive-alias": ("name: &a [x, *a]\n", "alias inside the value it names"),
+    "complex-key": ("? [a, b]\n: 1\nname: m\n", "a key that is a list or mapping"),
+    "flow-complex-key": ("{[a, b]: 1}\n", "a key that is a list or mapping"),
+    "deep-brackets": ("name: " + "[" * 3000 + "]" * 3000 + "\n", "nested more than 64 levels deep"),
+    "deep-mappings": ("".join(" " * k + f"k{k}:\n" for k in range(200)) + " " * 200 + "x: 1\n", "nested more than"),
+}
+
+
+@pytest.mark.parametrize("structure", sorted(STRUCTURES))
+@pytest.mark.parametrize("slot", sorted(YAML_SLOTS))
+def test_a_yaml_structure_hound_id_does_not_read_is_one_line(slot, structure, tmp_path, monkeypatch):
+    argv = YAML_SLOTS[slot]
+    content, said = STRUCTURES[structure]
+    line = run_case(tmp_path, monkeypatch, argv, lambda p: p.write_text(content), _in_name(argv), said)
+    assert len(line) < 400  # the expanded value is never rendered
+
+
+def test_an_alias_within_bounds_is_read_as_the_value_it_names(tmp_path, monkeypatch):
+    """Anchors and aliases are YAML a user may write (a shared block of values): within the bounds they work."""
+    spec = tmp_path / "m.yaml"
+    text = MOTOR.read_text().replace("name: hound_ilm85", "name: &n hound_ilm85")
+    spec.write_text(text + "source_name: *n\n" if "source_name" in text else text)
+    monkeypatch.chdir(tmp_path)
+    code, out, err = invoke(["mor", "--spec", str(spec), "--json"])
+    assert code == 0, err
+
+
+def test_a_message_never_renders_an_unbounded_value(tmp_path, monkeypatch):
+    """A name that is a list of 90,000 strings (within the expansion bound) is cut in the message."""
+
+    def write(path: Path) -> None:
+        kept = [k for k in MOTOR.read_text().splitlines() if not k.startswith("name:")]
+        path.write_text("\n".join([*kept, "name: [" + ", ".join(["x"] * 90_000) + "]"]) + "\n")
+
+    line = run_case(tmp_path, monkeypatch, ("mor", "--spec", "IN.yaml"), write, "IN.yaml", "characters cut")
+    assert len(line) < 2200
+
+
+# --- values the structure allows but the field does not -----------------------------------------------------------
+
+
+@pytest.mark.parametrize(
+    ("line", "said"),
+    [
+        ("assumed: [[kt, kv]]", "field 'assumed': found ['kt', 'kv'] in the list"),
+        ("assumed: [kt, {a: 1}]", "field 'assumed': found {'a': 1} in the list"),
+        ("kt: N*m/A", "field 'kt': found 'N*m/A', a unit without a number"),
+        ("kv: rpm/V", "field 'kv': found 'rpm/V', a unit without a number"),
+    ],
+)
+def test_a_spec_field_of_the_wrong_shape_is_one_line(line, said, tmp_path, monkeypatch):
+    key = line.split(":")[0]
+
+    def write(path: Path) -> None:
+        kept = [k for k in MOTOR.read_text().splitlines() if not k.startswith(f"{key}:")]
+        path.write_text("\n".join([*kept, line]) + "\n")
+
+    run_case(tmp_path, monkeypatch, ("mor", "--spec", "IN.yaml"), write, "IN.yaml", said)
+
+
+# --- models -------------------------------------------------------------------------------------------------------
+
+
+def _effects() -> list[str]:
+    from hound_id.dyno.current.effects import REGISTRY
+
+    return sorted(REGISTRY)
+
+
+@pytest.mark.parametrize("effect", [e for e in _effects() if e != "linear"])
+def test_a_model_without_linear_is_refused_in_one_line(effect, tmp_path, monkeypatch):
+    argv = ("fit-current", "IN.csv", "--columns", DYNO_COLUMNS, "--model", effect)
+    line = run_case(tmp_path, monkeypatch, argv, lambda p: p.write_bytes(DYNO.read_bytes()), "--model")
+    assert f"write linear+{effect}" in line
+
+
+def test_every_effect_added_to_linear_fits_or_is_refused_in_one_line(tmp_path, monkeypatch):
+    """``--model linear+X`` for every effect X: a fit (exit 0, a Kt) or one line; never a traceback."""
+    import json
+
+    short = tmp_path / "short.csv"
+    short.write_text("".join(DYNO.read_text().splitlines(keepends=True)[:6001]))
+    monkeypatch.chdir(tmp_path)
+    outcomes = {}
+    for effect in _effects():
+        model = "linear" if effect == "linear" else f"linear+{effect}"
+        code, out, err = invoke(["fit-current", str(short), "--columns", DYNO_COLUMNS, "--model", model, "--json"])
+        assert "Traceback" not in err, (model, err)
+        if code == 0:
+            assert json.loads(out)["parameters"]["kt"]["value"] > 0, model
+        else:
+            errors = [line for line in err.splitlines() if line.startswith("hound-id: error")]
+            assert code == 2 and len(errors) == 1, (model, err)
+        outcomes[model] = code
+    assert outcomes["linear+saturation"] == 0 and outcomes["linear"] == 0
