@@ -570,6 +570,8 @@ def log_from_frame(
                 notes.append(note)
         data[name] = values
 
+    if "current" in data and "torque" in data and "current" not in unit_of:
+        _check_current_unit(data["current"], data["torque"], source)
     timed = "time" in data
     if timed:
         _check_time_unit(data["time"], "time" in unit_of or any(n.channel == "time" for n in notes), notes)
@@ -1474,6 +1476,31 @@ def _current_plateaus(
 #: kHz spans the dynamometers' logging rates). Calibrated on
 #: test_polled_rig::test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted.
 TIME_RATES = (10.0, 10_000.0)
+
+
+#: A current column without a unit whose typical large value (99.9th percentile of |i|) is above CURRENT_SLIP_A while
+#: the torque's is under CURRENT_SLIP_RATIO N m per amp of it is in mA: kiloamps that make a few N m are no motor (a
+#: robot actuator's Kt is 0.02 to 2 N m/A; a 1 kA drive makes tens of N m or more). Calibrated on
+#: test_bad_input_structures::test_a_current_in_ma_under_a_plain_header_is_named.
+CURRENT_SLIP_A = 1000.0
+CURRENT_SLIP_RATIO = 0.01
+
+
+def _check_current_unit(current: NDArray[np.float64], torque: NDArray[np.float64], source: str) -> None:
+    """Refuse, naming mA, a current column without a unit that holds kiloamps for a few N m."""
+    i = np.abs(current[np.isfinite(current)])
+    tau = np.abs(torque[np.isfinite(torque)])
+    if i.size < 10 or tau.size < 10:
+        return
+    i_big, tau_big = float(np.percentile(i, 99.9)), float(np.percentile(tau, 99.9))
+    if i_big > CURRENT_SLIP_A and tau_big < CURRENT_SLIP_RATIO * i_big:
+        raise DynoDataError(
+            f"{source}: the current column has no unit and reaches {i_big:,.0f} A for torques up to {tau_big:.3g} N m "
+            f"(about {tau_big / i_big:.2g} N m/A): no motor makes so little torque from kiloamps; it reads like mA "
+            f"({i_big / 1e3:.3g} A, about {1e3 * tau_big / i_big:.2g} N m/A): pass --units current=mA or write "
+            "'current[mA]' in the header (or --units current=A if it really is in amps)",
+            channel="current",
+        )
 
 
 def _check_time_unit(time: NDArray[np.float64], stated: bool, notes: list[CleaningNote]) -> None:

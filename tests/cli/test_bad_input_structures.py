@@ -255,3 +255,72 @@ def test_every_effect_added_to_linear_fits_or_is_refused_in_one_line(tmp_path, m
             assert code == 2 and len(errors) == 1, (model, err)
         outcomes[model] = code
     assert outcomes["linear+saturation"] == 0 and outcomes["linear"] == 0
+
+
+# --- advice the tool gives is advice it takes ---------------------------------------------------------------------
+
+FLEET = sorted((DYNO.parent.parent / "fleet").glob("*.csv"))
+
+
+def _advice(report: dict) -> list[list[str]]:
+    """The options a report tells the user to run: the headline's ``--window`` and every "add 'x'"."""
+    import re
+
+    said = " ".join([report.get("summary") or "", *report.get("warnings", [])])
+    options = [["--add", name] for name in sorted(set(re.findall(r"add '(\w+)'", said)))]
+    headline = report.get("headline") or {}
+    if headline.get("option"):
+        options.append(headline["option"].split(" ", 1))
+    return options
+
+
+@pytest.mark.parametrize("log", [DYNO, *FLEET], ids=lambda p: p.stem)
+def test_every_option_a_fit_suggests_is_taken_as_printed(log, tmp_path, monkeypatch):
+    """Each ``--add`` and ``--window`` a report suggests, run as printed on the same file, fits (no refusal);
+    no report states Kt = 0 as a finding."""
+    import json
+    import re
+
+    monkeypatch.chdir(tmp_path)
+    columns = ["--columns", DYNO_COLUMNS] if log == DYNO else []
+    code, out, err = invoke(["fit-current", str(log), *columns, "--json"])
+    assert code == 0, err
+    report = json.loads(out)
+    advice = _advice(report)
+    assert advice or log.stem not in ("FL_hip", "RL_knee")  # the sample logs that give advice still give it
+    for option in advice:
+        again, out2, err2 = invoke(["fit-current", str(log), *columns, *option, "--json"])
+        assert again == 0, (option, err2)
+        second = json.loads(out2)
+        assert second["parameters"]["kt"]["value"] > 0, option
+        for text in (second["summary"], *second.get("warnings", [])):
+            assert not re.search(r"Kt = -?0(\.0*)? N", text), text
+    assert not re.search(r"Kt = -?0(\.0*)? N", out)
+
+
+def test_a_current_in_ma_under_a_plain_header_is_named(tmp_path, monkeypatch):
+    """A fleet sample's current written in mA under a plain 'current' header gave Kt = 1.4e-4 N m/A and a peak
+    current of 68 kA: refused, naming mA; with the unit stated it fits the sample's Kt."""
+    import json
+
+    import pandas as pd
+
+    frame = pd.read_csv(FLEET[0])
+    frame["current"] *= 1000.0
+
+    def write(path: Path) -> None:
+        frame.to_csv(path, index=False)
+
+    line = run_case(tmp_path, monkeypatch, ("fit-current", "IN.csv"), write, "IN.csv", "reads like mA", "current=mA")
+    assert "no motor makes so little torque from kiloamps" in line
+    code, out, err = invoke(["fit-current", "IN.csv", "--units", "current=mA", "--json"])
+    assert code == 0, err
+    truth = json.loads((FLEET[0].parent / "fleet_truth.json").read_text())["actuators"][FLEET[0].stem]["kt"]
+    assert json.loads(out)["parameters"]["kt"]["value"] == pytest.approx(truth, rel=0.02)
+    # a large motor in amps is not a slip: 1.2 kA for 60 N m (0.05 N m/A)
+    big = frame.copy()
+    big["current"] = frame["current"] / 1000.0 * 18.0
+    big["torque"] = frame["torque"] * 6.0
+    big.to_csv(tmp_path / "big.csv", index=False)
+    code, _, err = invoke(["fit-current", "big.csv"])
+    assert "reads like mA" not in err and code == 0, err
