@@ -107,7 +107,7 @@ def load_material(name_or_path: str, table: dict[str, Material] | None = None, w
     data = read_yaml(path, "material")
     if not isinstance(data, dict):
         raise SpecError(f"{path}: expected a mapping of material properties, found {type(data).__name__}")
-    unknown = sorted(set(data) - set(_FIELDS) - {"name", "source", "schema"})
+    unknown = sorted(str(k) for k in set(data) - set(_FIELDS) - {"name", "source", "schema"})
     if unknown:
         raise SpecError(f"{path}: unknown field(s) {', '.join(unknown)}; expected {', '.join(_FIELDS)}, name, source")
     values: dict[str, float] = {}

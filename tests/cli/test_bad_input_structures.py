@@ -164,6 +164,8 @@ STRUCTURES: dict[str, tuple[str, str]] = {
     "complex-key": ("? [a, b]\n: 1\nname: m\n", "a key that is a list or mapping"),
     "flow-complex-key": ("{[a, b]: 1}\n", "a key that is a list or mapping"),
     "deep-brackets": ("name: " + "[" * 3000 + "]" * 3000 + "\n", "nested more than 64 levels deep"),
+    "keys-of-every-scalar-type": ("1: x\ntrue: y\nnull: z\n1.5: q\n2024-01-01: d\nfoo: 1\n", "IN.yaml"),
+    "several-documents": ("name: a\n---\nname: b\n", "IN.yaml"),
     "deep-mappings": ("".join(" " * k + f"k{k}:\n" for k in range(200)) + " " * 200 + "x: 1\n", "nested more than"),
 }
 
@@ -324,3 +326,12 @@ def test_a_current_in_ma_under_a_plain_header_is_named(tmp_path, monkeypatch):
     big.to_csv(tmp_path / "big.csv", index=False)
     code, _, err = invoke(["fit-current", "big.csv"])
     assert "reads like mA" not in err and code == 0, err
+
+
+def test_the_simulated_rig_refuses_to_write_its_rig_file_over_its_plan(tmp_path, monkeypatch):
+    def write(path: Path) -> None:
+        path.write_text("schema: hound-id/plan/1\n")
+
+    argv = ("dyno", "simulate-rig", "--plan", "IN.yaml", "--rig-out", "IN.yaml", "--duration", "1", "--port", "0")
+    run_case(tmp_path, monkeypatch, argv, write, "IN.yaml", "is also an input of this command")
+    assert (tmp_path / "IN.yaml").read_text() == "schema: hound-id/plan/1\n"

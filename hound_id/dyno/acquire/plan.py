@@ -231,7 +231,9 @@ def load_plan(path: str | Path) -> tuple[TestPlan, float]:
     known = {f.name for f in dataclasses.fields(TestPlan)}
     extra = set(data) - known - {"schema", "max_current", "duration", "why"}
     if extra:
-        raise SpecError(f"{path}: unknown key(s) {', '.join(sorted(extra))}; known: {', '.join(sorted(known))}")
+        raise SpecError(
+            f"{path}: unknown key(s) {', '.join(sorted(map(str, extra)))}; known: {', '.join(sorted(known))}"
+        )
     max_current = data.get("max_current")
     lo, hi = MAX_CURRENT_SPAN
     if not isinstance(max_current, (int, float)) or isinstance(max_current, bool) or not lo <= max_current <= hi:

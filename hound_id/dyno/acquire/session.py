@@ -81,7 +81,7 @@ def serve_simulated_rig(
     from hound_id.dyno.acquire.simulated_rig import SimulatedRig, check_speedup
     from hound_id.dyno.simulate.current import SimMotor, TestPlan
 
-    check_output(rig_out, (".yaml", ".yml"), "rig")
+    check_output(rig_out, (".yaml", ".yml"), "rig", inputs=(plan,))
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise DynoDataError(
             f"--duration: found {duration:g}, expected a positive number of seconds (leave it out to serve until "
