@@ -1,3 +1,3 @@
-from hound_id.cli import run
+from hound_id.entry import run
 
 run()

@@ -218,8 +218,40 @@ def read_bounded_text(
         return data.decode("utf-8")
     except FileNotFoundError as err:
         raise error(f"{source}: file not found; expected a {what} file", path=str(source)) from err
-    except (OSError, UnicodeDecodeError) as err:
+    except UnicodeDecodeError as err:
+        raise error(
+            f"{source}: is not UTF-8 text (byte {err.object[err.start]:#04x} at {err.start}); save it as UTF-8 "
+            f"(iconv -t UTF-8 {source.name} > utf8-{source.name}) and read the copy",
+            path=str(source),
+        ) from err
+    except OSError as err:
         raise error(f"{source}: cannot read the {what} file ({err})", path=str(source)) from err
+
+
+def read_json(
+    path: str | os.PathLike[str],
+    what: str,
+    max_bytes: int,
+    error: type[HoundIdError] = SpecError,
+    option: str | None = None,
+) -> Any:
+    """A JSON file's content: a regular file of at most ``max_bytes``, UTF-8, strict JSON (no NaN or Infinity,
+    nesting Python can hold, integers it can read), else a one-line error of type ``error``."""
+    source = Path(path)
+    name = f"{option} {source}" if option else str(source)
+    check_input(source, what, error, max_bytes, option)
+    text = read_bounded_text(source, what, max_bytes, error)
+
+    def constant(word: str) -> Any:
+        raise ValueError(f"{word} is not a JSON number")
+
+    try:
+        return json.loads(text, parse_constant=constant)
+    except json.JSONDecodeError as err:
+        raise error(f"{name}: not JSON ({err.msg}, line {err.lineno}); give the {what}", path=str(source)) from err
+    except (ValueError, RecursionError) as err:
+        first = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise error(f"{name}: not JSON hound-id reads ({first}); give the {what}", path=str(source)) from err
 
 
 def _file_folder(target: Path) -> Path:
@@ -250,7 +282,8 @@ def check_folder(path: str | os.PathLike[str] | None, option: str = "--out") -> 
         return
     folder = Path(path)
     if folder.exists() and not folder.is_dir():
-        raise OutputError(f"{option} {folder}: is a file; give a folder", path=str(folder))
+        kind = special_kind(folder) or "a file"
+        raise OutputError(f"{option} {folder}: is {kind}; give a folder", path=str(folder))
     probe = folder if folder.is_dir() else folder.resolve().parent
     _require_writable(probe, f"{option} {folder}", option, str(folder))
 
@@ -274,7 +307,11 @@ def make_folder(path: str | os.PathLike[str], option: str = "--out") -> Path:
 
 
 @contextmanager
-def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterator[Path]:
+def staged_folder(
+    path: str | os.PathLike[str],
+    option: str = "--out",
+    inputs: Sequence[str | os.PathLike[str] | None] = (),
+) -> Iterator[Path]:
     """Yield a temporary folder beside ``path``; on success move its files into ``path`` (created).
 
     The files of one command appear together or not at all: a failure while writing (or
@@ -282,7 +319,8 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
     so relative paths computed from ``path`` hold for files written into it. Files in
     subfolders of the staging folder go to the same subfolders of ``path`` (created); each
     replaces the file of its name there, and the other files of ``path`` are kept. A staged
-    file that would land on a folder, or a subfolder on a file, fails before the first move.
+    file that would land on a folder, or a subfolder on a file, or onto one of the command's
+    ``inputs`` (a robot file or URDF kept in the output folder), fails before the first move.
 
     Raises:
         OutputError: ``path`` is a file, its parent is missing, or it cannot be created or written.
@@ -298,6 +336,7 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
         moves = [(item, folder / item.relative_to(staging)) for item in sorted(staging.rglob("*")) if not item.is_dir()]
         for _, target in moves:  # every clash before the first move: a clash leaves ``path`` as it was
             _check_clash(folder, target, option)
+            _check_not_input(target, inputs, option)
         for item, target in moves:
             target.parent.mkdir(parents=True, exist_ok=True)
             os.replace(item, target)
@@ -306,6 +345,17 @@ def staged_folder(path: str | os.PathLike[str], option: str = "--out") -> Iterat
     finally:
         if staging is not None:
             shutil.rmtree(staging, ignore_errors=True)
+
+
+def _check_not_input(target: Path, inputs: Sequence[str | os.PathLike[str] | None], option: str) -> None:
+    """Raise when writing ``target`` would replace one of ``inputs``."""
+    for source in inputs:
+        if source is not None and target.exists() and Path(source).exists() and os.path.samefile(target, source):
+            raise OutputError(
+                f"{option} {target.parent}: writing {target.name} there would replace the input {source}; choose "
+                f"another {option} (or move the input out of it)",
+                path=str(target),
+            )
 
 
 def _check_clash(folder: Path, target: Path, option: str) -> None:
@@ -385,8 +435,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
             count = _expanded(node, {}, set())
             if count > YAML_MAX_VALUES:
                 raise YamlShapeError(
-                    f"its aliases (*name) expand it to {count:,} values; at most {YAML_MAX_VALUES:,} are read: "
-                    "write the repeated parts out, or fewer of them",
+                    f"it holds {count:,} values (its aliases *name expanded); at most {YAML_MAX_VALUES:,} are read: "
+                    "is this the right file? (write repeated parts once, without aliases)",
                     node.start_mark.line + 1,
                 )
         return node  # type: ignore[no-any-return]
@@ -399,6 +449,8 @@ class _UniqueKeyLoader(yaml.SafeLoader):
                     "a key that is a list or mapping ('? [a, b]' or '[a, b]: ...'); keys are plain names",
                     key_node.start_mark.line + 1,
                 )
+            if key_node.tag == "tag:yaml.org,2002:merge":  # '<<: *base': its keys may be overridden here
+                continue
             key = self.construct_object(key_node, deep=deep)  # type: ignore[no-untyped-call]
             if key in seen:
                 raise DuplicateKeyError(key, key_node.start_mark.line + 1)
@@ -446,6 +498,9 @@ def read_yaml(path: str | os.PathLike[str], what: str) -> Any:
         raise SpecError(
             f"{source}: line {err.line}: key '{err.key}' appears twice; keep one", path=str(source)
         ) from err
+    except (ValueError, OverflowError) as err:  # a value YAML's own types cannot hold (an int of 5,000 digits)
+        first = str(err).splitlines()[0] if str(err) else type(err).__name__
+        raise SpecError(f"{source}: a value cannot be read ({first}); fix the {what} file", path=str(source)) from err
     except YamlShapeError as err:
         raise SpecError(
             f"{source}: line {err.line}: {err.problem}; the {what} file cannot be read", path=str(source)

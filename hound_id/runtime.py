@@ -463,6 +463,9 @@ def read_bundle(path: str | Path) -> dict[str, Any]:
             raise SpecError(f"{p}: cannot read the bundle ({err.strerror or err})") from err
         except json.JSONDecodeError as err:
             raise SpecError(f"{p}: not JSON ({err.msg}, line {err.lineno})") from err
+        except (ValueError, RecursionError) as err:  # not UTF-8, nesting too deep, an integer of 5,000 digits
+            first = str(err).splitlines()[0] if str(err) else type(err).__name__
+            raise SpecError(f"{p}: not a bundle hound-id reads ({first})") from err
     else:
         from hound_id.io import read_yaml  # PyYAML: only for a YAML bundle
 

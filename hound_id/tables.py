@@ -20,6 +20,7 @@ from __future__ import annotations
 
 import csv
 import math
+import os
 import sys
 from collections import Counter
 from collections.abc import Iterator
@@ -84,6 +85,12 @@ class Table:
     """One sentence per finding (skipped title lines, units row, trailing field, separator)."""
 
 
+#: The longest line of a CSV [bytes]: a row of a hundred channels is a few kB.
+MAX_LINE_BYTES = 1 << 20
+#: How much of a CSV's end is read for NUL padding [bytes].
+NUL_TAIL_BYTES = 1 << 16
+
+
 def read_table(path: str | Path) -> pd.DataFrame:
     """Read a CSV or Parquet file into a DataFrame (see :func:`read_table_info` for the notes).
 
@@ -108,6 +115,8 @@ def read_table_info(path: str | Path) -> Table:
     if suffix not in SUFFIXES:
         raise TableError(f"{p}: unknown table format {suffix or '(no suffix)'}; expected .csv or .parquet", path=str(p))
     io.check_input(p, "table (.csv or .parquet)", TableError)
+    _check_nul_tail(p)
+    _check_line_lengths(p)
     notes: tuple[str, ...] = ()
     try:
         if suffix != ".csv":
@@ -116,11 +125,88 @@ def read_table_info(path: str | Path) -> Table:
             layout = sniff_csv(p)
             frame, notes = _read_csv(p, layout) if layout is not None else (pd.read_csv(p, comment="#"), ())
     except (OSError, ValueError, pd.errors.ParserError, pd.errors.EmptyDataError) as err:
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise TableError(f"{p}: cannot read the table ({first})", path=str(p)) from err
+        raise _unreadable(p, err) from err
     if frame.empty:
         raise TableError(f"{p}: the table has no rows", path=str(p))
+    _refuse_repeats(p, list(layout.names) if suffix == ".csv" and layout is not None else list(frame.columns))
     return Table(frame, notes)
+
+
+def _refuse_repeats(path: Path, header: list[Any]) -> None:
+    """Refuse a header that names a column twice (pandas would rename the copy 'x.1'; which one is meant cannot be
+    told)."""
+    repeated = sorted({str(n) for n in header if n and header.count(n) > 1})
+    if repeated:
+        raise TableError(
+            f"{path}: column {repeated[0]!r} appears {header.count(repeated[0])} times; which one is meant cannot be "
+            "told: rename or drop the copies",
+            path=str(path),
+            column=repeated[0],
+        )
+
+
+def _check_line_lengths(path: Path) -> None:
+    """Refuse a CSV with a line longer than :data:`MAX_LINE_BYTES`: no log's row is that long, and pandas' reader
+    takes minutes and gigabytes over one (a row of three million fields). One pass over the bytes with numpy."""
+    import numpy as np
+
+    if path.suffix.lower() != ".csv":
+        return
+    line_start, offset, lines = 0, 0, 0
+    try:
+        with open(path, "rb") as handle:
+            while chunk := handle.read(1 << 24):
+                ends = np.flatnonzero(np.frombuffer(chunk, np.uint8) == 10) + offset
+                starts = np.concatenate(([line_start], ends[:-1] + 1))
+                long = np.flatnonzero(ends - starts > MAX_LINE_BYTES)
+                offset += len(chunk)
+                if long.size:
+                    k = int(long[0])
+                    _long_line(path, lines + k + 1, int(ends[k] - starts[k]), "")
+                if ends.size:
+                    lines += ends.size
+                    line_start = int(ends[-1]) + 1
+                if offset - line_start > MAX_LINE_BYTES:
+                    _long_line(path, lines + 1, offset - line_start, "at least ")
+    except OSError:
+        return  # the reader says what is wrong
+
+
+def _long_line(path: Path, line: int, size: int, bound: str) -> None:
+    raise TableError(
+        f"{path}: line {line} is {bound}{size:,} bytes long; a row of a log is at most "
+        f"{MAX_LINE_BYTES:,}: the file is not a table of samples (or a row lost its line ends); fix or cut that line",
+        path=str(path),
+        line=line,
+    )
+
+
+def _check_nul_tail(path: Path) -> None:
+    """Refuse a CSV that ends in NUL bytes: a file pre-allocated, or cut short by a crash, before its writer filled
+    it (read whole, gigabytes of NULs would be one endless field)."""
+    if path.suffix.lower() != ".csv":
+        return
+    try:
+        with open(path, "rb") as handle:
+            if handle.read(2) in (b"\xff\xfe", b"\xfe\xff"):  # a BOM: each character of UTF-16 holds a NUL
+                raise TableError(
+                    f"{path}: is UTF-16 text; save it as UTF-8 (iconv -t UTF-8 {path.name} > utf8-{path.name}) and "
+                    "read the copy",
+                    path=str(path),
+                )
+            size = handle.seek(0, os.SEEK_END)
+            handle.seek(max(size - NUL_TAIL_BYTES, 0))
+            tail = handle.read(NUL_TAIL_BYTES)
+    except OSError:
+        return  # the reader says what is wrong
+    if tail and tail[-1] == 0:
+        run = len(tail) - len(tail.rstrip(b"\0"))
+        at_least = "at least " if run == len(tail) else ""
+        raise TableError(
+            f"{path}: ends in {at_least}{run:,} NUL bytes (a file pre-allocated, or cut short by a crash, before its "
+            f"writer filled it): copy it without them (tr -d '\\000' < {path.name} > fixed.csv) and read the copy",
+            path=str(path),
+        )
 
 
 def _unit_names(layout: CsvLayout) -> tuple[list[str], list[str]]:
@@ -319,6 +405,8 @@ class TableBatches:
                 f"{p}: unknown table format {suffix or '(no suffix)'}; expected .csv or .parquet", path=str(p)
             )
         io.check_input(p, "table (.csv or .parquet)", TableError)
+        _check_nul_tail(p)
+        _check_line_lengths(p)
         self.path = p
         self.numeric = tuple(numeric)
         self.text = text
@@ -343,6 +431,7 @@ class TableBatches:
             if isinstance(err, TableError):
                 raise
             raise _unreadable(p, err) from err
+        _refuse_repeats(p, list(self.layout.names) if self.layout is not None else list(names))
         self.names: tuple[str, ...] = tuple(names)
         """Column names, as :func:`read_table` would name them (extra unnamed fields left out)."""
 
@@ -558,6 +647,12 @@ def _unique(names: list[str]) -> list[str]:
 
 
 def _unreadable(path: Path, err: Exception) -> TableError:
+    if isinstance(err, UnicodeDecodeError):
+        return TableError(
+            f"{path}: is not UTF-8 text (byte {err.object[err.start]:#04x} at {err.start}); save it as UTF-8 (iconv "
+            f"-t UTF-8 {path.name} > utf8-{path.name}) and read the copy",
+            path=str(path),
+        )
     first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
     return TableError(f"{path}: cannot read the table ({first})", path=str(path))
 

@@ -88,6 +88,28 @@ def slash_reading(text: str) -> str | None:
     return normalise(stripped[:k]) + "/" + normalise(stripped[k + 1 :])
 
 
+def unit_text_errors() -> tuple[type[BaseException], ...]:
+    """What pint's parser raises on text that is no unit or quantity: its own errors, and what its tokenizer and
+    evaluator raise on odd text ("N*m/A)" ends in a TokenError, "N*m/" in an AssertionError, a long product in a
+    RecursionError)."""
+    import tokenize
+
+    import pint
+
+    return (
+        pint.errors.PintError,
+        ValueError,
+        TypeError,
+        AttributeError,
+        SyntaxError,
+        AssertionError,
+        RecursionError,
+        OverflowError,
+        ZeroDivisionError,
+        tokenize.TokenError,
+    )
+
+
 def is_unit(text: str) -> bool:
     """Whether pint reads ``text`` (normalised) as a unit; a quick test for units rows."""
     try:
@@ -122,7 +144,10 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
             expected=si_unit,
         )
     if isinstance(value, (int, float)):
-        result = float(value)
+        try:
+            result = float(value)
+        except OverflowError:  # an integer of hundreds of digits
+            result = math.inf
     elif isinstance(value, str) and _is_number(value):
         result = float(value)  # YAML 1.1 reads 1e3 (no dot) as text: a plain number, so SI
     elif isinstance(value, str):
@@ -159,20 +184,29 @@ def as_number(value: Any) -> float | None:
     return None
 
 
+#: The longest text read as a quantity [characters]; "0.138 N*m/A" is 11 (pint's parser recurses on a long one).
+QUANTITY_MAX_CHARS = 200
 #: A quantity's text starts with its number (pint would read "N*m/A" alone as 1 N m/A).
 _LEADING_NUMBER = re.compile(r"\s*[+-]?(\d+\.?\d*|\.\d+|inf|nan)([eE][+-]?\d+)?", re.IGNORECASE)
 
 
 def _parse_string(text: str, kind: str, loc: str) -> float:
-    import pint
 
     si_unit, label, example = KINDS[kind]
+    if len(text) > QUANTITY_MAX_CHARS:
+        raise UnitError(
+            f"{loc}: found {len(text):,} characters, too long for a quantity (at most {QUANTITY_MAX_CHARS}); expected "
+            f"{label} such as {example}",
+            found=text[:QUANTITY_MAX_CHARS],
+            expected=si_unit,
+        )
     ureg = registry()
     try:
         quantity: Any = ureg.Quantity(normalise(text))
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError) as err:
+    except unit_text_errors() as err:
+        why = str(err).splitlines()[0] if str(err) else type(err).__name__
         raise UnitError(
-            f"{loc}: cannot read {text!r} as a quantity ({err}); expected {label} such as {example}",
+            f"{loc}: cannot read {text!r} as a quantity ({why}); expected {label} such as {example}",
             found=text,
             expected=si_unit,
         ) from err

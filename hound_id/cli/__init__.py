@@ -66,6 +66,13 @@ def main(argv: list[str] | None = None) -> None:
     except KeyboardInterrupt:
         print("hound-id: interrupted", file=sys.stderr)
         sys.exit(130)
+    except MemoryError:  # a file far larger than this machine's memory (a log padded with gigabytes of NULs)
+        print(
+            "hound-id: error: out of memory: an input is too large for this machine's memory; check the input files "
+            "(a log padded by a crash, a wrong file) or use a smaller --window",
+            file=sys.stderr,
+        )
+        sys.exit(2)
     except Exception as err:
         # click's exceptions, by name: Typer vendors click from 0.16 on, earlier releases import it
         kinds = {kind.__name__ for kind in type(err).__mro__}

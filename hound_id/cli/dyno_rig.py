@@ -101,7 +101,7 @@ def record_cmd(
             value = meta[key]
             table.add_row(key.replace("_", " "), f"{value:.4g}" if isinstance(value, float) else str(value))
         console.print(table)
-        for gap in meta["gaps"][:10]:
+        for gap in meta["gaps"][:10] if result.status != "failed" else ():  # a failed run: its one line (gaps in JSON)
             warn(f"gap {gap['start']:.3f}-{gap['end']:.3f} s ({gap['ticks']} ticks): {gap['reason']}")
         if not result.kept_existing:
             console.print(f"metadata in {result.sidecar}", highlight=False)

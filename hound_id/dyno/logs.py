@@ -822,15 +822,17 @@ def convert_units(
     """Convert ``values`` from the unit ``text`` to :data:`UNITS` ``[name]`` with pint."""
     import pint
 
-    from hound_id.units import normalise, registry, slash_reading
+    from hound_id.units import QUANTITY_MAX_CHARS, normalise, registry, slash_reading, unit_text_errors
 
     ureg = registry()
     label, examples = _LABELS[name]
     target = ureg.Unit(UNITS[name])
     fix = f"fix the header or pass --units {name}=<unit>"
     try:
+        if len(text) > QUANTITY_MAX_CHARS:
+            raise ValueError(f"{len(text):,} characters, too long for a unit")
         unit = ureg.Unit(normalise(text))
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError) as err:
+    except unit_text_errors() as err:
         raise DynoDataError(
             f"{source}: column '{column}': cannot read the unit {text!r} (from {origin}; {err}); "
             f"expected {label} in a unit such as {examples}; {fix}",
@@ -853,7 +855,7 @@ def convert_units(
         # 'rad.s' in a units row means rad/s: the product reading has the wrong dimension, the quotient the right one
         try:
             other = ureg.Unit(slash)
-        except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError):
+        except unit_text_errors():
             other = None
         if other is not None and ureg.get_root_units(other)[1] == expected:
             unit, root, read_as = other, expected, f" (read {text!r} as {slash}: a dot for the slash)"

@@ -39,7 +39,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.errors import SpecError
-from hound_id.io import TEXT_MAX_BYTES, check_input
+from hound_id.io import TEXT_MAX_BYTES, read_json
 from hound_id.mor.current_curve import polynomial
 from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import Robot
@@ -321,33 +321,56 @@ def _nan_to_none(values: Any) -> list[float | None]:
 
 
 def foot_from_json(path: Path) -> dict[str, Any]:
-    """The foot part of a bundle from ``hound-id foot --optimise``'s foot.json."""
-    check_input(path, "foot.json", SpecError, TEXT_MAX_BYTES, option="--foot")
-    try:
-        data = json.loads(path.read_text())
-    except OSError as err:
-        raise SpecError(
-            f"--foot {path}: cannot read ({err.strerror or err}); give the foot.json of hound-id foot"
-        ) from err
-    except json.JSONDecodeError as err:
-        raise SpecError(f"--foot {path}: not JSON ({err.msg}, line {err.lineno})") from err
+    """The foot part of a bundle from ``hound-id foot --optimise``'s foot.json (its numbers checked finite, its
+    mass, radius and inertia positive; one-line SpecError otherwise)."""
+    data = read_json(path, "foot.json", TEXT_MAX_BYTES, option="--foot")
     if not isinstance(data, dict) or data.get("schema") not in ("hound-id/foot/1", "hound-id/foot/2"):
         raise SpecError(
             f"--foot {path}: expected the hound-id/foot/2 (or /1) JSON that hound-id foot --optimise writes"
         )
-    g, props = data["geometry"], data["foot"]["closed_form"]
-    # /2 adds the spheres along the cap's arc; a /1 foot keeps its one contact sphere
-    spheres = data["collision"]["spheres"] if data["schema"] == "hound-id/foot/2" else None
+
+    def field(*keys: str, shape: tuple[int, ...] = (), positive: bool = False) -> Any:
+        node: Any = data
+        for key in keys:
+            node = node.get(key) if isinstance(node, dict) else None
+        name = ".".join(keys)
+        try:
+            values = np.asarray(node, dtype=float)
+        except (TypeError, ValueError):
+            values = np.asarray(np.nan)
+        if (
+            node is None
+            or values.shape != shape
+            or not np.all(np.isfinite(values))
+            or (positive and np.any(values <= 0))
+        ):
+            what = f"an array of shape {shape}" if shape else "a number"
+            raise SpecError(
+                f"--foot {path}: field '{name}': found {node!r}, expected {what}, finite{', > 0' if positive else ''}; "
+                "write the foot.json again with hound-id foot --optimise",
+                field=name,
+            )
+        return node
+
+    spheres = None
+    if data["schema"] == "hound-id/foot/2":  # /2 adds the spheres along the cap's arc; a /1 foot keeps its one sphere
+        raw = data.get("collision", {}).get("spheres") if isinstance(data.get("collision"), dict) else None
+        count = len(raw) if isinstance(raw, list) else 0
+        spheres = (
+            field("collision", "spheres", shape=(count, 4)) if count else field("collision", "spheres", shape=(1, 4))
+        )
+        if any(sphere[3] <= 0 for sphere in spheres):
+            raise SpecError(f"--foot {path}: field 'collision.spheres': a radius <= 0; write the foot.json again")
     return {
         "link": "foot",
-        "mass": props["mass"],
-        "com": props["com"],
-        "inertia": props["inertia"],
-        "sphere_radius": g["radius"],
-        "sphere_centre_z": g["centre_z"],
+        "mass": field("foot", "closed_form", "mass", positive=True),
+        "com": field("foot", "closed_form", "com", shape=(3,)),
+        "inertia": field("foot", "closed_form", "inertia", shape=(3, 3)),
+        "sphere_radius": field("geometry", "radius", positive=True),
+        "sphere_centre_z": field("geometry", "centre_z"),
         **({"collision_spheres": spheres} if spheres is not None else {}),
-        "mass_ratio": data["mass_ratio"],
-        "inertia_ratio": data["inertia_ratio"],
+        "mass_ratio": field("mass_ratio", positive=True),
+        "inertia_ratio": field("inertia_ratio", positive=True),
         "source": str(path.resolve()),
     }
 

@@ -98,7 +98,10 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
         raise SpecError(f"--out {out}: is a file; give a folder")
     if any(f in URDF_FORMATS for f in formats):
         ex.urdf()  # fail before writing anything
-    with io.staged_folder(out) as staging:
+    sources = ex.bundle.sources
+    inputs = [sources.get("robot"), *(sources.get("fits") or ()), sources.get("foot"), ex.robot.urdf]
+    inputs += [spec.source for spec in ex.robot.motor_specs.values()]
+    with io.staged_folder(out, inputs=inputs) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}
     unlisted = ex.unlisted_joints() if any(f in URDF_FORMATS for f in formats) else []
     if unlisted:  # the robot file covers part of the URDF: say what the rest gets

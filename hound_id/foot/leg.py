@@ -19,6 +19,11 @@ The reflected inertia of the knee motor's rotor is J_rotor G^2 for a single-stag
 from __future__ import annotations
 
 import math
+import os
+import sys
+import tempfile
+from collections.abc import Callable, Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -55,12 +60,43 @@ def load_leg(path: str | Path) -> Any:
     import pinocchio as pin
 
     p = Path(path)
-    parse_urdf(p)  # a regular file of bounded size, its inertials those of rigid bodies
-    try:
-        return pin.buildModelFromUrdf(str(p))
-    except (RuntimeError, ValueError) as err:
-        first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
-        raise SpecError(f"{p}: Pinocchio cannot load the URDF ({first})", path=str(p)) from err
+    parse_urdf(p)  # a regular file of bounded size, UTF-8, its inertials those of rigid bodies
+    with native_stderr() as said:  # urdfdom prints its complaints on the process's stderr
+        try:
+            return pin.buildModelFromUrdf(str(p))
+        except (RuntimeError, ValueError) as err:
+            first = str(err).strip().splitlines()[0] if str(err).strip() else type(err).__name__
+            raise SpecError(
+                f"{p}: Pinocchio cannot load the URDF ({first}{'; ' + said() if said() else ''})", path=str(p)
+            ) from err
+
+
+@contextmanager
+def native_stderr() -> Iterator[Callable[[], str]]:
+    """Catch what native code writes on file descriptor 2 while the block runs (urdfdom's "Error: ..." lines), so
+    that a failure stays one line; yields a function that gives the first line caught (read after the block's
+    error)."""
+    sys.stderr.flush()
+    saved = os.dup(2)
+    with tempfile.TemporaryFile() as caught:
+        os.dup2(caught.fileno(), 2)
+        restored = False
+
+        def first_line() -> str:
+            nonlocal restored
+            if not restored:
+                os.dup2(saved, 2)
+                restored = True
+            caught.seek(0)
+            lines = [line.strip() for line in caught.read(4096).decode("utf-8", "replace").splitlines() if line.strip()]
+            return lines[0] if lines else ""
+
+        try:
+            yield first_line
+        finally:
+            if not restored:
+                os.dup2(saved, 2)
+            os.close(saved)
 
 
 def leg_properties(

@@ -73,6 +73,14 @@ def rebase_meshes(root: ET.Element, source: Path, out_dir: Path | None) -> None:
 def parse_urdf(path: Path) -> ET.Element:
     """The <robot> element of a URDF file, comments kept (SpecError if missing or not a URDF)."""
     check_input(path, "leg URDF", SpecError, TEXT_MAX_BYTES)
+    with open(path, "rb") as handle:  # urdfdom (Pinocchio, the exports) reads UTF-8 only
+        head = handle.read(4)
+    if head.startswith((b"\xff\xfe", b"\xfe\xff")) or b"\x00" in head:
+        raise SpecError(
+            f"{path}: is UTF-16 or UTF-32 text; URDF readers (urdfdom, MuJoCo) read UTF-8: save it as UTF-8 (iconv -t "
+            f"UTF-8 {path.name} > leg-utf8.urdf)",
+            path=str(path),
+        )
     try:
         tree = ET.parse(path, parser=ET.XMLParser(target=ET.TreeBuilder(insert_comments=True)))
         root = tree.getroot()

@@ -158,8 +158,8 @@ def _laughs(levels: int, key: str) -> str:
 
 
 STRUCTURES: dict[str, tuple[str, str]] = {
-    "alias-bomb-in-name": (_laughs(9, "name"), "expand it to"),
-    "alias-bomb-in-joints": (_laughs(9, "joints"), "expand it to"),
+    "alias-bomb-in-name": (_laughs(9, "name"), "its aliases *name expanded"),
+    "alias-bomb-in-joints": (_laughs(9, "joints"), "its aliases *name expanded"),
     "recursive-alias": ("name: &a [x, *a]\n", "alias inside the value it names"),
     "complex-key": ("? [a, b]\n: 1\nname: m\n", "a key that is a list or mapping"),
     "flow-complex-key": ("{[a, b]: 1}\n", "a key that is a list or mapping"),
@@ -335,3 +335,251 @@ def test_the_simulated_rig_refuses_to_write_its_rig_file_over_its_plan(tmp_path,
     argv = ("dyno", "simulate-rig", "--plan", "IN.yaml", "--rig-out", "IN.yaml", "--duration", "1", "--port", "0")
     run_case(tmp_path, monkeypatch, argv, write, "IN.yaml", "is also an input of this command")
     assert (tmp_path / "IN.yaml").read_text() == "schema: hound-id/plan/1\n"
+
+
+# --- found by an independent review of a fresh clone --------------------------------------------------------------
+
+SAMPLE_URDF = ROBOT.parent / "hound_like.urdf"
+
+
+def _robot_folder(folder: Path, robot_name: str = "r.yaml", urdf_name: str = "hound_like_limits.urdf") -> Path:
+    """The sample robot, its motor spec and its URDF copied into ``folder``; the robot file's path."""
+    folder.mkdir()
+    (folder / "m.yaml").write_text(MOTOR.read_text())
+    (folder / urdf_name).write_text(SAMPLE_URDF.read_text())
+    lines = []
+    for line in ROBOT.read_text().splitlines():
+        line = line.replace("../motors/hound_ilm85.yaml", "m.yaml")
+        lines.append(f"urdf: {urdf_name}" if line.startswith("urdf:") else line)
+    (folder / robot_name).write_text("\n".join(lines) + "\n")
+    return folder / robot_name
+
+
+@pytest.mark.parametrize(
+    ("robot_name", "urdf_name", "extra", "replaced"),
+    [
+        ("r.yaml", "hound_like_limits.urdf", ("--format", "urdf"), "hound_like_limits.urdf"),
+        ("hound_like_bundle.yaml", "hound_like.urdf", (), "hound_like_bundle.yaml"),
+    ],
+    ids=["its-urdf", "the-robot-file"],
+)
+def test_export_never_writes_over_an_input_kept_in_its_out_folder(
+    robot_name, urdf_name, extra, replaced, tmp_path, monkeypatch
+):
+    robot = _robot_folder(tmp_path / "rb", robot_name, urdf_name)
+    before = {p.name: p.read_bytes() for p in robot.parent.iterdir()}
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["export", "--robot", str(robot), "--out", str(robot.parent), *extra])
+    assert code == 2 and len(err.strip().splitlines()) == 1, err
+    assert f"writing {replaced} there would replace the input" in err
+    assert {p.name: p.read_bytes() for p in robot.parent.iterdir()} == before
+
+
+def test_export_never_writes_over_a_fit_kept_in_its_out_folder(tmp_path, monkeypatch):
+    out = tmp_path / "o"
+    out.mkdir()
+    fit = out / "hound_like_bundle.yaml"
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(
+        ["fit-current", str(DYNO), "--columns", DYNO_COLUMNS, "--spec", str(MOTOR), "--out", str(fit)]
+    )
+    assert code == 0, err
+    kept = fit.read_bytes()
+    code, _, err = invoke(["export", "--robot", str(ROBOT), "--out", str(out), "--fit", str(fit)])
+    assert code == 2 and "would replace the input" in err, err
+    assert fit.read_bytes() == kept and sorted(p.name for p in out.iterdir()) == ["hound_like_bundle.yaml"]
+
+
+@pytest.mark.parametrize("case", ["sidecar-holds-a-file", "rig-is-the-sidecar", "sidecar-is-a-fifo"])
+def test_the_recorder_never_writes_its_sidecar_over_a_file(case, tmp_path, monkeypatch):
+    """``<out>.meta.json`` is an output too: a user's file there needs --overwrite, the rig file there is refused,
+    a FIFO there is refused, all before the rig is contacted and before the log is created."""
+    side = tmp_path / "run.csv.meta.json"
+    rig = tmp_path / "rig.yaml"
+    rig.write_text("name: r\ndevices: {}\n")
+    if case == "sidecar-holds-a-file":
+        side.write_text('{"my": "notes"}')
+        said = "run.csv.meta.json: already holds 15 bytes"
+    elif case == "rig-is-the-sidecar":
+        rig = side
+        rig.write_text("name: r\ndevices: {}\n")
+        said = "run.csv.meta.json: is also an input of this command"
+    else:
+        os.mkfifo(side)
+        said = "run.csv.meta.json: is a FIFO (named pipe), not a regular file"
+    before = files_under(tmp_path)
+    kept = side.read_bytes() if side.is_file() else None
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["dyno", "record", "--rig", str(rig), "--out", "run.csv", "--duration", "1"])
+    assert code == 2 and len(err.strip().splitlines()) == 1 and said in err, err
+    assert files_under(tmp_path) == before
+    assert kept is None or side.read_bytes() == kept
+
+
+UNIT_TYPOS: dict[str, tuple[tuple[str, ...], Callable[[Path], None], str]] = {
+    "spec-unbalanced-bracket": (("mor", "--spec", "IN.yaml"), None, "cannot read '0.138 N*m/A)' as a quantity"),
+    "spec-trailing-slash": (("mor", "--spec", "IN.yaml"), None, "cannot read '0.138 N*m/' as a quantity"),
+    "spec-400k-characters": (("mor", "--spec", "IN.yaml"), None, "too long for a quantity"),
+    "header-unit": (("fit-current", "IN.csv"), None, "cannot read the unit 'A)'"),
+    "units-option": (("fit-current", str(DYNO), "--columns", DYNO_COLUMNS, "--units", "current=A)"), None, "'A)'"),
+    "fleet-units-option": (("fleet", str(DYNO), "--columns", DYNO_COLUMNS, "--units", "current=A)"), None, "'A)'"),
+    "foot-grf": (("foot", "--optimise", "--grf", "1.5 kN/"), None, "cannot read '1.5 kN/' as a quantity"),
+}
+
+
+def _spec_kt(value: str) -> Callable[[Path], None]:
+    def write(path: Path) -> None:
+        kept = [k for k in MOTOR.read_text().splitlines() if not k.startswith("kt:")]
+        path.write_text("\n".join([*kept, f"kt: {value}"]) + "\n")
+
+    return write
+
+
+UNIT_FILES = {
+    "spec-unbalanced-bracket": _spec_kt("0.138 N*m/A)"),
+    "spec-trailing-slash": _spec_kt('"0.138 N*m/"'),
+    "spec-400k-characters": _spec_kt("0.138 " + "N*" * 200_000 + "m/A"),
+    "header-unit": lambda p: p.write_text(
+        "time,current[A)],torque\n" + "".join(f"{k},{k % 7},{k % 5}\n" for k in range(200))
+    ),
+}
+
+
+@pytest.mark.parametrize("case", sorted(UNIT_TYPOS))
+def test_a_unit_pint_cannot_parse_is_one_line_wherever_a_unit_is_read(case, tmp_path, monkeypatch):
+    argv, _, said = UNIT_TYPOS[case]
+    make = UNIT_FILES.get(case)
+    if make is None:  # no input file: the option is the bad input
+        monkeypatch.chdir(tmp_path)
+        code, _, err = invoke(list(argv))
+        assert code == 2 and "Traceback" not in err and len(err.strip().splitlines()) == 1, err
+        assert said in err, err
+        return
+    run_case(tmp_path, monkeypatch, argv, make, _in_name(argv), said)
+
+
+@pytest.mark.parametrize(
+    ("argv", "content", "said"),
+    [
+        (("mor", "--spec", "IN.yaml"), "name: m\nkt: " + "9" * 5000 + "\n", "a value cannot be read"),
+        (
+            ("export", "--robot", str(ROBOT), "--foot", "IN.json", "--out", "o"),
+            '{"mass": 1' + "0" * 5000 + "}",
+            "not JSON",
+        ),
+        (
+            ("export", "--robot", str(ROBOT), "--foot", "IN.json", "--out", "o"),
+            "[" * 100_000 + "]" * 100_000,
+            "not JSON",
+        ),
+        (("export", "--robot", str(ROBOT), "--foot", "IN.json", "--out", "o"), '{"schema": NaN}', "NaN is not a JSON"),
+    ],
+    ids=["yaml-int-of-5000-digits", "json-int-of-5000-digits", "json-nested-100000-deep", "json-nan"],
+)
+def test_numbers_and_nesting_python_cannot_hold_are_one_line(argv, content, said, tmp_path, monkeypatch):
+    run_case(tmp_path, monkeypatch, argv, lambda p: p.write_text(content), _in_name(argv), said)
+
+
+def test_a_foot_json_with_a_negative_mass_is_refused_naming_the_field(tmp_path, monkeypatch):
+    import json
+
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["foot", "--optimise", "--out", "ft"])
+    assert code == 0, err
+    data = json.loads((tmp_path / "ft" / "foot.json").read_text())
+    data["foot"]["closed_form"]["mass"] = -1.0
+    argv = ("export", "--robot", str(ROBOT), "--foot", "IN.json", "--out", "o")
+    run_case(tmp_path, monkeypatch, argv, lambda p: p.write_text(json.dumps(data)), "field 'foot.closed_form.mass'")
+
+
+@pytest.mark.parametrize(
+    ("key", "value", "said"),
+    [("plateau_time", "1e9", "the plan lasts"), ("overdrive", "1e300", "overdrive: found 1e+300")],
+)
+def test_a_plan_file_edited_past_its_bounds_is_one_line(key, value, said, tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["dyno", "plan", "--max-current", "40", "--out", "plan.yaml"])
+    assert code == 0, err
+    text = "".join(
+        f"{key}: {value}\n" if line.startswith(f"{key}:") else line
+        for line in (tmp_path / "plan.yaml").read_text().splitlines(keepends=True)
+    )
+    (tmp_path / "plan.yaml").unlink()
+    argv = ("dyno", "simulate-rig", "--plan", "IN.yaml", "--duration", "1", "--port", "0", "--no-serial")
+    run_case(tmp_path, monkeypatch, argv, lambda p: p.write_text(text), "IN.yaml", said)
+
+
+def _padded(path: Path) -> None:
+    path.write_bytes(DYNO.read_bytes())
+    os.truncate(path, 200_000_000)  # sparse: NULs a crash left, no disk used
+
+
+def _long_row(path: Path) -> None:
+    lines = DYNO.read_text().splitlines(keepends=True)
+    path.write_text(lines[0] + "1," * 1_000_000 + "\n" + "".join(lines[1:]))
+
+
+def _utf16(path: Path) -> None:
+    path.write_bytes(DYNO.read_text().encode("utf-16"))
+
+
+def _repeated_column(path: Path) -> None:
+    lines = DYNO.read_text().splitlines()
+    path.write_text("\n".join(f"{line},{line.split(',')[1]}" for line in lines) + "\n")
+
+
+@pytest.mark.parametrize(
+    ("make", "said"),
+    [
+        (_padded, "ends in at least 65,536 NUL bytes"),
+        (_long_row, "line 2 is 2,000,000 bytes long"),
+        (_utf16, "is UTF-16 text; save it as UTF-8"),
+        (_repeated_column, "column 'iq[A]' appears 2 times"),
+    ],
+    ids=["nul-padded", "a-row-of-a-million-fields", "utf-16", "a-column-twice"],
+)
+def test_a_log_that_is_no_table_of_samples_is_one_line_at_once(make, said, tmp_path, monkeypatch):
+    run_case(tmp_path, monkeypatch, ("fit-current", "IN.csv", "--columns", DYNO_COLUMNS), make, "IN.csv", said)
+
+
+def test_merge_keys_are_read_and_may_be_overridden(tmp_path, monkeypatch):
+    robot = _robot_folder(tmp_path / "rb", "r.yaml", "hound_like.urdf")
+    text = robot.read_text()
+    first = next(line for line in text.splitlines() if line.strip().startswith("- {type: ratio"))
+    second = next(line for line in text.splitlines() if line.strip().startswith("- {type: ratio") and line != first)
+    anchored = first.replace("- {", "- &first {", 1)
+    joints = second.split("joints: ")[1].split("]")[0] + "]"
+    motors = second.split("motors: ")[1].split("]")[0] + "]"
+    merged = f"{second[: second.index('- {')]}- {{<<: *first, joints: {joints}, motors: {motors}}}"
+    robot.write_text(text.replace(first, anchored).replace(second, merged))
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["mor", "--robot", str(robot), "--json"])
+    assert code == 0, err
+
+
+def test_native_code_writing_to_stderr_is_caught_for_the_one_line():
+    from hound_id.foot.leg import native_stderr
+
+    with native_stderr() as said:
+        os.write(2, b"Error:   Error=XML_ERROR_PARSING ErrorID=15\n at line 103 in model.cpp\n")
+        first = said()
+    assert first == "Error:   Error=XML_ERROR_PARSING ErrorID=15"
+
+
+def test_ctrl_c_while_the_command_line_starts_is_one_line_and_exit_130():
+    import signal
+    import subprocess
+    import sys
+    import time
+
+    for delay in (0.05, 0.2):
+        proc = subprocess.Popen(
+            [sys.executable, "-m", "hound_id", "mor", "--spec", str(MOTOR)],
+            stdout=subprocess.DEVNULL,
+            stderr=subprocess.PIPE,
+            text=True,
+        )
+        time.sleep(delay)
+        proc.send_signal(signal.SIGINT)
+        _, err = proc.communicate(timeout=60)
+        assert proc.returncode == 130 and err == "hound-id: interrupted\n", (delay, proc.returncode, err)

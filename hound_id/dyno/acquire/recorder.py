@@ -335,19 +335,24 @@ def _open_locked(path: Path, flags: int) -> int:
     return fd
 
 
-def check_existing(path: Path, overwrite: bool) -> None:
-    """Refuse a log already at ``path`` unless ``overwrite`` (before connecting to the rig).
+def check_existing(path: Path, overwrite: bool, inputs: Sequence[Path] = ()) -> None:
+    """Refuse a log, or a sidecar, already at ``path`` unless ``overwrite``, and a sidecar path that is not a
+    regular file or is one of ``inputs`` (before connecting to the rig).
 
     Raises:
-        OutputError: ``path`` holds data and ``overwrite`` is False.
+        OutputError: ``path`` or its sidecar holds data and ``overwrite`` is False; the sidecar path is a FIFO, a
+            folder, a device or an input.
     """
-    if not overwrite and _holds_data(path):
-        size = os.stat(path).st_size
-        raise OutputError(
-            f"{path}: already holds {size:,} bytes (a recorded log?); choose another --out, or pass --overwrite to "
-            "replace it once the first sample is in (it is kept if none comes)",
-            path=str(path),
-        )
+    side = sidecar_path(path)
+    io.check_output(side, (".json",), "sidecar", inputs)  # a FIFO, a folder or an input there: refused
+    for target, what in ((path, "a recorded log?"), (side, "a recorded log's metadata?")):
+        if not overwrite and _holds_data(target):
+            size = os.stat(target).st_size
+            raise OutputError(
+                f"{target}: already holds {size:,} bytes ({what}); choose another --out, or pass --overwrite to "
+                "replace it once the first sample is in (it is kept if none comes)",
+                path=str(target),
+            )
 
 
 def check_free(path: Path) -> None:

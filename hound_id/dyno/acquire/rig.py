@@ -48,7 +48,7 @@ from typing import Any, ClassVar
 from hound_id.dyno.logs import CANONICAL, UNITS
 from hound_id.errors import DynoDataError, SpecError
 from hound_id.io import read_yaml
-from hound_id.units import as_number, normalise, registry
+from hound_id.units import as_number, normalise, registry, unit_text_errors
 
 SCHEMA = "hound-id/rig/1"
 
@@ -374,13 +374,12 @@ def _default_unit(column: str) -> str:
 @lru_cache(maxsize=256)
 def _conversion(unit: str, column: str) -> tuple[str, float, float] | str:
     """(target unit, a, b) with target = a * x + b for x in ``unit``; or why the unit is refused."""
-    import pint
 
     ureg = registry()
     text = normalise(unit)
     try:
         parsed = ureg.Unit(text)
-    except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError, AssertionError) as err:
+    except unit_text_errors() as err:
         return f"found {unit!r}, which is not a unit ({err}); expected a pint unit such as 'N*m', 'rpm', 'degC'"
     if column in UNITS:
         target = UNITS[column]
@@ -670,12 +669,10 @@ def _seconds(data: Mapping[Any, Any], key: str, at: _Where) -> float:
     value = data.get(key, _DEFAULT_TIMEOUT)
     number = as_number(value)
     if number is None and isinstance(value, str):
-        import pint
-
         ureg = registry()
         try:
             number = float(ureg.Quantity(normalise(value)).to("s").magnitude)
-        except (pint.errors.PintError, ValueError, TypeError, AttributeError, SyntaxError, AssertionError):
+        except unit_text_errors():
             number = None
     if number is None or not math.isfinite(number) or number <= 0.0:
         raise at.error(

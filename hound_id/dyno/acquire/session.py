@@ -38,7 +38,7 @@ def record_rig(
     check_output(out, (".csv",), "log", inputs=(rig,))
     check_settings(rate_hz, duration, flush_interval)
     check_free(out)
-    check_existing(out, overwrite)
+    check_existing(out, overwrite, (rig,))
     rig_spec = load_rig(rig)
     with RigReader(rig_spec) as reader:
         return record(
@@ -82,6 +82,8 @@ def serve_simulated_rig(
     from hound_id.dyno.simulate.current import SimMotor, TestPlan
 
     check_output(rig_out, (".yaml", ".yml"), "rig", inputs=(plan,))
+    if not effects:
+        raise DynoDataError("--effects: found none, expected effects joined by ',' (e.g. linear,saturation)")
     if duration is not None and not (math.isfinite(duration) and duration > 0):
         raise DynoDataError(
             f"--duration: found {duration:g}, expected a positive number of seconds (leave it out to serve until "

@@ -267,7 +267,7 @@ def load_effects_file(path: str | Path) -> list[str]:
     you trust.
     """
     p = Path(path)
-    check_input(p, "effects (Python)", FitError, TEXT_MAX_BYTES)
+    check_input(p, "Python effects", FitError, TEXT_MAX_BYTES)
     before = set(REGISTRY)
     spec = importlib.util.spec_from_file_location(f"hound_id_user_effects_{p.stem}", p)
     if spec is None or spec.loader is None:

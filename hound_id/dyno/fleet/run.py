@@ -94,6 +94,14 @@ def check_fit_options(options: FitCurrentOptions) -> None:
     for value, option in ((options.columns, "--columns"), (options.units, "--units")):
         if value is None or isinstance(value, str):
             parse_mapping(value, option)
+    if isinstance(options.units, str):  # a unit pint cannot read fails every log: say it once
+        import numpy as np
+
+        from hound_id.dyno.logs import UNITS, convert_units
+
+        for name, text in parse_mapping(options.units, "--units").items():
+            if name in UNITS:
+                convert_units(np.zeros(1), text, "--units", name, name, "--units")
 
 
 def fleet(

@@ -270,6 +270,14 @@ class SimMotor:
         )
 
 
+#: The longest test plan [s]: an hour on the rig (a dyno's plan runs minutes; a thermal soak fits); its simulated log
+#: at 1 kHz is 3.6 million rows, held in memory.
+MAX_PLAN_DURATION = 3600.0
+#: The largest overdrive of a plan [-]: its top level beyond the application's max current, which is at most a
+#: drive's peak (2-3x its continuous current).
+MAX_OVERDRIVE = 3.0
+
+
 @dataclass(frozen=True)
 class TestPlan:
     """What the rig does over time (relative to the motor's max_current, so one plan fits every motor).
@@ -330,6 +338,18 @@ class TestPlan:
             object.__setattr__(self, name, _check_finite(getattr(self, name), f"TestPlan.{name}", positive=True))
         for name in ("pause_time", "hold_time", "bus_sag"):
             object.__setattr__(self, name, _check_finite(getattr(self, name), f"TestPlan.{name}", nonnegative=True))
+        if not self.overdrive <= MAX_OVERDRIVE:
+            raise DynoDataError(
+                f"TestPlan.overdrive: found {self.overdrive:g}, expected at most {MAX_OVERDRIVE:g} (the top level is "
+                "overdrive x the max current: a drive's peak current is 2-3x its continuous one)",
+                value=self.overdrive,
+            )
+        if self.duration > MAX_PLAN_DURATION:
+            raise DynoDataError(
+                f"TestPlan: the plan lasts {self.duration:.4g} s, expected at most {MAX_PLAN_DURATION:g} s (an hour on "
+                "the rig; a simulated log holds every sample in memory); shorten plateau_time, pause_time, hold_time "
+                "or transition_time, or use fewer speeds"
+            )
         shortest = min(t for t in (self.step_time, self.ramp_time / 4.0, self.hold_time or math.inf) if t > 0)
         if shortest <= self.current_rise_time:
             raise DynoDataError(
