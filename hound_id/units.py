@@ -88,6 +88,31 @@ def slash_reading(text: str) -> str | None:
     return normalise(stripped[:k]) + "/" + normalise(stripped[k + 1 :])
 
 
+#: The characters a unit or quantity may hold (letters, digits, _, spaces, * / ^ . · ( ) + - and the degree, micro,
+#: ohm and percent signs); a power may be at most :data:`MAX_POWER` and never raised again ("9**9**9" would be evaluated
+#: by pint's parser, for minutes).
+_UNIT_CHARS = re.compile(r"[\w\s*/^.·()+\-°µΩ%]*")
+_POWER = re.compile(r"(\*\*|\^)\s*(\(?\s*[+-]?\d*\.?\d+\s*\)?)(\s*(\*\*|\^))?")
+MAX_POWER = 4.0
+
+
+def check_unit_text(text: str) -> None:
+    """Raise ValueError unless ``text`` can be handed to pint's parser safely: only the characters of
+    :data:`_UNIT_CHARS`, no control characters, each power a plain number of at most :data:`MAX_POWER` in size and
+    never raised to another power."""
+    if not _UNIT_CHARS.fullmatch(text) or any(ord(c) < 32 for c in text):
+        bad = next((c for c in text if not _UNIT_CHARS.fullmatch(c) or ord(c) < 32), "?")
+        raise ValueError(f"the character {bad!r} has no place in a unit")
+    for match in re.finditer(r"\*\*|\^", text):
+        power = _POWER.match(text, match.start())
+        if power is None:
+            raise ValueError("a power that is not a plain number")
+        if power.group(3):
+            raise ValueError("a power raised to another power")
+        if abs(float(power.group(2).strip("() "))) > MAX_POWER:
+            raise ValueError(f"a power of {power.group(2).strip()}, more than {MAX_POWER:g}")
+
+
 def unit_text_errors() -> tuple[type[BaseException], ...]:
     """What pint's parser raises on text that is no unit or quantity: its own errors, and what its tokenizer and
     evaluator raise on odd text ("N*m/A)" ends in a TokenError, "N*m/" in an AssertionError, a long product in a
@@ -113,6 +138,7 @@ def unit_text_errors() -> tuple[type[BaseException], ...]:
 def is_unit(text: str) -> bool:
     """Whether pint reads ``text`` (normalised) as a unit; a quick test for units rows."""
     try:
+        check_unit_text(text)
         registry().Unit(normalise(text))
     except Exception:  # pint raises many kinds for text that is no unit
         return False
@@ -202,6 +228,7 @@ def _parse_string(text: str, kind: str, loc: str) -> float:
         )
     ureg = registry()
     try:
+        check_unit_text(text)
         quantity: Any = ureg.Quantity(normalise(text))
     except unit_text_errors() as err:
         why = str(err).splitlines()[0] if str(err) else type(err).__name__

@@ -822,7 +822,14 @@ def convert_units(
     """Convert ``values`` from the unit ``text`` to :data:`UNITS` ``[name]`` with pint."""
     import pint
 
-    from hound_id.units import QUANTITY_MAX_CHARS, normalise, registry, slash_reading, unit_text_errors
+    from hound_id.units import (
+        QUANTITY_MAX_CHARS,
+        check_unit_text,
+        normalise,
+        registry,
+        slash_reading,
+        unit_text_errors,
+    )
 
     ureg = registry()
     label, examples = _LABELS[name]
@@ -831,6 +838,7 @@ def convert_units(
     try:
         if len(text) > QUANTITY_MAX_CHARS:
             raise ValueError(f"{len(text):,} characters, too long for a unit")
+        check_unit_text(text)
         unit = ureg.Unit(normalise(text))
     except unit_text_errors() as err:
         raise DynoDataError(

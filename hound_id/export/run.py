@@ -88,6 +88,17 @@ def prepare(
     return Export(robot=robot, bundle=bundle, mujoco_actuator=mujoco_actuator)
 
 
+def _spec_files(robot_path: str | None) -> list[Path]:
+    """The motor spec files a robot file names (its ``motor_specs``, relative to it): inputs an export must not
+    write over."""
+    if robot_path is None:
+        return []
+    data = io.read_yaml(robot_path, "robot")
+    files = data.get("motor_specs") if isinstance(data, dict) else None
+    base = Path(robot_path).parent
+    return [base / rel for rel in (files or {}).values() if isinstance(rel, str)] if isinstance(files, dict) else []
+
+
 def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any]:
     """Write the formats into ``out`` (created if missing); the ``hound-id/export/1`` report.
 
@@ -100,7 +111,7 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
         ex.urdf()  # fail before writing anything
     sources = ex.bundle.sources
     inputs = [sources.get("robot"), *(sources.get("fits") or ()), sources.get("foot"), ex.robot.urdf]
-    inputs += [spec.source for spec in ex.robot.motor_specs.values()]
+    inputs += _spec_files(sources.get("robot"))
     with io.staged_folder(out, inputs=inputs) as staging:
         written = {name: FORMATS[name](ex, staging) for name in formats}
     unlisted = ex.unlisted_joints() if any(f in URDF_FORMATS for f in formats) else []

@@ -583,3 +583,24 @@ def test_ctrl_c_while_the_command_line_starts_is_one_line_and_exit_130():
         proc.send_signal(signal.SIGINT)
         _, err = proc.communicate(timeout=60)
         assert proc.returncode == 130 and err == "hound-id: interrupted\n", (delay, proc.returncode, err)
+
+
+@pytest.mark.parametrize(
+    "unit", ["9**9**9 N*m/A", "0.138 kN**1000*m**-999/A", "0.138 N*m/A\x00", "0.138 N*m/A`"], ids=repr
+)
+def test_unit_text_pint_would_evaluate_for_minutes_or_misread_is_refused(unit, tmp_path, monkeypatch):
+    write = _spec_kt('"' + unit.replace("\x00", "\\0") + '"')
+    run_case(tmp_path, monkeypatch, ("mor", "--spec", "IN.yaml"), write, "IN.yaml", "field 'kt'")
+
+
+def test_export_never_writes_over_a_motor_spec_the_robot_names_from_its_out_folder(tmp_path, monkeypatch):
+    robot = _robot_folder(tmp_path / "rb", "r.yaml", "hound_like.urdf")
+    out = tmp_path / "o"
+    out.mkdir()
+    spec = out / "hound_like_bundle.yaml"
+    spec.write_text(MOTOR.read_text())
+    robot.write_text(robot.read_text().replace("m.yaml", "../o/hound_like_bundle.yaml"))
+    monkeypatch.chdir(tmp_path)
+    code, _, err = invoke(["export", "--robot", str(robot), "--out", str(out)])
+    assert code == 2 and "would replace the input" in err, err
+    assert spec.read_text() == MOTOR.read_text()

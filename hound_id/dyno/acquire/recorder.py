@@ -135,8 +135,8 @@ class RecordResult:
     """What the final sidecar says (schema ``hound-id/record/2``), read-only; empty in the running totals
     given to ``on_progress``."""
     kept_existing: bool = False
-    """True when the run replaced nothing: ``overwrite`` was given, no sample came, and the log already at
-    ``out`` (and its sidecar) was left as it was; the final sidecar was not written."""
+    """True when no sample came and the run left the folder as it was: the log already at ``out`` (and its sidecar)
+    untouched, or, for a new file, no log and no sidecar left behind."""
 
 
 def check_settings(rate_hz: float, duration: float | None, flush_interval: float) -> None:
@@ -202,6 +202,8 @@ class CsvLog:
         self._size = 0
         self.writing = path
         """The file being written: ``path``, or the hidden file that replaces it with the first rows."""
+        self.created = not path.exists()
+        """Whether the run made the file (nothing was at ``path``)."""
         if _holds_data(path):
             self._old_fd = _open_locked(path, os.O_RDONLY)  # the old log: no second recorder, kept till replaced
             try:
@@ -753,6 +755,11 @@ def record(
             if write_error is None:
                 write_error = err
         log.close()
+        if log.rows == 0 and log.created and log.replaced and write_error is None:  # a new file with no sample
+            for made in (out, side):
+                made.unlink(missing_ok=True)
+            said = final.message or "stopped before the first sample"
+            final = dataclasses.replace(final, message=f"{said}; nothing was written", kept_existing=True)
     if writer.crash is not None:
         raise writer.crash
     if writer.error is not None:

@@ -48,7 +48,7 @@ from typing import Any, ClassVar
 from hound_id.dyno.logs import CANONICAL, UNITS
 from hound_id.errors import DynoDataError, SpecError
 from hound_id.io import read_yaml
-from hound_id.units import as_number, normalise, registry, unit_text_errors
+from hound_id.units import as_number, check_unit_text, normalise, registry, unit_text_errors
 
 SCHEMA = "hound-id/rig/1"
 
@@ -378,6 +378,7 @@ def _conversion(unit: str, column: str) -> tuple[str, float, float] | str:
     ureg = registry()
     text = normalise(unit)
     try:
+        check_unit_text(text)
         parsed = ureg.Unit(text)
     except unit_text_errors() as err:
         return f"found {unit!r}, which is not a unit ({err}); expected a pint unit such as 'N*m', 'rpm', 'degC'"
@@ -671,6 +672,7 @@ def _seconds(data: Mapping[Any, Any], key: str, at: _Where) -> float:
     if number is None and isinstance(value, str):
         ureg = registry()
         try:
+            check_unit_text(value)
             number = float(ureg.Quantity(normalise(value)).to("s").magnitude)
         except unit_text_errors():
             number = None

@@ -66,8 +66,9 @@ def test_failures_become_gaps_and_a_dead_device_stops_the_run(tmp_path):
         policy=RetryPolicy(retries=1, give_up_after=0.2),
     )
     assert result.status == "failed" and "connection refused" in result.message
-    meta = json.loads(sidecar_path(tmp_path / "dead.csv").read_text())
+    meta = result.metadata  # what the sidecar said: a run with no sample leaves no file
     assert meta["status"] == "failed" and meta["gaps"]
+    assert not (tmp_path / "dead.csv").exists() and not sidecar_path(tmp_path / "dead.csv").exists()
 
 
 def test_bad_arguments(tmp_path):
@@ -597,3 +598,18 @@ def test_the_command_line_keeps_an_old_log_when_the_rig_answers_nothing(rig_proc
     assert len(errors) == 1 and "no sample was read" in errors[0] and "was left as it was" in errors[0]
     assert out.read_bytes() == data and sidecar_path(out).read_bytes() == meta
     assert hidden_files(tmp_path) == []
+
+
+@pytest.mark.parametrize("how", ["no-answer", "ctrl-c"])
+def test_a_new_log_that_never_got_a_sample_leaves_nothing_behind(tmp_path, how):
+    """No header-only log and no sidecar of a run that read nothing: the folder is as it was."""
+
+    def dead():
+        if how == "ctrl-c":
+            raise KeyboardInterrupt
+        raise ReadError("Modbus 127.0.0.1:1 unit 1: connection refused")
+
+    out = tmp_path / "new.csv"
+    result = record(dead, ["current"], out, rate_hz=50.0, duration=0.3, policy=RetryPolicy(retries=0))
+    assert result.samples == 0 and result.kept_existing and result.message.endswith("nothing was written")
+    assert list(tmp_path.iterdir()) == []
