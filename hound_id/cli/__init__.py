@@ -101,19 +101,19 @@ def main(argv: list[str] | None = None) -> None:
 
 def run() -> None:
     """Process entry point (the ``hound-id`` script, ``python -m hound_id``): :func:`main`, and on bad input (exit 2)
-    the process ends at once, its one line flushed, without the interpreter's teardown: nothing is left to write
-    (outputs are renamed into place or not at all), and a native reader thread torn down at exit once turned that
-    exit 2 into an abort (exit 134: "terminate called without an active exception") about one run in fifteen under
-    load."""
+    or Ctrl-C (exit 130) the process ends at once, its one line flushed, without the interpreter's teardown: nothing
+    is left to write (outputs are renamed into place or not at all, the recorder has synced its rows), and a native
+    reader thread torn down at exit once turned that exit into an abort (exit 134: "terminate called without an
+    active exception") about one run in fifteen under load."""
     import os
 
     try:
         main()
     except SystemExit as stop:
-        if stop.code == 2:
+        if stop.code in (2, 130):  # bad input, or Ctrl-C: the one line is out, nothing is left to do
             sys.stdout.flush()
             sys.stderr.flush()
-            os._exit(2)
+            os._exit(stop.code)
         raise
 
 

@@ -28,7 +28,7 @@ from tests.cli.test_bad_input_catalogue import (
     files_under,
     invoke,
 )
-from tests.conftest import MOTOR, ROBOT, run_cli
+from tests.conftest import MOTOR, ROBOT, restore_sigint, run_cli
 
 #: Seconds after which a FIFO input gets a writer (and so an end of file), should a command open it.
 WATCHDOG = 20.0
@@ -581,6 +581,7 @@ def test_ctrl_c_while_the_command_line_starts_is_one_line_and_exit_130():
             stdout=subprocess.DEVNULL,
             stderr=subprocess.PIPE,
             text=True,
+            preexec_fn=restore_sigint,  # a suite run as a background job would pass SIGINT on ignored
         )
         time.sleep(delay)
         proc.send_signal(signal.SIGINT)
