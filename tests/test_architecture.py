@@ -48,6 +48,7 @@ RUNTIME_LIBRARIES = {"numpy", "torch"}
 #: none of them (errors, units, io, tables, arrays, parameter, samples, the package itself) are the ground floor.
 ROOMS = (
     "hound_id.__main__",
+    "hound_id.entry",
     "hound_id.cli",
     "hound_id.demo",
     "hound_id.dyno.fleet",
@@ -69,7 +70,8 @@ ROOMS = (
 GROUND = "ground"
 #: The arrows: which rooms each room may import (besides itself and the ground floor). ARCHITECTURE.md draws this.
 ALLOWED = {
-    "hound_id.__main__": {"hound_id.cli"},
+    "hound_id.__main__": {"hound_id.entry"},
+    "hound_id.entry": {"hound_id.cli"},
     "hound_id.cli": {
         "hound_id.demo", "hound_id.dyno.fleet", "hound_id.dyno.fit_current", "hound_id.dyno.compare_envelope",
         "hound_id.dyno.acquire",
