@@ -120,13 +120,13 @@ def check_output(
             "give the path of a file",
             path=str(target),
         )
-    for source in inputs:
-        if source is not None and target.exists() and Path(source).exists() and os.path.samefile(target, source):
-            raise OutputError(
-                f"{target}: is also an input of this command ({source}); writing it would destroy the input: "
-                "choose another output path",
-                path=str(target),
-            )
+    source = _input_at(target, inputs)
+    if source is not None:
+        raise OutputError(
+            f"{target}: is also an input of this command ({source}); writing it would destroy the input: "
+            "choose another output path",
+            path=str(target),
+        )
     if target.suffix.lower() not in suffixes:
         raise OutputError(
             f"{target}: {what} files end in {' or '.join(suffixes)}; found '{target.suffix or '(no suffix)'}'",
@@ -199,13 +199,17 @@ def check_input(
 
 
 def read_bounded_text(
-    path: str | os.PathLike[str], what: str, max_bytes: int, error: type[HoundIdError] = SpecError
+    path: str | os.PathLike[str],
+    what: str,
+    max_bytes: int,
+    error: type[HoundIdError] = SpecError,
+    option: str | None = None,
 ) -> str:
     """The text (UTF-8) of a regular file of at most ``max_bytes``, else a one-line error of type ``error``.
 
     The bound holds while reading too: a file that grows, or reports no size (as /proc files do), is cut off."""
     source = Path(path)
-    check_input(source, what, error, max_bytes)
+    check_input(source, what, error, max_bytes, option)
     try:
         with open(source, "rb") as handle:
             data = handle.read(max_bytes + 1)
@@ -239,8 +243,7 @@ def read_json(
     nesting Python can hold, integers it can read), else a one-line error of type ``error``."""
     source = Path(path)
     name = f"{option} {source}" if option else str(source)
-    check_input(source, what, error, max_bytes, option)
-    text = read_bounded_text(source, what, max_bytes, error)
+    text = read_bounded_text(source, what, max_bytes, error, option)
 
     def constant(word: str) -> Any:
         raise ValueError(f"{word} is not a JSON number")
@@ -349,13 +352,20 @@ def staged_folder(
 
 def _check_not_input(target: Path, inputs: Sequence[str | os.PathLike[str] | None], option: str) -> None:
     """Raise when writing ``target`` would replace one of ``inputs``."""
-    for source in inputs:
-        if source is not None and target.exists() and Path(source).exists() and os.path.samefile(target, source):
-            raise OutputError(
-                f"{option} {target.parent}: writing {target.name} there would replace the input {source}; choose "
-                f"another {option} (or move the input out of it)",
-                path=str(target),
-            )
+    source = _input_at(target, inputs)
+    if source is not None:
+        raise OutputError(
+            f"{option} {target.parent}: writing {target.name} there would replace the input {source}; choose "
+            f"another {option} (or move the input out of it)",
+            path=str(target),
+        )
+
+
+def _input_at(target: Path, inputs: Sequence[str | os.PathLike[str] | None]) -> str | os.PathLike[str] | None:
+    """The input that ``target`` is (the same file, through any link or path), else None."""
+    if not target.exists():
+        return None
+    return next((s for s in inputs if s is not None and Path(s).exists() and os.path.samefile(target, s)), None)
 
 
 def _check_clash(folder: Path, target: Path, option: str) -> None:

@@ -258,10 +258,11 @@ class CsvLog:
         os.replace(hidden, self.path)
         self.writing = self.path
         for stale in (sidecar_path(hidden), sidecar_path(self.path)):
-            try:
-                stale.unlink()
-            except FileNotFoundError:
-                pass
+            stale.unlink(missing_ok=True)
+        self._release_old()
+
+    def _release_old(self) -> None:
+        """Close the old log (and release its lock), once."""
         old, self._old_fd = self._old_fd, -1
         if old >= 0:
             os.close(old)
@@ -299,13 +300,8 @@ class CsvLog:
             os.close(fd)
         if not self.replaced:
             for leftover in (self.writing, sidecar_path(self.writing)):
-                try:
-                    leftover.unlink()
-                except FileNotFoundError:
-                    pass
-        old, self._old_fd = self._old_fd, -1
-        if old >= 0:
-            os.close(old)
+                leftover.unlink(missing_ok=True)
+        self._release_old()
 
 
 def _holds_data(path: Path) -> bool:
