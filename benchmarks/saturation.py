@@ -17,7 +17,12 @@ reads both inputs and writes one output (``add(tau, qd, out=buf)``), the least t
 needs. ``--envs 256,4096,65536`` (or ``--scaling``: 256 to 65,536) runs several batch sizes. With
 a CUDA device, torch is timed there too (synchronised around each call).
 
-Run: .venv/bin/python benchmarks/saturation.py [--envs 4096] [--processes 5] [--json]
+``--dc-law`` drops the sample motor's inductance (the paper's DC law, the clip before the drive's dq model);
+``--bus-voltage`` gives each environment its own bus voltage, drawn in the battery's range (66-84 V), to both
+clips as full (envs, joints) arrays set at reset, as a trainer randomising the charge keeps them: the per-joint
+clip's stall torque and no-load speed scaled by V / V_nom, the coupled clip's ``bus_voltage``.
+
+Run: .venv/bin/python benchmarks/saturation.py [--envs 4096] [--processes 5] [--json] [--dc-law] [--bus-voltage]
      .venv/bin/python benchmarks/saturation.py --scaling --json    # 256 ... 65,536 environments
      .venv/bin/python benchmarks/saturation.py --feasibility   # worst excess past the region, per dtype
 """
@@ -71,6 +76,8 @@ def main() -> None:
     parser.add_argument("--raw-malloc", action="store_true", help="leave glibc's malloc thresholds alone")
     parser.add_argument("--processes", type=int, default=5, help="fresh processes to take the median over")
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
+    parser.add_argument("--dc-law", action="store_true", help="the sample motor without its inductance (DC law)")
+    parser.add_argument("--bus-voltage", action="store_true", help="a bus voltage per environment (66-84 V)")
     parser.add_argument(
         "--feasibility",
         action="store_true",
@@ -85,6 +92,11 @@ def main() -> None:
     envs = int(args.envs)
 
     robot = load_robot(ROBOT)
+    if args.dc_law:
+        from dataclasses import replace
+
+        specs = {m: replace(s, inductance=None, inductance_convention=None) for m, s in robot.motor_specs.items()}
+        robot = replace(robot, motor_specs=specs)
     sat = saturation_for(robot)
     # per-joint parameters a simulator's DC-motor model would hold (diagonal gear ratio)
     gear = 1.0 / np.abs(np.diag(robot.velocity_map()))
@@ -103,6 +115,14 @@ def main() -> None:
         np.ascontiguousarray(np.broadcast_to(a, tau.shape), dtype=np.float32)
         for a in (sat_effort, vel_limit, eff_limit, vel_at_limit)
     ]
+    volts = None
+    if args.bus_voltage:  # set at reset: the per-joint clip's stall torque and no-load speed follow V / V_nom
+        v_nom = np.array([robot.motor_specs[m].bus_voltage for m in robot.motors])
+        volts = np.repeat(rng.uniform(66.0, 84.0, (envs, 1)), sat.n, axis=1).astype(np.float32)
+        scale = (volts / v_nom).astype(np.float32)
+        consts32[0] = np.ascontiguousarray(consts32[0] * scale)
+        consts32[1] = np.ascontiguousarray(consts32[1] * scale)
+        consts32[3] = np.ascontiguousarray(consts32[1] * (1.0 + consts32[2] / consts32[0]))
 
     # fewer rounds for big batches: each call is longer, and the total stays about the same
     rounds = max(3, int(args.repeats * 4096 / max(envs, 4096)) // 10)
@@ -130,12 +150,12 @@ def main() -> None:
     buf = np.empty_like(tau)
     fused_on = fused.available()
     results["numpy"] = timed(
-        lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd), lambda: np.add(tau, qd, out=buf)
+        lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd, volts), lambda: np.add(tau, qd, out=buf)
     )
     if fused_on:  # the same clip with numpy's steps (one pass each), as without numba
         os.environ[fused.ENV] = "0"
         results["numpy-steps"] = timed(
-            lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd), lambda: np.add(tau, qd, out=buf)
+            lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd, volts), lambda: np.add(tau, qd, out=buf)
         )
         os.environ[fused.ENV] = "1"
 
@@ -148,11 +168,12 @@ def main() -> None:
         devices = ["cpu"] + (["cuda"] if torch.cuda.is_available() else [])
         for device in devices:
             tt, tq = torch.from_numpy(tau).to(device), torch.from_numpy(qd).to(device)
+            tv = None if volts is None else torch.from_numpy(volts).to(device)
             tc = [torch.from_numpy(c).to(device) for c in consts32]
             tb = torch.empty_like(tt)
             results[f"torch-{device}"] = timed(
                 lambda: dc_motor_clip(tt, tq, *tc),  # noqa: B023 (timed here, in this iteration)
-                lambda: sat(tt, tq),  # noqa: B023
+                lambda: sat(tt, tq, tv),  # noqa: B023
                 lambda: torch.add(tt, tq, out=tb),  # noqa: B023
                 sync=torch.cuda.synchronize if device == "cuda" else None,
             )
@@ -229,6 +250,7 @@ def report(args: argparse.Namespace) -> None:
         cmd = [sys.executable, __file__, "--worker", "--envs", str(envs), "--repeats", str(args.repeats)]
         if args.raw_malloc:
             cmd.append("--raw-malloc")
+        cmd += ["--dc-law"] * args.dc_law + ["--bus-voltage"] * args.bus_voltage
         runs = [
             json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
             for _ in range(args.processes)

@@ -12,7 +12,9 @@ Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order o
 torch, when given tensors) are imported, besides the standard library: of hound-id, only
 :mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation`
 (with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs,
-:mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse :meth:`Runtime.current` gives,
+:mod:`hound_id.mor.drive`, the drive's dq window the clip takes for a motor with a winding reactance or
+field weakening, :mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse
+:meth:`Runtime.current` gives,
 and :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
 (:meth:`Runtime.clip_turn`). With numba installed (``hound-id[fast]``) the first clip of an ordinary batch imports
 it for the fused loop of :mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
@@ -47,7 +49,7 @@ from hound_id.mor.saturation import (
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.
-READABLE = ("hound-id/bundle/1", "hound-id/bundle/2")
+READABLE = ("hound-id/bundle/1", "hound-id/bundle/2", "hound-id/bundle/3")
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
 EPS_SPEED = 0.01
@@ -132,14 +134,18 @@ class Runtime:
                 self._consts[key] = tuple(np.asarray(v, dtype=dtype) for v in values)
         return self._consts[key]
 
-    def saturate(self, tau_cmd: Any, qd: Any) -> Any:
+    def saturate(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None) -> Any:
         """Joint torques [N m] after each motor's operating region, for (..., n_joints) commands and speeds.
 
         Feasible for every finite command, float32 or float64, numpy or torch (however large: the clipped
         motor torques are mapped back); commands inside the region come back unchanged; a NaN command or
         speed comes back NaN, nothing is raised (see :meth:`hound_id.mor.saturation.Saturation.__call__`).
+
+        ``bus_voltage`` [V]: the battery's voltage per environment, (..., 1), or per motor, (..., n), to randomise
+        its charge (e.g. drawn at each reset from the bundle's ``bus_voltage_range``); the region follows it (a
+        bundle/3 or later). Keep it as a full (..., n) array of the commands' dtype for the cheapest clip.
         """
-        return self.clip(tau_cmd, qd)
+        return self.clip(tau_cmd, qd, bus_voltage)
 
     __call__ = saturate
 
@@ -252,7 +258,7 @@ class Runtime:
                 out[..., m] = t / float(self.kt[m])
         return out
 
-    def voltage(self, tau_cmd: Any, qd: Any) -> Any:
+    def voltage(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None) -> Any:
         """Motor voltages [V] for MuJoCo's voltage-input dcmotor (``hound-id export``, ``--mujoco-actuator dcmotor``):
         v = R tau_m / Kt + omega_m / Kv of the saturated motor torques, clamped to +-V_bus, (..., n_motors).
 
@@ -264,7 +270,7 @@ class Runtime:
         """
         if self.resistance is None or self.kv is None or self.bus_voltage is None:
             raise SaturationError("runtime.voltage: this runtime has no motor resistance, Kv and bus voltage")
-        tau_m = self.motor_torque(self.saturate(tau_cmd, qd))
+        tau_m = self.motor_torque(self.saturate(tau_cmd, qd, bus_voltage))
         omega = self.motor_velocity(qd)
         r_kt, inv_kv, v_bus = self.resistance / self.kt, 1.0 / self.kv, self.bus_voltage
         if _is_torch(tau_m):
@@ -272,7 +278,11 @@ class Runtime:
 
             kw = {"dtype": tau_m.dtype, "device": tau_m.device}
             r, w, v = (torch.tensor(np.array(a), **kw) for a in (r_kt, inv_kv, v_bus))
+            if bus_voltage is not None:
+                v = torch.clamp(torch.as_tensor(bus_voltage, **kw), min=0.0)
             return torch.minimum(torch.maximum(tau_m * r + omega * w, -v), v)
+        if bus_voltage is not None:
+            v_bus = np.maximum(np.asarray(bus_voltage, dtype=float), 0.0)
         return np.clip(tau_m * r_kt + omega * inv_kv, -v_bus, v_bus)
 
 
@@ -371,6 +381,31 @@ def _curve_arrays(
     return frozen(limit_x), frozen(q), frozen(top)
 
 
+def _drive_fields(block: Mapping[str, Any], n: int, source: str) -> dict[str, Any]:
+    """The Saturation fields of a bundle/3's nominal bus voltages and drive arrays (empty for older bundles and for
+    the DC law); SpecError names a malformed one."""
+    out: dict[str, Any] = {}
+    try:
+        if block.get("bus_voltage") is not None:
+            volts = np.asarray(block["bus_voltage"], dtype=float)
+            if volts.shape != (n,) or not np.all(volts > 0) or not np.all(np.isfinite(volts)):
+                raise ValueError(f"bus_voltage needs {n} positive numbers")
+            out["bus_voltage"] = frozen(volts)
+        drive = block.get("drive")
+        if drive is not None:
+            k_rho = np.asarray(drive["k_rho"], dtype=float)
+            circle = np.asarray(drive["circle_x"], dtype=float)
+            fw = np.asarray([bool(f) for f in drive["field_weakening"]])
+            if any(a.shape != (n,) for a in (k_rho, circle, fw)) or not (
+                np.all(np.isfinite(k_rho)) and np.all(k_rho >= 0) and np.all(circle > 0) and np.all(np.isfinite(circle))
+            ):
+                raise ValueError(f"drive needs {n} finite k_rho >= 0, circle_x > 0 and field_weakening flags")
+            out.update(drive_k_rho=frozen(k_rho), drive_circle_x=frozen(circle), drive_fw=frozen(fw))
+    except (KeyError, TypeError, ValueError) as err:
+        raise SpecError(f"{source}: saturation block is damaged ({err}); re-export the bundle") from err
+    return out
+
+
 def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: str = "bundle") -> Runtime:
     """A runtime from a bundle: its dict (the file's content) or a :class:`hound_id.export.bundle.Bundle`
     (see :func:`load`).
@@ -395,7 +430,9 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         own = tuple(joints.index(j) for j in names)  # motor k is the one listed with the bundle's joint k
         A = A[list(own), :]  # rows follow your joints; motors keep their order
         joints = names
-    lines = tuple(polyline_of(p) for p in bundle["saturation"].get("polylines") or [])
+    blocks = list(bundle["saturation"].get("polylines") or [])
+    lines = tuple(polyline_of(p) for p in blocks)
+    held = tuple(bool(isinstance(p, Mapping) and p.get("held")) for p in blocks)
     second = bundle.get("schema") != "hound-id/bundle/1"
     curves = [_curve_of(m, source) for m in motors] if second else [None] * len(motors)
     curve_arrays = (
@@ -413,6 +450,8 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         curve_q=curve_arrays[1],
         top_torque=curve_arrays[2],
         polylines=lines if any(p is not None for p in lines) else (),
+        held=held if any(held) else (),
+        **_drive_fields(bundle["saturation"], len(motors), source),
     )
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:

@@ -35,6 +35,7 @@ RUNTIME_LOADS = {
     "hound_id.mor",
     "hound_id.mor.clip_turn",
     "hound_id.mor.current_curve",
+    "hound_id.mor.drive",
     "hound_id.mor.fused",
     "hound_id.mor.region",
     "hound_id.mor.saturation",

@@ -247,6 +247,9 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     for binding in run.bindings:
         w0, w1 = binding.speeds
         console.print(f"  {w0:.4g} to {w1:.4g} rad/s: {binding.limit}: {binding.detail}", highlight=False)
+    speed = run.at_speed
+    if speed is not None:
+        _print_at_speed(spec, speed)
     lk = run.linear_kt
     if lk.largest > 0:
         console.print(
@@ -279,6 +282,50 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
+
+
+def _print_at_speed(spec: Any, speed: Any) -> None:
+    """The drive model's and the battery's lines of ``mor --spec`` (:class:`hound_id.mor.region.AtSpeed`)."""
+    d, dc = speed.drive, speed.dc_law
+    drive = spec.drive
+    if drive is not None:
+        parts = []
+        if drive.inductance_phase is not None:
+            parts.append(
+                f"{drive.inductance_phase * 1e6:.4g} uH per phase ({spec.inductance * 1e6:.4g} uH "
+                f"{(drive.convention or '').replace('_', '-')}), {drive.pole_pairs} pole pairs"
+            )
+        parts.append("field weakening" if drive.field_weakening else "i_d = 0 (no field weakening)")
+        console.print(f"at speed, the drive's dq model: {', '.join(parts)}", highlight=False)
+        worst = speed.largest_cost
+        console.print(
+            f"  corner speed {d.corner_speed:.4g} rad/s (DC law {dc.corner_speed:.4g}, "
+            f"{(d.corner_speed / dc.corner_speed - 1):+.1%}); motoring reaches {d.no_load_speed:.4g} rad/s (DC law "
+            f"{dc.no_load_speed:.4g}); control is lost past {d.overspeed:.4g} rad/s (DC law {dc.overspeed:.4g}), the "
+            "diode bridge's braking from there",
+            highlight=False,
+        )
+        if worst[0] > 0:
+            console.print(
+                f"  the reactance costs up to {worst[0]:.3g} N m of motoring torque ({worst[0] / worst[2]:.1%}) at "
+                f"{worst[1]:.4g} rad/s; per speed in --json (at_speed.motoring_edge)",
+                highlight=False,
+            )
+        if speed.without_weakening is not None:
+            p = speed.without_weakening
+            console.print(
+                f"  without field weakening: motoring to {p.no_load_speed:.4g} rad/s, control to {p.overspeed:.4g}",
+                highlight=False,
+            )
+    if speed.battery:
+        low, high = speed.battery
+        console.print(
+            f"battery {low.bus_voltage:.4g}-{high.bus_voltage:.4g} V: corner speed {low.corner_speed:.4g}-"
+            f"{high.corner_speed:.4g} rad/s, motoring to {low.no_load_speed:.4g}-{high.no_load_speed:.4g} rad/s; "
+            f"inner box at {low.bus_voltage:.4g} V: {low.inner_box[0]:.4g} N m to {low.inner_box[1]:.4g} rad/s "
+            "(the box every charge holds)",
+            highlight=False,
+        )
 
 
 def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:

@@ -1,4 +1,4 @@
-"""The parameter bundle (``hound-id/bundle/2``): everything a trainer needs, in one file.
+"""The parameter bundle (``hound-id/bundle/3``): everything a trainer needs, in one file.
 
 :func:`build_bundle` gathers, for a robot with its (optionally fitted) motors:
 
@@ -18,13 +18,17 @@
 * ``saturation``: the arrays :mod:`hound_id.runtime` rebuilds the clip from (``limit_x``, Kt times
   the current at the torque limit, ``curve_q``, the quadratic curve's k / Kt^2, and ``top_torque``,
   a table curve's top, null for the others), with polyline
-  edges where a motor has a measured envelope (``mor --compare --out``) or a table curve;
+  edges where a motor has a measured envelope (``mor --compare --out``) or a table curve (``held``: the
+  polyline's end values hold beyond it), the nominal ``bus_voltage`` per motor (the clip scales its stall torque
+  to another bus), and ``drive`` (per motor ``k_rho``, ``circle_x``, ``field_weakening`` of the drive's dq model,
+  :mod:`hound_id.mor.drive`; null under the DC law);
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
 Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unless a field says
 joint. The bundle is a frozen :class:`Bundle` (one :class:`BundleMotor` per motor, nested blocks
 read-only); :meth:`Bundle.to_dict` is the file's content. :func:`load_bundle` reads bundles of every
-schema version so far (/1: linear-Kt limits, ``compensation`` the polynomial; /2: the curve).
+schema version so far (/1: linear-Kt limits, ``compensation`` the polynomial; /2: the curve; /3: the drive's dq
+model, the bus voltage range and the nominal bus per motor in ``saturation``).
 """
 
 from __future__ import annotations
@@ -52,7 +56,7 @@ __all__ = [
     "load_bundle",
 ]  # fmt: skip
 
-SCHEMA = "hound-id/bundle/2"
+SCHEMA = "hound-id/bundle/3"
 #: Friction effects of the fit that the runtime and the simulators use (motor side).
 FRICTION = ("coulomb", "viscous", "stribeck")
 
@@ -110,6 +114,10 @@ class BundleMotor:
     """The current-torque curve (:meth:`hound_id.mor.current_curve.CurrentCurve.to_dict`; bundle/2)."""
     compensation_polynomial: Mapping[str, Any] | None = None
     """The fit's odd compensation polynomial with its error against the exact inverse (bundle/2), if fitted."""
+    drive: Mapping[str, Any] | None = None
+    """The drive's dq model (:meth:`hound_id.mor.drive.Drive.to_dict`; bundle/3), or None for the DC law."""
+    bus_voltage_range: tuple[float, float] | None = None
+    """(lowest, highest) bus voltage over the battery's discharge [V] (bundle/3), if the spec states it."""
 
     def to_dict(self) -> dict[str, Any]:
         """The motor's entry in the bundle file."""
@@ -117,16 +125,19 @@ class BundleMotor:
 
 
 #: BundleMotor fields older bundles lack.
-_OPTIONAL = ("envelope", "linear_torque_limit", "limit_current", "current_curve", "compensation_polynomial")
+_OPTIONAL = (
+    "envelope", "linear_torque_limit", "limit_current", "current_curve", "compensation_polynomial", "drive",
+    "bus_voltage_range",
+)  # fmt: skip
 
 
 @dataclass(frozen=True)
 class Bundle:
-    """A ``hound-id/bundle/2`` bundle (or a /1 one read back; see the module docstring); :meth:`to_dict` is the
-    file's content."""
+    """A ``hound-id/bundle/3`` bundle (or a /1 or /2 one read back; see the module docstring); :meth:`to_dict` is
+    the file's content."""
 
     schema: str
-    """``hound-id/bundle/2`` (or /1)."""
+    """``hound-id/bundle/3`` (or /1, /2)."""
     robot: str
     """Robot name."""
     units: str
@@ -270,6 +281,8 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "compensation": spec.current_curve.compensation(),
                 "compensation_polynomial": comp,
                 "envelope": spec.envelope.to_dict() if spec.envelope else None,
+                "drive": r["drive"],
+                "bus_voltage_range": None if spec.bus_voltage_range is None else list(spec.bus_voltage_range),
             }
         )
     rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
@@ -303,11 +316,25 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
             "top_torque": [None] * sat.n if sat.top_torque is None else _nan_to_none(sat.top_torque),
             "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
             "polylines": [
-                {"speeds": p[0].tolist(), "lower": _nan_to_none(p[1]), "upper": _nan_to_none(p[2])}
+                {
+                    "speeds": p[0].tolist(),
+                    "lower": _nan_to_none(p[1]),
+                    "upper": _nan_to_none(p[2]),
+                    "held": bool(sat.held and sat.held[k]),
+                }
                 if p is not None
                 else None
-                for p in (sat.polylines or (None,) * len(robot.motors))
+                for k, p in enumerate(sat.polylines or (None,) * len(robot.motors))
             ],
+            "bus_voltage": None if sat.bus_voltage is None else sat.bus_voltage.tolist(),
+            "drive": None
+            if sat.drive_k_rho is None or sat.drive_circle_x is None or sat.drive_fw is None
+            else {
+                "k_rho": sat.drive_k_rho.tolist(),
+                "circle_x": sat.drive_circle_x.tolist(),
+                "field_weakening": [bool(f) for f in sat.drive_fw],
+                "units": {"k_rho": "1/(N m)", "circle_x": "N m"},
+            },
         },
         "foot": foot,
     }

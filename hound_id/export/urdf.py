@@ -3,6 +3,7 @@
 
 from __future__ import annotations
 
+import math
 import xml.etree.ElementTree as ET
 from pathlib import Path
 from typing import Any
@@ -18,6 +19,13 @@ ARMATURE_SCHEMA = "hound-id/armature/1"
 
 def _fmt(v: float) -> str:
     return f"{v:.9g}"
+
+
+def _fmt_up(v: float) -> str:
+    """``v`` > 0 in 9 significant digits, rounded up (an open limit written below its value would bind)."""
+    step = 10.0 ** (math.floor(math.log10(v)) - 8)
+    up = math.ceil(v / step) * step
+    return _fmt(up if up >= v else up + step)
 
 
 #: The open URDF's limits hold every state whose motor speeds are within this multiple of each motor's overspeed.
@@ -38,7 +46,11 @@ def open_limits(ex: Export) -> tuple[np.ndarray, np.ndarray]:
         region = operating_region(ex.robot.motor_specs[m.name])
         w = np.linspace(-OPEN_REACH, OPEN_REACH, OPEN_POINTS) * region.overspeed
         lo, hi = torque_interval(w, region)
-        tops.append(float(max(np.max(np.abs(lo)), np.max(np.abs(hi)))))
+        mag = np.maximum(np.abs(lo), np.abs(hi))
+        k = int(np.argmax(mag))  # a smooth peak (the diode bridge's braking) lies between grid points: refine there
+        near = np.linspace(w[max(k - 1, 0)], w[min(k + 1, w.size - 1)], OPEN_POINTS)
+        lo_n, hi_n = torque_interval(near, region)
+        tops.append(float(max(mag[k], np.max(np.abs(lo_n)), np.max(np.abs(hi_n)))))
         speeds.append(OPEN_REACH * region.overspeed)
     A_inv = np.linalg.inv(ex.A)
     return np.abs(A_inv.T) @ np.array(tops), np.abs(ex.A) @ np.array(speeds)
@@ -66,8 +78,8 @@ def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner", fricti
         if limit is None:
             limit = ET.SubElement(joint, "limit", lower="-3.14159265", upper="3.14159265")
         if effort is not None and velocity is not None:
-            limit.set("effort", _fmt(float(effort[i])))
-            limit.set("velocity", _fmt(float(velocity[i])))
+            limit.set("effort", _fmt_up(float(effort[i])))
+            limit.set("velocity", _fmt_up(float(velocity[i])))
         else:
             limit.set("effort", _fmt(box["effort"]))
             limit.set("velocity", _fmt(box["velocity"]))

@@ -19,6 +19,10 @@ import os
 from functools import cache
 from typing import Any
 
+import numpy as np
+
+from hound_id.mor.drive import SPEED_CAP
+
 #: Environment variable that turns the fused loops off ("0").
 ENV = "HOUND_ID_FUSED"
 
@@ -35,7 +39,8 @@ def _numba() -> Any:
 @cache
 def _helpers() -> tuple[Any, Any, Any]:
     """(jit, numpy's maximum, numpy's minimum) compiled."""
-    jit = _numba().njit(nogil=True, boundscheck=False, fastmath=False)
+    # numpy's error model: a division by zero gives inf or NaN as numpy's does, with no check and branch to raise
+    jit = _numba().njit(nogil=True, boundscheck=False, fastmath=False, error_model="numpy")
 
     @jit  # type: ignore[untyped-decorator]
     def _max(a: Any, b: Any) -> Any:  # numpy's maximum: NaN if either is (a tie of +-0 may keep the other sign)
@@ -49,24 +54,106 @@ def _helpers() -> tuple[Any, Any, Any]:
 
 
 @cache
-def _correction(has_curve: bool, has_cap: bool, has_max_speed: bool) -> Any:
+def _window_fn(has_fw: bool) -> Any:
+    """:func:`hound_id.mor.drive.dq_window` for one element, in the same operations and order (so the same bits),
+    without branches (every case is computed and the result selected), so that the loop vectorises; the field
+    weakening's part only where some motor has it (``has_fw``)."""
+    _, _max, _min = _helpers()
+    inline = _numba().njit(nogil=True, boundscheck=False, fastmath=False, error_model="numpy", inline="always")
+
+    @inline  # type: ignore[untyped-decorator]
+    def window(
+        u: Any, stall: Any, k_rho: Any, limit_x: Any, M: Any, fw: Any, zero: Any, one: Any, speed_cap: Any
+    ) -> tuple[Any, Any]:
+        w = abs(u)
+        cap = speed_cap * stall
+        w = cap if w > cap else w
+        rho = k_rho * w
+        n = one + rho * rho
+        cq = -w / n
+        # i_d = 0: the chord of the voltage disk on the q axis
+        disc = stall * stall * n - (w * rho) * (w * rho)
+        h = np.sqrt(_max(disc, zero)) / n
+        top = cq + h
+        bot = cq - h
+        ok = (disc >= zero) & (top >= -limit_x)
+        if has_fw:  # the q extent of the disk within the current circle
+            sn = np.sqrt(n)
+            cd = -w * rho / n
+            r = stall / sn
+            d = w / sn
+            a = (M * M - r * r + d * d) / ((one + one) * (d if d > zero else one))
+            hh = np.sqrt(_max(M * M - a * a, zero))
+            up = (-a + hh * rho) / sn
+            down = (-a - hh * rho) / sn
+            top1 = (
+                M
+                if cd * cd + (M - cq) * (M - cq) <= r * r
+                else (cq + r if cd * cd + (cq + r) * (cq + r) <= M * M else up)
+            )
+            bot1 = (
+                -M
+                if cd * cd + (M + cq) * (M + cq) <= r * r
+                else (cq - r if cd * cd + (cq - r) * (cq - r) <= M * M else down)
+            )
+            ok1 = (d <= M + r) & (top1 >= -limit_x)
+            weak = fw > zero
+            top = top1 if weak else top
+            bot = bot1 if weak else bot
+            ok = ok1 if weak else ok
+        reach = limit_x + w
+        full = reach * reach + (rho * limit_x) * (rho * limit_x) <= stall * stall
+        hi = limit_x if full | (top >= limit_x) else top
+        lo = -limit_x if full | (bot <= -limit_x) else bot
+        ok = full | ok
+        # past control: the diode bridge's current, its q part
+        m = _max((-stall + np.sqrt(_max(w * w * n - (stall * rho) * (stall * rho), zero))) / n, zero)
+        xq = -(m + stall) * m / np.sqrt((m + stall) * (m + stall) + (rho * m) * (rho * m))
+        hi = hi if ok else xq
+        lo = lo if ok else xq
+        neg = u < zero
+        return (-hi if neg else lo), (-lo if neg else hi)
+
+    return window
+
+
+@cache
+def _correction(
+    has_curve: bool, has_cap: bool, has_max_speed: bool, has_volts: bool, has_drive: bool, has_fw: bool
+) -> Any:
     """The loop for one set of motors' features: the flags are compile-time constants, so the loop has no branch
     and vectorises (a loop that tests them is 1.7x slower)."""
     jit, _max, _min = _helpers()
+    _window = _window_fn(has_fw)
 
     @jit  # type: ignore[untyped-decorator]
-    def correction(tau_m: Any, u: Any, omega: Any, limits: Any, zero: Any, out: Any) -> None:
+    def correction(
+        tau_m: Any, u: Any, omega: Any, limits: Any, zero: Any, one: Any, speed_cap: Any, volts: Any, out: Any
+    ) -> None:
         stall, neg_stall, limit_x, neg_limit_x = limits[0], limits[1], limits[4], limits[5]
         q, top, neg_top, cap, neg_cap, wmax = limits[6], limits[7], limits[8], limits[9], limits[10], limits[11]
+        per_volt, k_rho, circle, fw = limits[12], limits[13], limits[14], limits[15]
         for k in range(tau_m.size):
             uk = u[k]
-            hi = stall[k] - uk  # upper voltage line
-            lo = neg_stall[k] - uk
-            if has_curve:  # the line ends that can pass the curve's top are held there
-                hi = _max(hi, neg_top[k])
-                lo = _min(lo, top[k])
-            up = _max(_min(hi, limit_x[k]), lo)  # the window cut to the driver's limit
-            lo = _min(_max(lo, neg_limit_x[k]), hi)
+            if has_volts:  # the stall torque at this element's bus voltage
+                s = _max(volts[k], zero) * per_volt[k]
+                ns = -s
+            else:
+                s = stall[k]
+                ns = neg_stall[k]
+            if has_drive:
+                lo, up = _window(uk, s, k_rho[k], limit_x[k], circle[k], fw[k], zero, one, speed_cap)
+                if has_curve:
+                    lo = _min(_max(lo, neg_top[k]), top[k])
+                    up = _min(_max(up, neg_top[k]), top[k])
+            else:
+                hi = s - uk  # upper voltage line
+                lo = ns - uk
+                if has_curve:  # the line ends that can pass the curve's top are held there
+                    hi = _max(hi, neg_top[k])
+                    lo = _min(lo, top[k])
+                up = _max(_min(hi, limit_x[k]), lo)  # the window cut to the driver's limit
+                lo = _min(_max(lo, neg_limit_x[k]), hi)
             if has_curve:  # x - q x|x|, as numpy's steps round it
                 up = up - (abs(up) * q[k]) * up
                 lo = lo - (abs(lo) * q[k]) * lo
@@ -103,11 +190,12 @@ def available() -> bool:
     return os.environ.get(ENV, "1") != "0" and _numba() is not None
 
 
-def clip_correction(tau_m: Any, u: Any, omega: Any, c: Any, out: Any) -> None:
+def clip_correction(tau_m: Any, u: Any, omega: Any, c: Any, out: Any, volts: Any = None) -> None:
     """``out`` = clip(tau_m, interval(u)) - tau_m for C-contiguous arrays of one shape and dtype, with the
     constants ``c`` (:class:`hound_id.mor.saturation._Constants`, their ``stacked`` limits expanded to that shape);
-    ``omega`` (the motor speeds) is read only when the constants have a rated speed."""
-    loop = _correction(c.has_curve, c.has_cap, c.has_max_speed)
+    ``omega`` (the motor speeds) is read only when the constants have a rated speed, ``volts`` (the bus voltage
+    per element, same shape) only when given."""
+    loop = _correction(c.has_curve, c.has_cap, c.has_max_speed, volts is not None, c.has_drive, c.has_fw)
     flat = tau_m.reshape(-1)
     loop(
         flat,
@@ -115,6 +203,9 @@ def clip_correction(tau_m: Any, u: Any, omega: Any, c: Any, out: Any) -> None:
         flat if omega is None else omega.reshape(-1),
         c.stacked,
         out.dtype.type(0.0),
+        out.dtype.type(1.0),
+        out.dtype.type(SPEED_CAP),
+        flat if volts is None else np.ascontiguousarray(volts).reshape(-1),
         out.reshape(-1),
     )
 

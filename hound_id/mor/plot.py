@@ -60,7 +60,10 @@ PAST_OVERSPEED = 1.2
 
 
 def plot_region(
-    region: OperatingRegion, sheet: OperatingRegion | None = None, linear: OperatingRegion | None = None
+    region: OperatingRegion,
+    sheet: OperatingRegion | None = None,
+    linear: OperatingRegion | None = None,
+    outlines: tuple[tuple[OperatingRegion, str], ...] = (),
 ) -> Figure:
     """The motor's region in (torque, speed) with quadrants labelled, against the URDF box.
 
@@ -68,7 +71,8 @@ def plot_region(
     every speed up to the no-load (or rated maximum) speed. Its corners in the
     motoring quadrants (1 and 3) lie outside the region. With ``sheet`` (the region is a
     measured envelope) the spec sheet's region is drawn dashed; with ``linear`` the linear-Kt region
-    (:func:`hound_id.mor.region.linear_region`), dotted.
+    (:func:`hound_id.mor.region.linear_region`), dotted; each of ``outlines`` (region, label) as a thin line (the DC
+    law against a drive model, the region at the battery's lowest voltage).
     """
     fig = new_figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
@@ -86,6 +90,8 @@ def plot_region(
             ls="-.",
             label=f"linear-Kt region (tau = Kt i): |tau|<={linear.torque_limit:.3g} N m, what a linear model promises",
         )
+    for (other, text), colour in zip(outlines, ("tab:orange", "tab:brown", "tab:olive"), strict=False):
+        ax.plot(*_closed(other.vertices).T, color=colour, lw=1.1, ls=(0, (5, 2, 1, 2)), label=text)
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
     _box(
         ax,
@@ -110,7 +116,12 @@ def plot_region(
     # past overspeed the interval collapses onto the braking torque the back-EMF forces (region.torque_interval)
     past = np.linspace(region.overspeed, PAST_OVERSPEED * region.overspeed, 60)
     forced = torque_interval(past, region)[1]
-    ax.plot(forced, past, color="tab:red", lw=1.6, ls=":", label="past overspeed: the braking the back-EMF forces")
+    what = (
+        "past overspeed: the braking the back-EMF forces"
+        if region.drive is None
+        else "past the loss of control: the diode bridge's braking"
+    )
+    ax.plot(forced, past, color="tab:red", lw=1.6, ls=":", label=what)
     ax.plot(-forced, -past, color="tab:red", lw=1.6, ls=":")
     tl = max(tl, float(np.max(np.abs(forced))) / 1.3)
     w = max(w, PAST_OVERSPEED * region.overspeed / 1.1)

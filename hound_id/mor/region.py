@@ -36,11 +36,12 @@ from numpy.typing import ArrayLike, NDArray
 
 from hound_id.arrays import frozen
 from hound_id.mor.current_curve import CurrentCurve
+from hound_id.mor.drive import Drive, dq_window
 
 if TYPE_CHECKING:  # at run time only motor_report needs the spec module: the saturation (and so the runtime)
     from hound_id.mor.spec import MotorSpec  # imports this module without yaml or pint
 
-SCHEMA = "hound-id/mor/2"
+SCHEMA = "hound-id/mor/3"
 
 #: Relative tolerance on the rated maximum speed before the braking-only rule applies,
 #: so states computed on the boundary (polygon vertices) count as inside.
@@ -96,6 +97,8 @@ class OperatingRegion:
     """Kt I [N m]: the linear-equivalent torque of the current the torque limit needs (None: the torque limit)."""
     linear_torque_limit: float | None = None
     """What a linear-Kt model takes for the torque limit, min(peak torque, Kt i_max) [N m] (None: the same)."""
+    drive: Drive | None = None
+    """The drive's dq model (winding reactance, field weakening) the edges follow; None: the DC law."""
 
     @property
     def limit_x(self) -> float:
@@ -109,8 +112,9 @@ class OperatingRegion:
         return np.all(slack <= rtol * np.maximum(self.b, 1.0), axis=-1)
 
     def to_dict(self) -> dict[str, Any]:
-        """JSON-ready content, schema ``hound-id/mor/2`` (SI, motor side; /2 added the current-torque curve, the
-        limit current and the linear-Kt torque limit, and the curve-limited torque limit replaced Kt i_max)."""
+        """JSON-ready content, schema ``hound-id/mor/3`` (SI, motor side; /2 added the current-torque curve, the
+        limit current and the linear-Kt torque limit, and the curve-limited torque limit replaced Kt i_max; /3 the
+        drive's dq model, ``drive``, null for the DC law)."""
         return {
             "schema": SCHEMA,
             "motor": self.motor,
@@ -129,6 +133,7 @@ class OperatingRegion:
             "current_curve": None if self.curve is None else self.curve.to_dict(),
             "limit_current": None if self.curve is None else self.limit_x / self.curve.kt,
             "linear_torque_limit": self.torque_limit if self.linear_torque_limit is None else self.linear_torque_limit,
+            "drive": None if self.drive is None else self.drive.to_dict(),
             "units": {"torque": "N m", "speed": "rad/s", "voltage rows": "V", "current": "A"},
         }
 
@@ -136,7 +141,7 @@ class OperatingRegion:
 def motor_report(
     spec: MotorSpec, region: OperatingRegion | None = None, sheet: OperatingRegion | None = None
 ) -> dict[str, Any]:
-    """The ``hound-id/mor/2`` content for a motor: its region, its spec (SI), the spec's warnings, which limit binds
+    """The ``hound-id/mor/3`` content for a motor: its region, its spec (SI), the spec's warnings, which limit binds
     where (of the spec sheet's region, ``sheet``: built here unless given or ``region`` is it), and what the
     linear-Kt region over-promises."""
     from hound_id.mor.spec import spec_warnings
@@ -149,8 +154,117 @@ def motor_report(
         warnings=list(spec_warnings(spec)),
         bindings=[b.to_dict() for b in bindings(sheet, spec)],
         linear_kt=overpromise(linear_region(spec), sheet).to_dict(),
+        at_speed=at_speed(spec, sheet).to_dict() if spec.drive is not None or spec.bus_voltage_range else None,
     )
     return data
+
+
+@dataclass(frozen=True)
+class Speeds:
+    """A region's characteristic speeds and box at one bus voltage, motor side."""
+
+    bus_voltage: float
+    """Bus voltage [V]."""
+    corner_speed: float
+    """Highest speed with full motoring torque [rad/s]."""
+    no_load_speed: float
+    """Where the motoring edge reaches zero torque [rad/s] (with field weakening: how far it reaches)."""
+    overspeed: float
+    """Where the drive loses control (DC law: where even the opposing bus cannot hold the current) [rad/s]."""
+    inner_box: tuple[float, float]
+    """Largest symmetric box (torque [N m], speed [rad/s])."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "bus_voltage": self.bus_voltage,
+            "corner_speed": self.corner_speed,
+            "no_load_speed": self.no_load_speed,
+            "overspeed": self.overspeed,
+            "inner_box": {"torque": self.inner_box[0], "speed": self.inner_box[1]},
+        }
+
+
+def _speeds(region: OperatingRegion, volts: float) -> Speeds:
+    return Speeds(volts, region.corner_speed, region.no_load_speed, region.overspeed, region.inner_box)
+
+
+#: Speeds, as shares of the DC law's no-load speed, at which :func:`at_speed` compares the motoring edges.
+COST_SPEEDS = (0.25, 0.5, 0.75, 0.85, 0.9, 0.95, 1.0, 1.1, 1.25, 1.5, 2.0)
+#: Grid points (0 to the DC no-load speed, plus its corner speed) on which the largest motoring cost is found.
+COST_POINTS = 4001
+
+
+@dataclass(frozen=True)
+class AtSpeed:
+    """What the drive's dq model (winding reactance, field weakening) and the battery's range change in a spec's
+    region: :func:`at_speed`."""
+
+    drive: Speeds
+    """The region as the spec states it (its drive model, at the nominal bus)."""
+    dc_law: Speeds
+    """The paper's DC law at the nominal bus: no reactance, no field weakening."""
+    without_weakening: Speeds | None
+    """With the reactance but i_d = 0 (None unless the spec has field weakening)."""
+    speeds: tuple[float, ...]
+    """Motor speeds of the comparison [rad/s]."""
+    torque_dc: tuple[float, ...]
+    """Upper (motoring, then least braking) edge under the DC law at each speed [N m]."""
+    torque_drive: tuple[float, ...]
+    """Upper edge with the drive model [N m]."""
+    battery: tuple[Speeds, ...]
+    """The region at the lowest and highest bus voltage of the battery (empty without ``bus_voltage_range``)."""
+    largest_cost: tuple[float, float, float]
+    """(DC-law torque - drive torque [N m], at speed [rad/s], the DC law's torque there [N m]): the most motoring
+    torque the drive model takes off the DC law's edge, up to the DC no-load speed (a fine grid)."""
+
+    def to_dict(self) -> dict[str, Any]:
+        return {
+            "largest_motoring_cost": {
+                "torque": self.largest_cost[0],
+                "at_speed": self.largest_cost[1],
+                "dc_law_torque": self.largest_cost[2],
+            },
+            "drive": self.drive.to_dict(),
+            "dc_law": self.dc_law.to_dict(),
+            "without_field_weakening": None if self.without_weakening is None else self.without_weakening.to_dict(),
+            "motoring_edge": {
+                "speeds": list(self.speeds),
+                "dc_law": list(self.torque_dc),
+                "drive": list(self.torque_drive),
+                "cost": [a - b for a, b in zip(self.torque_dc, self.torque_drive, strict=True)],
+            },
+            "battery": [b.to_dict() for b in self.battery],
+            "units": "rad/s, N m, V (motor side)",
+        }
+
+
+def at_speed(spec: MotorSpec, region: OperatingRegion | None = None) -> AtSpeed:
+    """The region at speed: the spec's (with its drive model) against the DC law, at each of :data:`COST_SPEEDS`
+    (shares of the DC no-load speed), and at the ends of the battery's range. ``region`` is the spec's sheet region
+    if already built."""
+    sheet = region if region is not None else operating_region(spec)
+    dc_spec = replace(spec, inductance=None, inductance_convention=None, field_weakening=False)
+    dc = operating_region(dc_spec)
+    plain = None
+    if spec.field_weakening:
+        plain = _speeds(operating_region(replace(spec, field_weakening=False)), spec.bus_voltage)
+    w = np.array(COST_SPEEDS) * dc.no_load_speed
+    fine = np.unique(np.concatenate([np.linspace(0.0, dc.no_load_speed, COST_POINTS), [dc.corner_speed]]))
+    cost = torque_interval(fine, dc)[1] - torque_interval(fine, sheet)[1]
+    k = int(np.argmax(cost))
+    battery: tuple[Speeds, ...] = ()
+    if spec.bus_voltage_range is not None:
+        battery = tuple(_speeds(operating_region(replace(spec, bus_voltage=v)), v) for v in spec.bus_voltage_range)
+    return AtSpeed(
+        drive=_speeds(sheet, spec.bus_voltage),
+        dc_law=_speeds(dc, spec.bus_voltage),
+        without_weakening=plain,
+        speeds=tuple(float(x) for x in w),
+        torque_dc=tuple(float(x) for x in torque_interval(w, dc)[1]),
+        torque_drive=tuple(float(x) for x in torque_interval(w, sheet)[1]),
+        battery=battery,
+        largest_cost=(float(cost[k]), float(fine[k]), float(torque_interval(fine[k : k + 1], dc)[1][0])),
+    )
 
 
 def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
@@ -188,6 +302,8 @@ def halfspace_polygon(A: ArrayLike, b: ArrayLike) -> NDArray[np.float64]:
 def operating_region(spec: MotorSpec) -> OperatingRegion:
     """The operating region of a motor from its spec and its current-torque curve (module docstring)."""
     curve = spec.current_curve
+    if spec.drive is not None:
+        return drive_region(spec)
     if curve.form == "linear":
         return replace(linear_region(spec), curve=curve)
     tl = spec.torque_limit
@@ -226,6 +342,99 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
     region = _cut(base, rows, speeds, cut_lower, cut_upper, "curve", edges=(lower, upper))
     vertices = _ring(speeds, lower, upper)
     return replace(region, vertices=frozen(vertices), inner_box=_traced_box(vertices))
+
+
+#: The drive region's characteristic speeds are searched up to this many DC no-load speeds (past it a drive with field
+#: weakening is taken to hold control: the short-circuit current lies within its current circle).
+DRIVE_SEARCH_REACH = 8.0
+#: Grid points of that search before each crossing is bisected to rounding.
+DRIVE_SEARCH_POINTS = 4001
+
+
+def drive_region(spec: MotorSpec, bus_voltage: float | None = None) -> OperatingRegion:
+    """The operating region under the drive's dq model (:mod:`hound_id.mor.drive`): the winding's reactance and,
+    where the spec says so, field weakening. The edges are curves (polylines refined to :data:`EDGE_TOLERANCE`); the
+    half-spaces are one under each segment within control (a conservative cut where an edge is convex:
+    ``convexity_loss``). Corner speed (full torque), no-load speed (the motoring edge reaches zero: Kv V without
+    field weakening, beyond with it) and overspeed (the drive loses control: the diode bridge's braking from there)
+    are the edges' crossings, found on a grid and bisected. ``bus_voltage`` [V] replaces the spec's."""
+    if bus_voltage is not None:
+        spec = replace(spec, bus_voltage=bus_voltage)
+    drive = spec.drive
+    if drive is None:
+        raise ValueError(f"{spec.name}: the spec has no drive model (inductance with pole pairs, or field weakening)")
+    curve = spec.current_curve
+    tl = spec.torque_limit
+    X = curve.kt * spec.limit_current
+    stall = curve.kt * spec.bus_voltage / spec.resistance
+    damping = curve.kt / (spec.resistance * spec.kv)
+    base = replace(
+        linear_region(spec),
+        torque_limit=tl,
+        stall_torque=stall,
+        back_emf_damping=damping,
+        curve=None if curve.form == "linear" else curve,
+        linear_limit=X,
+        linear_torque_limit=spec.linear_torque_limit,
+        drive=replace(drive, circle_x=curve.kt * drive.phase_current_limit),
+    )
+    corner, no_load, over = _drive_speeds(base)
+    if spec.max_speed is not None:
+        corner = min(corner, spec.max_speed)
+    base = replace(base, corner_speed=corner, no_load_speed=no_load, overspeed=over)
+    speeds, lower, upper = curved_edges(base)
+    rows: list[tuple[str, tuple[float, float], float]] = [
+        ("torque+", (1.0, 0.0), tl),
+        ("torque-", (-1.0, 0.0), tl),
+        ("speed+", (0.0, 1.0), spec.max_speed if spec.max_speed is not None else over),
+        ("speed-", (0.0, -1.0), spec.max_speed if spec.max_speed is not None else over),
+    ]
+    held = lower < upper  # within control (past it the window is the diode bridge's one torque)
+    lower, upper = np.where(held, lower, np.nan), np.where(held, upper, np.nan)
+    region = _cut(base, rows, speeds, lower, upper, "drive")
+    vertices = _ring(speeds, lower, upper)
+    return replace(region, vertices=frozen(vertices), inner_box=_traced_box(vertices))
+
+
+def _drive_speeds(region: OperatingRegion) -> tuple[float, float, float]:
+    """(corner, no-load, overspeed) [rad/s] of a drive region: the first speeds >= 0 at which the upper window falls
+    below the full current, reaches zero, and at which control is lost (the window collapses onto the diode's
+    braking)."""
+    top = DRIVE_SEARCH_REACH * region.stall_torque / region.back_emf_damping
+    X = region.limit_x
+
+    def below_full(w: NDArray[np.float64]) -> NDArray[np.bool_]:
+        return current_window(w, region)[1] < X * (1.0 - 1e-12)
+
+    def motoring_gone(w: NDArray[np.float64]) -> NDArray[np.bool_]:
+        return current_window(w, region)[1] <= 0.0
+
+    def lost(w: NDArray[np.float64]) -> NDArray[np.bool_]:
+        lo, hi = current_window(w, region)
+        return lo >= hi
+
+    return tuple(_first_speed(f, top) for f in (below_full, motoring_gone, lost))  # type: ignore[return-value]
+
+
+def _first_speed(pred: Any, top: float) -> float:
+    """The first speed in [0, top] [rad/s] at which ``pred`` holds (grid, then bisection), or ``top``."""
+    grid = np.linspace(0.0, top, DRIVE_SEARCH_POINTS)
+    hit = np.flatnonzero(pred(grid))
+    if hit.size == 0:
+        return top
+    k = int(hit[0])
+    if k == 0:
+        return 0.0
+    a, b = float(grid[k - 1]), float(grid[k])
+    for _ in range(60):
+        mid = 0.5 * (a + b)
+        if mid in (a, b):
+            break
+        if pred(np.array([mid]))[0]:
+            b = mid
+        else:
+            a = mid
+    return b
 
 
 def linear_region(spec: MotorSpec) -> OperatingRegion:
@@ -275,6 +484,8 @@ def curved_edges(
     d, stall, X = region.back_emf_damping, region.stall_torque, region.limit_x
     top = region.overspeed if reach is None else reach
     marks = [(stall - X) / d, stall / d, (stall + X) / d]  # mirrored below
+    if region.drive is not None:  # the last point within control, and where it is lost (the window collapses)
+        marks = [region.corner_speed, region.no_load_speed, region.overspeed * (1 - 1e-9), region.overspeed]
     if region.max_speed is not None:
         marks += [region.max_speed, region.max_speed * (1 + 2 * SPEED_TOLERANCE)]
     marks = [m for m in marks if abs(m) < top]
@@ -511,6 +722,25 @@ def _inner_box(stall: float, no_load: float, tau_lim: float, max_speed: float | 
     return torque, speed
 
 
+def current_window(
+    omega: NDArray[np.float64], region: OperatingRegion
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """The linear-equivalent torque window x = Kt i [N m] at motor speeds ``omega`` [rad/s], before the current-torque
+    curve: the DC law's [-S - D omega, S - D omega] cut to [-X, X] (past overspeed collapsed onto the end nearest it),
+    or the drive's dq window (:func:`hound_id.mor.drive.dq_window`)."""
+    X = region.limit_x
+    u = region.back_emf_damping * omega
+    if region.drive is not None:
+        d = region.drive
+        lo, hi = dq_window(u, region.stall_torque, d.k_rho, X, d.circle_x, d.field_weakening)
+        return np.asarray(lo, float), np.asarray(hi, float)
+    x_hi = region.stall_torque - u
+    x_lo = -region.stall_torque - u
+    hi = np.maximum(np.minimum(x_hi, X), x_lo)  # past overspeed both collapse onto the end nearest the window
+    lo = np.minimum(np.maximum(x_lo, -X), x_hi)
+    return lo, hi
+
+
 def torque_interval(omega: ArrayLike, region: OperatingRegion) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Feasible motor torque interval [lo, hi] at speed ``omega`` [rad/s].
 
@@ -529,11 +759,7 @@ def torque_interval(omega: ArrayLike, region: OperatingRegion) -> tuple[NDArray[
     limiter does.
     """
     omega = np.asarray(omega, float)
-    X = region.limit_x
-    x_hi = region.stall_torque - region.back_emf_damping * omega
-    x_lo = -region.stall_torque - region.back_emf_damping * omega
-    hi = np.maximum(np.minimum(x_hi, X), x_lo)  # past overspeed both collapse onto the end nearest the window
-    lo = np.minimum(np.maximum(x_lo, -X), x_hi)
+    lo, hi = current_window(omega, region)
     if region.curve is not None and region.curve.form != "linear":
         hi = region.curve.torque(hi / region.curve.kt)
         lo = region.curve.torque(lo / region.curve.kt)
@@ -578,6 +804,8 @@ def bindings(region: OperatingRegion, spec: MotorSpec) -> tuple[Binding, ...]:
     )
     if corner > 0:
         out.append(Binding(flat, (0.0, corner), what))
+    if region.drive is not None:
+        return tuple(out) + _drive_bindings(region, corner, nl, over, i_lim)
     if nl > corner:
         out.append(
             Binding(
@@ -602,6 +830,37 @@ def bindings(region: OperatingRegion, spec: MotorSpec) -> tuple[Binding, ...]:
             (over, math.inf),
             f"past overspeed {over:.4g} rad/s the braking current exceeds {i_lim:.4g} A whatever is commanded; the "
             "torque is the curve's at (omega/Kv - V)/R",
+        )
+    )
+    return tuple(out)
+
+
+def _drive_bindings(
+    region: OperatingRegion, corner: float, no_load: float, over: float, i_lim: float
+) -> tuple[Binding, ...]:
+    """The bindings past the corner speed under the drive's dq model (:mod:`hound_id.mor.drive`)."""
+    drive = region.drive
+    assert drive is not None
+    out = []
+    voltage = (
+        "the bus voltage with the winding's reactance, |(R i_q + omega/Kv, X i_q)| <= V_bus (dq model, i_d = 0)"
+        if not drive.field_weakening
+        else "the voltage and current circles: negative d current weakens the field, |i_dq| <= "
+        f"{drive.phase_current_limit:.4g} A"
+    )
+    if no_load > corner:
+        out.append(Binding("voltage", (corner, no_load), voltage + ", through the current-torque curve"))
+    if over > no_load:
+        out.append(
+            Binding("voltage", (no_load, over), "past the motoring reach the back-EMF forces braking; " + voltage)
+        )
+    out.append(
+        Binding(
+            "back-EMF",
+            (over, math.inf),
+            f"past {over:.4g} rad/s the drive cannot hold its current within {i_lim:.4g} A: its switches off, the "
+            "back-EMF drives current through the diode bridge, whose braking (smaller than (omega/Kv - V)/R with "
+            "the reactance, fading at high speed) is the torque whatever is commanded",
         )
     )
     return tuple(out)

@@ -17,7 +17,7 @@ if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
     from hound_id.mor.joint_space import RobotRegions
-    from hound_id.mor.region import Binding, OperatingRegion, Overpromise
+    from hound_id.mor.region import AtSpeed, Binding, OperatingRegion, Overpromise
     from hound_id.mor.robot import Robot
     from hound_id.mor.saturation import LogSummary
     from hound_id.mor.spec import MotorSpec
@@ -51,12 +51,21 @@ class MotorRegions:
         return overpromise(linear_region(self.spec), self.sheet)
 
     @property
+    def at_speed(self) -> AtSpeed | None:
+        """The drive model's and the battery's effect on the spec sheet's region (None under the DC law at one bus)."""
+        from hound_id.mor.region import at_speed
+
+        if self.spec.drive is None and not self.spec.bus_voltage_range:
+            return None
+        return at_speed(self.spec, self.sheet)
+
+    @property
     def measured(self) -> bool:
         """Whether the region is a measured envelope's."""
         return bool(self.spec.envelope)
 
     def report(self) -> dict[str, Any]:
-        """The ``hound-id/mor/2`` JSON, with ``spec_sheet`` (None unless measured)."""
+        """The ``hound-id/mor/3`` JSON, with ``spec_sheet`` (None unless measured)."""
         from hound_id.mor.region import motor_report
 
         data = motor_report(self.spec, self.region, self.sheet)
@@ -70,8 +79,26 @@ class MotorRegions:
 
         curved = self.spec.current_curve.form != "linear"
         return plot_region(
-            self.region, self.sheet if self.measured else None, linear_region(self.spec) if curved else None
+            self.region,
+            self.sheet if self.measured else None,
+            linear_region(self.spec) if curved else None,
+            outlines=self._outlines(),
         )
+
+    def _outlines(self) -> tuple[tuple[OperatingRegion, str], ...]:
+        """The DC law's region (when the spec has a drive model) and the region at the battery's lowest voltage."""
+        from dataclasses import replace
+
+        from hound_id.mor.region import operating_region
+
+        out: list[tuple[OperatingRegion, str]] = []
+        if self.spec.drive is not None:
+            dc = replace(self.spec, inductance=None, inductance_convention=None, field_weakening=False)
+            out.append((operating_region(dc), "DC law (no reactance, i_d = 0): what the paper's eq. 2 promises"))
+        if self.spec.bus_voltage_range is not None:
+            low = self.spec.bus_voltage_range[0]
+            out.append((operating_region(replace(self.spec, bus_voltage=low)), f"at the battery's lowest {low:.4g} V"))
+        return tuple(out)
 
 
 def motor_regions(path: str | Path) -> MotorRegions:

@@ -38,6 +38,7 @@ from numpy.typing import NDArray
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
 from hound_id.mor.clip_turn import CLIP_TOLERANCE, ClipTurn, TurnTally
+from hound_id.mor.drive import dq_window
 from hound_id.mor.fused import available as fused_available
 from hound_id.mor.fused import clip_correction
 from hound_id.mor.fused import within as fused_within
@@ -67,7 +68,7 @@ def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
     return np.minimum(out, hi, out=out)
 
 
-def _np_bounds(c: Any, u: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
+def _np_bounds(c: Any, u: Any, lo: Any, hi: Any, volts: Any = None) -> tuple[Any, Any]:
     """The motors' torque intervals from u = back-EMF damping x motor speed
     (:func:`hound_id.mor.region.torque_interval`): the linear-equivalent window [-S - u, S - u] cut to [-X, X]
     (past overspeed, collapsed onto the end nearest it), then the current-torque curve. Returns (lower, upper) in
@@ -75,9 +76,22 @@ def _np_bounds(c: Any, u: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
 
     With a curve, the line ends that can pass the curve's top are held there first (the upper line only falls past
     -top, the lower only rises past +top; their other ends are cut to +-X <= top by the window), so the curve needs
-    no clip of its own."""
-    np.subtract(c.stall, u, out=hi)  # x_hi, upper voltage line
-    np.subtract(c.neg_stall, u, out=lo)  # x_lo
+    no clip of its own.
+
+    ``volts`` (the bus voltage per element, shaped like ``u``: :meth:`Saturation._volts`) scales the stall torque,
+    S = (S / V_bus) V; a drive's
+    motors (:mod:`hound_id.mor.drive`) take its dq window instead of the voltage lines."""
+    if c.has_drive:
+        return _np_drive_bounds(c, u, lo, hi, volts)
+    if volts is None:
+        np.subtract(c.stall, u, out=hi)  # x_hi, upper voltage line
+        np.subtract(c.neg_stall, u, out=lo)  # x_lo
+    else:  # the stall torque at each element's bus voltage
+        np.maximum(volts, 0.0, out=lo)
+        np.multiply(lo, c.stall_per_volt, out=lo)
+        np.subtract(lo, u, out=hi)
+        np.negative(lo, out=lo)
+        np.subtract(lo, u, out=lo)
     if c.has_curve:
         np.maximum(hi, c.neg_curve_top, out=hi)
         np.minimum(lo, c.curve_top, out=lo)
@@ -94,6 +108,26 @@ def _np_bounds(c: Any, u: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
     return lo, u
 
 
+def _np_drive_bounds(c: Any, u: Any, lo: Any, hi: Any, volts: Any = None) -> tuple[Any, Any]:
+    """:func:`_np_bounds` for robots with a drive model: the dq window (:func:`hound_id.mor.drive.dq_window`; a motor
+    without reactance or field weakening gets the DC law's window from it, to rounding), then the curve. Returns
+    (lower, upper) in ``lo`` and ``u``."""
+    stall = c.stall if volts is None else np.maximum(volts, 0.0) * c.stall_per_volt
+    x_lo, x_hi = dq_window(u, stall, c.k_rho, c.limit_x, c.circle_x, c.fw)
+    if c.has_curve:  # the diode bridge's current may pass the curve's top: held there
+        np.clip(x_lo, c.neg_curve_top, c.curve_top, out=lo)
+        np.clip(x_hi, c.neg_curve_top, c.curve_top, out=u)
+        _np_curve(u, c, hi)
+        _np_curve(lo, c, hi)
+    else:
+        np.copyto(lo, x_lo)
+        np.copyto(u, x_hi)
+    if c.has_cap:
+        _np_clip(u, c.neg_top_torque, c.top_torque, out=u)
+        _np_clip(lo, c.neg_top_torque, c.top_torque, out=lo)
+    return lo, u
+
+
 def _np_curve(x: Any, c: Any, tmp: Any) -> None:
     """x -> x - q x|x| in place, for |x| within the curve's top (``tmp`` is scratch)."""
     np.absolute(x, out=tmp)
@@ -102,15 +136,22 @@ def _np_curve(x: Any, c: Any, tmp: Any) -> None:
     x -= tmp
 
 
-def _torch_bounds(c: Any, u: Any) -> tuple[Any, Any]:
+def _torch_bounds(c: Any, u: Any, volts: Any = None) -> tuple[Any, Any]:
     """:func:`_np_bounds` in torch, as fresh tensors (autograd may flow through ``u``): (lower, upper)."""
     import torch
 
-    hi_x, lo_x = c.stall - u, c.neg_stall - u
-    if c.has_curve:
-        hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
-    hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)  # past overspeed both collapse onto one end
-    lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
+    stall = c.stall if volts is None else torch.clamp(volts, min=0.0) * c.stall_per_volt
+    if c.has_drive:
+        lo, hi = dq_window(u, stall, c.k_rho, c.limit_x, c.circle_x, c.fw)
+        if c.has_curve:
+            hi = torch.minimum(torch.maximum(hi, c.neg_curve_top), c.curve_top)
+            lo = torch.minimum(torch.maximum(lo, c.neg_curve_top), c.curve_top)
+    else:
+        hi_x, lo_x = stall - u, -stall - u
+        if c.has_curve:
+            hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
+        hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)  # past overspeed both collapse onto one end
+        lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
     if c.has_curve:
         hi, lo = hi - c.curve_q * hi * torch.abs(hi), lo - c.curve_q * lo * torch.abs(lo)
     if c.has_cap:
@@ -217,8 +258,20 @@ class _Constants(NamedTuple):
     ordinary: float
     """Largest |joint torque| of an ordinary command (:data:`ORDINARY`)."""
     stacked: Any = None
-    """numpy: the per-motor limits above, stall to wmax, as rows of one (12, size) array whose rows they view (the
-    fused loop's operand, :func:`hound_id.mor.fused.clip_correction`); None for torch."""
+    """numpy: the per-motor limits above and below, stall to fw, as rows of one (16, size) array whose rows they view
+    (the fused loop's operand, :func:`hound_id.mor.fused.clip_correction`); None for torch."""
+    stall_per_volt: Any = None
+    """Per motor S / V_bus [N m/V]: the stall torque at another bus voltage is this times it."""
+    k_rho: Any = None
+    """Per motor l / (R D) of the drive's reactance [1/(N m)] (0: none; :func:`hound_id.mor.drive.dq_window`)."""
+    circle_x: Any = None
+    """Per motor Kt I_max [N m], the field-weakening current circle."""
+    fw: Any = None
+    """Per motor 1.0 where the drive weakens the field, else 0.0 (numpy: bool view where used)."""
+    has_drive: bool = False
+    """Whether any motor has a drive model (then every motor's window is the dq one)."""
+    has_fw: bool = False
+    """Whether any motor's drive weakens the field."""
 
 
 @dataclass(frozen=True)
@@ -253,8 +306,20 @@ class Saturation:
     which reaches the speed where the braking current meets the curve's top, a table motor's interval is held
     there."""
     polylines: tuple[tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None, ...] = ()
+    held: tuple[bool, ...] = ()
+    """Per motor whether its polyline holds its end values beyond its speeds (a table curve under a drive model,
+    whose diode braking never reaches the curve's top; empty: none does); else the line bounds apply there."""
     """Per motor (speeds, lower, upper) edges of a measured envelope (``mor --compare --out``), or None.
     Where given, the motor's torque interval at speeds inside the polyline is interpolated from it."""
+    bus_voltage: NDArray[np.float64] | None = None
+    """Per motor nominal bus voltage [V] (None: unknown; then no other bus voltage can be given)."""
+    drive_k_rho: NDArray[np.float64] | None = None
+    """Per motor l / (R D) [1/(N m)] of the drive's reactance (:mod:`hound_id.mor.drive`; 0 for a motor without);
+    None: no motor has a drive model (the DC law)."""
+    drive_circle_x: NDArray[np.float64] | None = None
+    """Per motor Kt I_max [N m], the phase-current circle of field weakening (None with ``drive_k_rho``)."""
+    drive_fw: NDArray[np.bool_] | None = None
+    """Per motor whether the drive weakens the field (None with ``drive_k_rho``)."""
     _cache: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
@@ -283,6 +348,14 @@ class Saturation:
             curve_q=frozen([_quadratic_q(r) for r in regions]),
             top_torque=frozen([_table_top(r) for r in regions]),
             polylines=polylines if any(p is not None for p in polylines) else (),
+            held=tuple(
+                p is not None and r.drive is not None and robot.motor_specs[m].envelope is None
+                for m, r, p in zip(robot.motors, regions, polylines, strict=True)
+            )
+            if any(r.drive is not None for r in regions)
+            else (),
+            bus_voltage=frozen([robot.motor_specs[m].bus_voltage for m in robot.motors]),
+            **_drive_arrays(regions),
         )
 
     @property
@@ -331,6 +404,11 @@ class Saturation:
         vectors: tuple[NDArray[Any], ...] = (self.stall_torque, -self.stall_torque, self.torque_limit)
         cap = np.full(self.n, np.inf) if self.top_torque is None else self.top_torque
         vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, -top, cap, -cap, wmax)
+        volts = np.full(self.n, np.nan) if self.bus_voltage is None else self.bus_voltage
+        k_rho = np.zeros(self.n) if self.drive_k_rho is None else self.drive_k_rho
+        circle = limit_x if self.drive_circle_x is None else self.drive_circle_x
+        fw = np.zeros(self.n) if self.drive_fw is None else self.drive_fw.astype(float)
+        vectors = (*vectors, self.stall_torque / volts, k_rho, circle, fw)
         if torch_like:
             import torch
 
@@ -372,6 +450,12 @@ class Saturation:
             tau_cap=tau_cap,
             qd_cap=qd_cap,
             stacked=None if torch_like else stacked.reshape(len(vectors), -1),
+            stall_per_volt=vecs[12],
+            k_rho=vecs[13],
+            circle_x=vecs[14],
+            fw=(vecs[15] > 0) if torch_like else vecs[15] > 0,
+            has_drive=self.drive_k_rho is not None,
+            has_fw=self.drive_fw is not None and bool(np.any(self.drive_fw)),
             ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), limit_x.max())) / colsum),
         )
         self._remember(key, consts)
@@ -411,14 +495,50 @@ class Saturation:
             )
         return tau, qd
 
-    def torque_bounds(self, qd: Any) -> tuple[Any, Any]:
-        """Per-motor feasible torque interval [lo, hi] at the motor speeds implied by ``qd``."""
+    def torque_bounds(self, qd: Any, bus_voltage: Any = None) -> tuple[Any, Any]:
+        """Per-motor feasible torque interval [lo, hi] at the motor speeds implied by ``qd`` (and, if given, the bus
+        voltage [V] of each element, broadcast against ``qd``: see :meth:`__call__`)."""
         _, qd = self._check(qd, qd)
-        return self._bounds(qd, self._constants(qd))
+        consts = self._constants(qd)
+        return self._bounds(qd, consts, self._volts(bus_voltage, qd))
 
-    def _bounds(self, qd: Any, consts: _Constants) -> tuple[Any, Any]:
+    def _volts(self, bus_voltage: Any, like: Any) -> Any:
+        """The bus voltage [V] per element of ``like``'s shape, in its array type, dtype and device, C-contiguous (the
+        bounds take max(V, 0)); None stays None. One voltage per environment, (..., 1), is repeated along the motors
+        (numpy's broadcasting of a length-1 axis is several times slower than a repeat)."""
+        if bus_voltage is None:
+            return None
+        if self.bus_voltage is None:
+            raise SaturationError("saturation: this clip has no nominal bus voltage, so it cannot take another one")
+        shape = tuple(like.shape)
+        if _is_torch(like):
+            import torch
+
+            v = torch.as_tensor(bus_voltage, dtype=like.dtype, device=like.device)
+            try:
+                return torch.broadcast_to(v, shape).contiguous()
+            except RuntimeError as err:
+                raise SaturationError(self._volts_shape(tuple(v.shape), shape)) from err
+        volts = np.asarray(bus_voltage, dtype=like.dtype)
+        if volts.shape == shape and volts.flags.c_contiguous:
+            return volts  # kept by the trainer at full shape: read as it is (the clip takes max(V, 0) itself)
+        try:
+            np.broadcast_shapes(volts.shape, shape)
+        except ValueError as err:
+            raise SaturationError(self._volts_shape(volts.shape, shape)) from err
+        if volts.ndim == len(shape) and volts.shape[:-1] == shape[:-1] and volts.shape[-1] == 1 and shape[-1] > 1:
+            return np.repeat(volts, shape[-1], axis=-1)
+        return np.ascontiguousarray(np.broadcast_to(volts, shape))
+
+    def _volts_shape(self, got: tuple[int, ...], want: tuple[int, ...]) -> str:
+        return (
+            f"saturation: bus_voltage has shape {got}, which does not broadcast to the commands' {want}; give one "
+            f"voltage per environment as (..., 1) or one per motor as (..., {self.n}) [V]"
+        )
+
+    def _bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
         qd = _capped(qd, consts.qd_cap)
-        lo, hi = self._line_bounds(qd, consts)
+        lo, hi = self._line_bounds(qd, consts, volts)
         if self.polylines:
             omega = qd @ consts.A_inv.T
             lo, hi = _polyline_bounds(self._polylines_like(qd), omega, lo, hi)
@@ -438,18 +558,19 @@ class Saturation:
                     return torch.tensor(np.array(a), dtype=like.dtype, device=like.device)
 
             lines: list[Any] = []
-            for line in self.polylines:
+            for m, line in enumerate(self.polylines):
                 if line is None:
                     lines.append(None)
                     continue
                 speeds, lower, upper = line
                 ok = np.isfinite(lower) & np.isfinite(upper)
-                lines.append((float(speeds[0]), float(speeds[-1]), *(convert(a[ok]) for a in (speeds, lower, upper))))
+                ends = (-math.inf, math.inf) if self.held and self.held[m] else (float(speeds[0]), float(speeds[-1]))
+                lines.append((*ends, *(convert(a[ok]) for a in (speeds, lower, upper))))
             hit = tuple(lines)
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 
-    def _line_bounds(self, qd: Any, consts: _Constants) -> tuple[Any, Any]:
+    def _line_bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
         """The motors' intervals (:func:`hound_id.mor.region.torque_interval`) at joint velocities ``qd`` (already
         capped), as fresh arrays."""
         c = consts
@@ -457,20 +578,20 @@ class Saturation:
         if _is_torch(qd):
             import torch
 
-            lo, hi = _torch_bounds(c, u)
+            lo, hi = _torch_bounds(c, u, volts)
             if c.has_max_speed:
                 omega = qd @ c.A_inv.T
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u))
+        lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts)
         if c.has_max_speed:
             omega = qd @ c.A_inv.T
             hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
             lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
         return lo, hi
 
-    def __call__(self, tau: Any, qd: Any) -> Any:
+    def __call__(self, tau: Any, qd: Any, bus_voltage: Any = None) -> Any:
         """Saturate joint torque commands [N m] at joint velocities [rad/s], shapes (..., n).
 
         Returns joint torques (same type, dtype and device as ``tau``) whose motor torques lie in
@@ -492,16 +613,22 @@ class Saturation:
         of its coupled group (and, through the matrix products of numpy's and torch's BLAS, of its
         row); nothing is raised, since a check would cost a device sync every step. ±inf commands
         are clipped like any command beyond the limits; ±inf speeds are past overspeed.
+
+        ``bus_voltage`` [V] (optional) is the bus each element sees, broadcast against ``tau``: one per environment
+        as (..., 1), or one per motor as (..., n), to randomise the battery's charge. The stall torque scales with it
+        (the voltage lines shift; a drive's dq window follows it); the nominal bus is the spec's ``bus_voltage``.
+        Negative voltages are taken as 0. Not given: the nominal bus, as before.
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
+        volts = self._volts(bus_voltage, tau)
         if self.polylines or (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
-            return self._saturate(tau, qd, consts)  # measured envelopes or autograd: the general path
-        return self._saturate_in_place(tau, qd, consts)
+            return self._saturate(tau, qd, consts, volts)  # measured envelopes or autograd: the general path
+        return self._saturate_in_place(tau, qd, consts, volts)
 
-    def _saturate(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+    def _saturate(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
         """The clip with fresh arrays (autograd flows through it)."""
-        lo, hi = self._bounds(qd, consts)
+        lo, hi = self._bounds(qd, consts, volts)
         tau_m = _capped(tau, consts.tau_cap) @ consts.A
         if _is_torch(tau):
             import torch
@@ -513,7 +640,7 @@ class Saturation:
         touched = np.abs(clipped - tau_m) @ consts.groups
         return np.where(touched == 0, tau, clipped @ consts.A_inv)
 
-    def _saturate_in_place(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+    def _saturate_in_place(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
         """The clip with intermediates in reused per-thread buffers (not under autograd).
 
         Large temporaries cost more in allocation (page faults) than in arithmetic on
@@ -528,17 +655,18 @@ class Saturation:
         if _is_torch(tau):
             views = _numpy_views(tau, qd)
             if views is None:
-                return self._saturate_torch(tau, qd, consts)
+                return self._saturate_torch(tau, qd, consts, volts)
             import torch
 
-            return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0])))
+            v = None if volts is None else volts.numpy()
+            return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0]), v))
         fused = _fusable(tau, qd)
         ordinary = fused_within(tau, c.ordinary, qd, c.qd_cap) if fused else _within(tau, c.ordinary)
         if not (ordinary and (fused or _within(qd, c.qd_cap))):
-            return self._saturate_numpy(tau, qd, consts)
-        return self._saturate_ordinary(tau, qd, consts, fused)
+            return self._saturate_numpy(tau, qd, consts, volts)
+        return self._saturate_ordinary(tau, qd, consts, fused, volts)
 
-    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants, fused: bool = False) -> Any:
+    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants, fused: bool = False, volts: Any = None) -> Any:
         """Clip, then add the clip's correction mapped back: tau + A^-T (clip(tau_m) - tau_m).
 
         The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
@@ -554,11 +682,11 @@ class Saturation:
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
         if fused:
-            clip_correction(tau_m, u, qd @ c.A_inv.T if c.has_max_speed else None, c, v)
+            clip_correction(tau_m, u, qd @ c.A_inv.T if c.has_max_speed else None, c, v, volts)
             out = np.matmul(v, c.A_inv)
             out += tau
             return out
-        lo, hi = _np_bounds(c, u, v, w)  # lo is v
+        lo, hi = _np_bounds(c, u, v, w, volts)  # lo is v
         _np_clip(tau_m, lo, hi, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
             omega = qd @ c.A_inv.T
@@ -569,7 +697,7 @@ class Saturation:
         out += tau
         return out
 
-    def _saturate_numpy(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+    def _saturate_numpy(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
         """The exact path in numpy, for commands of any size: the inputs capped, the clipped motor torques
         mapped back (tau_j = A^-T clip(tau_m)), the command kept in the joints of groups none of whose
         motors clipped. The joints are picked without branches."""
@@ -579,7 +707,7 @@ class Saturation:
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
         omega = qd @ c.A_inv.T if c.has_max_speed else None
-        lo, hi = _np_bounds(c, u, v, w)  # lo is v
+        lo, hi = _np_bounds(c, u, v, w, volts)  # lo is v
         _np_clip(tau_m, lo, hi, out=v)
         if omega is not None:  # past the rated speed only braking torque passes
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
@@ -596,7 +724,7 @@ class Saturation:
         np.multiply(out, pick, out=out)
         return np.add(out, v, out=out)
 
-    def _saturate_torch(self, tau: Any, qd: Any, consts: _Constants) -> Any:
+    def _saturate_torch(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
         """:meth:`_saturate_numpy` in torch, for every batch on a GPU (deciding would cost a device sync)."""
         import torch
 
@@ -606,7 +734,7 @@ class Saturation:
         torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
         torch.matmul(qd_in, c.speed_map, out=u)
         torch.matmul(tau_in, c.A, out=tau_m)
-        lo, hi = _torch_bounds(c, u)
+        lo, hi = _torch_bounds(c, u, volts)
         torch.clamp(tau_m, lo, hi, out=v)
         if c.has_max_speed:
             omega = qd_in @ c.A_inv.T
@@ -635,11 +763,12 @@ class Saturation:
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 
-    def violation(self, tau: Any, qd: Any) -> Any:
-        """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n)."""
+    def violation(self, tau: Any, qd: Any, bus_voltage: Any = None) -> Any:
+        """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n), at the nominal bus or
+        the given ``bus_voltage`` [V] (as in :meth:`__call__`)."""
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
-        lo, hi = self._bounds(qd, consts)
+        lo, hi = self._bounds(qd, consts, self._volts(bus_voltage, tau))
         tau_m = _scaled_matmul(tau, consts.A, consts.tau_cap)
         if _is_torch(tau):
             import torch
@@ -754,6 +883,10 @@ def _table_polyline(
 
     if region.curve is None or region.curve.form != "table":
         return None
+    if region.drive is not None:  # the diode braking fades before the curve's top: out to where the window is held
+        from hound_id.mor.drive import SPEED_CAP
+
+        return curved_edges(region, reach=SPEED_CAP * region.stall_torque / region.back_emf_damping)
     # out to where the forced braking current reaches the curve's top (beyond, the interval is the top: top_torque)
     reach = (region.stall_torque + region.curve.kt * region.curve.top_current) / region.back_emf_damping
     return curved_edges(region, reach=max(reach, region.overspeed) * (1 + 1e-6))
@@ -762,6 +895,17 @@ def _table_polyline(
 def _table_top(region: OperatingRegion) -> float:
     """The most a table curve makes [N m]; inf for a linear or quadratic one."""
     return region.curve.top_torque if region.curve is not None and region.curve.form == "table" else math.inf
+
+
+def _drive_arrays(regions: list[OperatingRegion]) -> dict[str, Any]:
+    """The Saturation fields of the motors' drive models (empty when none has one: the DC law throughout)."""
+    if all(r.drive is None for r in regions):
+        return {}
+    return {
+        "drive_k_rho": frozen([0.0 if r.drive is None else r.drive.k_rho for r in regions]),
+        "drive_circle_x": frozen([r.limit_x if r.drive is None else r.drive.circle_x for r in regions]),
+        "drive_fw": frozen(np.array([r.drive is not None and r.drive.field_weakening for r in regions])),
+    }
 
 
 def saturation_for(robot: Robot) -> Saturation:

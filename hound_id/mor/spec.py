@@ -39,6 +39,7 @@ from hound_id.arrays import frozen
 from hound_id.errors import SpecError, where
 from hound_id.io import file_stem, read_yaml
 from hound_id.mor.current_curve import CurrentCurve, quadratic_cubic_table, sheet_curve
+from hound_id.mor.drive import DEFAULT_INDUCTANCE_CONVENTION, INDUCTANCE_CONVENTIONS, Drive, reactance_per_speed
 from hound_id.mor.envelope_effects import EFFECTS
 from hound_id.units import to_si
 
@@ -79,6 +80,9 @@ _OTHER_KEYS = (
     "fit",
     "envelope",
     "kt_curve",
+    "inductance_convention",
+    "field_weakening",
+    "bus_voltage_range",
 )
 KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
 
@@ -97,6 +101,10 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "rotor_inertia": (1e-10, 10.0, "kg m^2"),
     "inductance": (1e-8, 10.0, "H"),
 }
+
+
+#: Fields besides the quantities that ``assumed:`` may name.
+_ASSUMABLE = ("pole_pairs", "inductance_convention", "bus_voltage_range", "field_weakening")
 
 
 def read_only(value: Any) -> Any:
@@ -320,6 +328,40 @@ class MotorSpec:
     """The spec sheet's current-torque curve when no fit gives one: ``quadratic`` (through the 20 % point at the
     peak torque) or ``linear`` (tau = Kt i up to the peak torque, for a sheet whose peak torque is a thermal or
     demagnetisation limit rather than a 20 % point)."""
+    commutation: str = "foc"
+    """``foc`` (field-oriented, the dq model of :mod:`hound_id.mor.drive` applies) or ``six_step``."""
+    inductance_convention: str | None = None
+    """How ``inductance`` is stated: ``line_to_line`` or ``phase`` (None: not stated; taken as
+    :data:`hound_id.mor.drive.DEFAULT_INDUCTANCE_CONVENTION`, with a warning)."""
+    field_weakening: bool = False
+    """Whether the drive weakens the field past base speed (negative d current within the phase-current limit
+    ``max_current``); else it holds i_d = 0."""
+    bus_voltage_range: tuple[float, float] | None = None
+    """(lowest, highest) bus voltage the battery gives over a discharge [V], if stated; ``bus_voltage`` is the
+    nominal within it."""
+
+    @cached_property
+    def drive(self) -> Drive | None:
+        """The drive's dq model (:mod:`hound_id.mor.drive`) where it changes the region: an inductance with pole pairs
+        under field-oriented control, or field weakening; None for the DC law V = R i + omega/Kv."""
+        reactance = 0.0
+        convention = None
+        if self.inductance is not None and self.pole_pairs is not None and self.commutation == "foc":
+            convention = self.inductance_convention or DEFAULT_INDUCTANCE_CONVENTION
+            reactance = reactance_per_speed(self.inductance, convention, self.pole_pairs)
+        if reactance == 0.0 and not self.field_weakening:
+            return None
+        current = self.max_current if self.max_current is not None else self.limit_current
+        return Drive(
+            reactance=reactance,
+            k_rho=reactance * self.kv / self.current_curve.kt,
+            circle_x=self.current_curve.kt * current,
+            field_weakening=self.field_weakening,
+            phase_current_limit=current,
+            inductance_phase=None if convention is None else reactance / (math.sqrt(3.0) * (self.pole_pairs or 1)),
+            convention=convention,
+            pole_pairs=self.pole_pairs if convention is not None else None,
+        )
 
     @cached_property
     def current_curve(self) -> CurrentCurve:
@@ -392,6 +434,23 @@ def spec_warnings(spec: MotorSpec) -> tuple[str, ...]:
             f"{spec.name}: Kt = {spec.kt:.4g} N m/A and 1/Kv = {1 / spec.kv:.4g} V s/rad disagree by "
             f"{abs(product - 1) * 100:.0f} % (Kt*Kv = {product:.3g}, expected 0.87 (FOC) to 1 (DC)); "
             "check for rpm/V given as rad/s/V, or Kt per RMS amp"
+        )
+    if spec.inductance is not None and spec.commutation == "foc":
+        if spec.pole_pairs is None:
+            out.append(
+                f"{spec.name}: inductance given without pole_pairs; the voltage edge ignores it (the reactance is "
+                "p omega L): add pole_pairs"
+            )
+        elif spec.inductance_convention is None:
+            out.append(
+                f"{spec.name}: inductance {spec.inductance * 1e6:.4g} uH without inductance_convention; taken as "
+                f"{DEFAULT_INDUCTANCE_CONVENTION} (what a meter across two terminals reads). A phase value has twice "
+                "the reactance and costs more torque at speed: add 'inductance_convention: line_to_line' or 'phase'"
+            )
+    if spec.inductance is not None and spec.commutation == "six_step":
+        out.append(
+            f"{spec.name}: inductance with six_step commutation; the dq model of the voltage edge applies to "
+            "field-oriented drives (commutation: foc) only, so the inductance is not used"
         )
     if spec.torque_limit > spec.stall_torque:
         out.append(
@@ -520,7 +579,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
                 f"{where(source, 'assumed')}: found {entry!r} in the list, expected field names (kt, kv, ...)",
                 field="assumed",
             )
-        if entry not in _QUANTITY_KEYS and entry != "pole_pairs":
+        if entry not in _QUANTITY_KEYS and entry not in _ASSUMABLE:
             raise SpecError(
                 f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
             )
@@ -540,6 +599,38 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             "through the 20 % point at peak_torque; linear: tau = Kt i up to peak_torque)",
             field="kt_curve",
         )
+    convention = data.get("inductance_convention")
+    if convention is not None and convention not in INDUCTANCE_CONVENTIONS:
+        raise SpecError(
+            f"{where(source, 'inductance_convention')}: found {convention!r}, expected one of "
+            f"{', '.join(INDUCTANCE_CONVENTIONS)} (line_to_line: measured across two terminals; phase: one phase of "
+            "the wye)",
+            field="inductance_convention",
+        )
+    if convention is not None and "inductance" not in values:
+        raise SpecError(
+            f"{where(source, 'inductance_convention')}: given without an inductance; add 'inductance' or drop it",
+            field="inductance_convention",
+        )
+    weakening = data.get("field_weakening", False)
+    if not isinstance(weakening, bool):
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: found {weakening!r}, expected true or false",
+            field="field_weakening",
+        )
+    if weakening and commutation != "foc":
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: field weakening needs a field-oriented drive (commutation: foc), "
+            f"found commutation {commutation!r}",
+            field="field_weakening",
+        )
+    if weakening and "max_current" not in values:
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: field weakening needs the drive's phase-current limit: add "
+            "max_current (the amplitude |i_dq| the drive holds)",
+            field="field_weakening",
+        )
+    bus_range = _bus_range(data.get("bus_voltage_range"), values["bus_voltage"], source)
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
         raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
@@ -552,6 +643,10 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         fit=None if fit is None else FitRecord.from_mapping(fit, source),
         envelope=_envelope(data.get("envelope"), source),
         kt_curve=kt_curve,
+        commutation=commutation,
+        inductance_convention=convention,
+        field_weakening=weakening,
+        bus_voltage_range=bus_range,
         **values,
     )
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
@@ -563,6 +658,26 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
                 f"{spec.linear_torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
             )
     return spec
+
+
+def _bus_range(data: Any, nominal: float, source: str | None) -> tuple[float, float] | None:
+    """A spec's ``bus_voltage_range`` ([lowest, highest], with units), checked: 0 < lowest <= nominal <= highest."""
+    if data is None:
+        return None
+    if not isinstance(data, list | tuple) or len(data) != 2:
+        raise SpecError(
+            f"{where(source, 'bus_voltage_range')}: found {data!r}, expected [lowest, highest], e.g. [66 V, 84 V]",
+            field="bus_voltage_range",
+        )
+    low, high = (to_si(v, "voltage", source=source, field="bus_voltage_range") for v in data)
+    lo, hi, _ = PLAUSIBLE["bus_voltage"]
+    if not (lo <= low <= nominal <= high <= hi):
+        raise SpecError(
+            f"{where(source, 'bus_voltage_range')}: found {low:.4g} V to {high:.4g} V, expected a range holding "
+            f"bus_voltage {nominal:.4g} V (lowest <= bus_voltage <= highest, within {lo:g} to {hi:g} V)",
+            field="bus_voltage_range",
+        )
+    return (low, high)
 
 
 def _envelope(data: Any, source: str | None) -> MeasuredEnvelope | None:

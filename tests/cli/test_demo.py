@@ -34,7 +34,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     assert robot_step["hound_like.inner_infeasible"] == 0.0
     assert robot_step["hound_like.outer_infeasible"] > 0.5
     motor = json.loads((tmp_path / "out" / "mor_hound_ilm85.json").read_text())
-    assert motor["schema"] == "hound-id/mor/2" and "spec" in motor and motor["warnings"] == []
+    assert motor["schema"] == "hound-id/mor/3" and "spec" in motor and motor["warnings"] == []
     robot = json.loads((tmp_path / "out" / "mor_robot_hound_like.json").read_text())
     assert all("spec" in m and "warnings" in m for m in robot["motors"])
     fit = json.loads((tmp_path / "out" / "fit_ilm85_dyno.json").read_text())
@@ -55,7 +55,7 @@ def test_demo_runs_every_part_on_the_samples(tmp_path):
     # dcmotor's voltage lines are straight; the fitted curve bends the region's: they differ by at most that gap
     check = export["mujoco_check"]
     gap = check["straight_line_gap"]
-    assert 0.5 < gap < 2.0  # about 1.23 N m for the sample fit's quadratic
+    assert 0.5 < gap < 5.0  # about 3.79 N m: the fit's quadratic and the winding's reactance bend the edges
     assert check["max_outside"] <= gap + 1e-5 and check["max_difference"] <= gap + 1e-5
     assert export["mujoco_check"]["clipped_fraction"] > 0.5
     summary = json.loads((tmp_path / "out" / "summary.json").read_text())

@@ -22,15 +22,25 @@ def test_mor_spec_json(tmp_path):
     proc = run_cli("mor", "--spec", str(MOTOR), "--json")
     assert proc.returncode == 0, proc.stderr
     data = json.loads(proc.stdout, parse_constant=lambda c: pytest.fail(f"not JSON: {c}"))  # no Infinity or NaN
-    assert data["schema"] == "hound-id/mor/2"
+    assert data["schema"] == "hound-id/mor/3"
     assert data["bindings"][-1]["speeds"][1] is None  # the open end past overspeed
     assert data["motor"] == "hound_ilm85"
     assert len(data["halfspaces"]["A"]) == len(data["halfspaces"]["b"]) > 4  # voltage, torque and curve rows
     # the curve-limited torque limit and what linear Kt over-promises (the 20 % point's quadratic at 70 A)
     tl = 0.138 * 70 - 0.16 * 0.138**2 / 12 * 70**2
     assert data["torque_limit"] == pytest.approx(tl) and data["linear_torque_limit"] == pytest.approx(9.66)
-    assert data["linear_kt"]["largest_excess"] == pytest.approx(9.66 - tl)
+    # from rest linear Kt over-promises 9.66 - tl; near the drive's loss of control (532.5 rad/s, where the
+    # reactance has pulled the edge in) the most, 2.94 N m
+    assert data["linear_kt"]["largest_excess"] >= 9.66 - tl
+    assert data["linear_kt"]["largest_excess"] == pytest.approx(2.94, abs=0.01)
     assert [b["limit"] for b in data["bindings"]] == ["current", "voltage", "voltage", "back-EMF"]
+    # at speed: the sheet's 70 uH line to line (35 uH per phase) against the DC law, and the battery's 66-84 V
+    speed = data["at_speed"]
+    assert speed["drive"]["corner_speed"] == pytest.approx(450.74, abs=0.01)
+    assert speed["dc_law"]["corner_speed"] == pytest.approx(465.13, abs=0.01)
+    assert speed["largest_motoring_cost"]["torque"] == pytest.approx(1.59, abs=0.01)
+    assert [b["bus_voltage"] for b in speed["battery"]] == [66.0, 84.0]
+    assert data["drive"]["inductance_phase"] == pytest.approx(35e-6) and data["drive"]["field_weakening"] is False
     assert data["corner_speed"] < data["no_load_speed"] < data["overspeed"]
     assert data["stall_torque"] == pytest.approx(0.138 * 81 / (math.sqrt(3) / 2 * 0.115))
 

@@ -30,14 +30,17 @@ def trainer_python(name: str, packages: tuple[str, ...], timeout: float = 1500) 
     return str(python)
 
 
-def fitted_motor(folder: Path, base: str = "hound_ilm85.yaml") -> Path:
-    """A fitted-motor YAML as fit-current --out writes it (Kt, Coulomb and viscous friction, compensation)."""
+def fitted_motor(folder: Path, base: str = "hound_ilm85.yaml", dc_law: bool = True) -> Path:
+    """A fitted-motor YAML as fit-current --out writes it (Kt, Coulomb and viscous friction, compensation). With
+    ``dc_law`` (default) the sheet's inductance is dropped: a linear motor under the DC law, V = R i + omega/Kv,
+    whose every edge is a straight voltage line (the exports' exact case)."""
     path = folder / f"fitted_{base}"
+    dc = "inductance: null\ninductance_convention: null\n" if dc_law else ""
     path.write_text(
         f"""schema: hound-id/motor/1
 base: {SAMPLES / "motors" / base}
 kt: 0.1375
-fit:
+{dc}fit:
   schema: hound-id/fit/1
   model: [linear, coulomb, viscous]
   parameters:

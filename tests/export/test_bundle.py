@@ -32,8 +32,11 @@ def test_bundle_carries_the_robot(robot):
     m = b["motors"][2]  # FL_KFE's motor on the sample spec sheet, no fit
     assert (m["joint"], m["kt"], m["bus_voltage"], m["fitted"]) == ("FL_KFE", 0.138, 81.0, False)
     assert m["friction"] == {"coulomb": 0.0, "viscous": 0.0, "stribeck": 0.0, "stribeck_speed": 0.0}
-    assert m["halfspaces"]["labels"][:4] == ["voltage+", "voltage-", "torque+", "torque-"]
-    assert all(label.startswith("curve") for label in m["halfspaces"]["labels"][4:])  # under the curved edges
+    # the drive's dq model (35 uH per phase): torque and speed rows, then one under each segment of the curved edges
+    assert m["halfspaces"]["labels"][:4] == ["torque+", "torque-", "speed+", "speed-"]
+    assert all(label.startswith("drive") for label in m["halfspaces"]["labels"][4:])
+    assert m["drive"]["inductance_phase"] == pytest.approx(35e-6) and m["drive"]["field_weakening"] is False
+    assert m["bus_voltage_range"] == [66.0, 84.0] and b["saturation"]["bus_voltage"] == [81.0] * 12
     # the curve-limited torque limit: the 20 % point's quadratic at the driver's 70 A, and its exact inverse
     assert m["torque_limit"] == pytest.approx(9.66 - 0.16 * 0.138**2 / 12 * 70**2)
     assert m["linear_torque_limit"] == pytest.approx(9.66) and m["limit_current"] == pytest.approx(70.0)

@@ -222,9 +222,9 @@ def test_a_failing_format_leaves_the_output_folder_as_it_was(exported, tmp_path)
 
 
 def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp_path):
-    """The sample sheet's quadratic bends the region's edges; MuJoCo's dcmotor lines are straight. With the runtime's
-    voltage the realised torques equal the runtime's where the voltage is inside the bus, and differ by at most the
-    straight-line gap the export states, over random states across +-overspeed."""
+    """The sample sheet's quadratic and its winding's reactance bend the region's edges; MuJoCo's dcmotor lines are
+    straight. With the runtime's voltage the realised torques equal the runtime's where the voltage is inside the bus,
+    and differ by at most the straight-line gap the export states, over random states across +-overspeed."""
     import mujoco
 
     from hound_id.mor.region import operating_region, straight_gap
@@ -252,7 +252,9 @@ def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp
         worst_inside = max(worst_inside, float(np.max(diff[inside], initial=0.0)))
         worst = max(worst, float(np.max(diff)))
     assert worst_inside < 1e-9
-    assert worst <= max(gap) + 1e-9 and worst > 0.01  # the curve shows, within the stated gap
+    # within the drive's overspeed the sample's region lies inside the straight voltage band (its reactance and its
+    # curve only take torque away), so the bus never clamps the runtime's voltage there: MuJoCo applies it exactly
+    assert worst <= max(gap) + 1e-9
 
 
 def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tmp_path):
