@@ -113,9 +113,11 @@ class _Ops:
     where: Any
     sqrt: Any
     relu: Any
+    torch: bool
 
     def __init__(self, like: Any) -> None:
-        if type(like).__module__.startswith("torch"):
+        self.torch = type(like).__module__.startswith("torch")
+        if self.torch:
             import torch
 
             self.where, self.sqrt = torch.where, torch.sqrt
@@ -148,41 +150,42 @@ def _window(
     ops: _Ops, u: Any, stall: Any, k_rho: Any, limit_x: Any, circle_x: Any, field_weakening: Any
 ) -> tuple[Any, Any]:
     where, sqrt, relu = ops.where, ops.sqrt, ops.relu
+    eager = ops.torch  # torch computes every branch (a test of the data would cost a device sync on a GPU)
     w = abs(u)
     w = where(w > SPEED_CAP * stall, SPEED_CAP * stall, w)  # every square below float32's range (NaN stays NaN)
     rho = k_rho * w
     n = 1.0 + rho * rho
-    sn = sqrt(n)
     cq = -w / n
-    cd = -w * rho / n
     # i_d = 0: the chord of the voltage disk on the q axis
     disc = stall * stall * n - (w * rho) ** 2
     h = sqrt(relu(disc)) / n
-    top0, bot0 = cq + h, cq - h
-    ok0 = (disc >= 0) & (top0 >= -limit_x)
-    # field weakening: the q extent of the disk within the current circle
-    r, d, M = stall / sn, w / sn, circle_x
-    top_circle = cd * cd + (M - cq) ** 2 <= r * r
-    top_disk = cd * cd + (cq + r) ** 2 <= M * M
-    bot_circle = cd * cd + (M + cq) ** 2 <= r * r
-    bot_disk = cd * cd + (cq - r) ** 2 <= M * M
-    a = (M * M - r * r + d * d) / (2.0 * where(d > 0, d, 1.0))  # along the centre line, from the origin
-    hh = sqrt(relu(M * M - a * a))  # half the common chord
-    up, down = (-a + hh * rho) / sn, (-a - hh * rho) / sn  # the crossings' q parts (the centre's direction is
-    top1 = where(top_circle, M + 0.0 * w, where(top_disk, cq + r, up))  # (-rho, -1)/sqrt(n), its normal (-1, rho))
-    bot1 = where(bot_circle, -M + 0.0 * w, where(bot_disk, cq - r, down))
-    ok1 = (d <= M + r) & (top1 >= -limit_x)
-    top, bot = where(field_weakening, top1, top0), where(field_weakening, bot1, bot0)
-    ok = where(field_weakening, ok1, ok0)
+    top, bot = cq + h, cq - h
+    ok = (disc >= 0) & (top >= -limit_x)
+    if eager or np.any(field_weakening):  # the q extent of the disk within the current circle
+        sn = sqrt(n)
+        cd = -w * rho / n
+        r, d, M = stall / sn, w / sn, circle_x
+        top_circle = cd * cd + (M - cq) ** 2 <= r * r
+        top_disk = cd * cd + (cq + r) ** 2 <= M * M
+        bot_circle = cd * cd + (M + cq) ** 2 <= r * r
+        bot_disk = cd * cd + (cq - r) ** 2 <= M * M
+        a = (M * M - r * r + d * d) / (2.0 * where(d > 0, d, 1.0))  # along the centre line, from the origin
+        hh = sqrt(relu(M * M - a * a))  # half the common chord
+        up, down = (-a + hh * rho) / sn, (-a - hh * rho) / sn  # the crossings' q parts (the centre's direction is
+        top1 = where(top_circle, M + 0.0 * w, where(top_disk, cq + r, up))  # (-rho, -1)/sqrt(n), its normal (-1, rho))
+        bot1 = where(bot_circle, -M + 0.0 * w, where(bot_disk, cq - r, down))
+        ok1 = (d <= M + r) & (top1 >= -limit_x)
+        top, bot = where(field_weakening, top1, top), where(field_weakening, bot1, bot)
+        ok = where(field_weakening, ok1, ok)
     # the whole window where the bus drives the full current: (X + |u|)^2 + (rho X)^2 <= S^2 (decided so, without
     # roots, here and in the fused loop alike; the roots agree to rounding)
     full = (limit_x + w) ** 2 + (rho * limit_x) ** 2 <= stall * stall
     hi = where(full | (top >= limit_x), limit_x + 0.0 * w, top)
     lo = where(full | (bot <= -limit_x), -limit_x + 0.0 * w, bot)
     ok = full | ok
-    # past control: the diode bridge's current, its q part
-    m = relu((-stall + sqrt(relu(w * w * n - (stall * rho) ** 2))) / n)
-    xq = -(m + stall) * m / sqrt((m + stall) ** 2 + (rho * m) ** 2)
-    hi, lo = where(ok, hi, xq), where(ok, lo, xq)
+    if eager or not np.all(ok):  # past control: the diode bridge's current, its q part
+        m = relu((-stall + sqrt(relu(w * w * n - (stall * rho) ** 2))) / n)
+        xq = -(m + stall) * m / sqrt((m + stall) ** 2 + (rho * m) ** 2)
+        hi, lo = where(ok, hi, xq), where(ok, lo, xq)
     neg = u < 0
     return where(neg, -hi, lo), where(neg, -lo, hi)
