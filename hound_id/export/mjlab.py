@@ -50,8 +50,11 @@ def not_held(ex: Export, uncoupled: str) -> list[str]:
         specs = ex.robot.motor_specs
         curved = [k for k in gaps if specs[k].current_curve.form != "linear"]
         rated = [k for k in gaps if specs[k].max_speed is not None]
-        causes = ([f"a saturating current-torque curve (motors {', '.join(curved)})"] if curved else []) + (
-            [f"a rated-speed cut-off, braking only above max_speed (motors {', '.join(rated)})"] if rated else []
+        driven = [k for k in gaps if specs[k].drive is not None]
+        causes = (
+            ([f"a saturating current-torque curve (motors {', '.join(curved)})"] if curved else [])
+            + ([f"a rated-speed cut-off, braking only above max_speed (motors {', '.join(rated)})"] if rated else [])
+            + ([f"the drive's dq model, a winding reactance (motors {', '.join(driven)})"] if driven else [])
         )
         lines.append(
             "straight lines: hound-id's edges are not straight where a motor has "
@@ -94,9 +97,17 @@ def not_held(ex: Export, uncoupled: str) -> list[str]:
             f"lag, resonance: the fitted filters of motors {', '.join(sensed)} are the dyno's torque transducer and "
             "coupling (how the reading follows the shaft torque), not the actuator's; none is set"
         )
+    past = {m.name: ex.past_overspeed(m.name) for m in ex.bundle.motors}
+    worst = max(past.values(), default=(0.0, 0.0))
     lines.append(
         "past overspeed a dcmotor holds the torque limit where the back-EMF forces more braking (hound-id's clip "
-        "returns that braking torque)"
+        "returns that braking torque: the diode bridge's with a winding reactance)"
+        + (
+            f": up to {worst[0]:.4g} N m more than the torque limit (motor side) to {worst[1]:.4g} rad/s, twice the "
+            "no-load speed"
+            if worst[0] > 0
+            else ""
+        )
     )
     return lines
 

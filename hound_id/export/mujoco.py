@@ -196,6 +196,13 @@ def write_mujoco(ex: Export, out: Path) -> Written:
             "side, between the corner and the overspeed); past overspeed dcmotor holds the torque limit where the "
             "back-EMF forces more braking. For the exact clip use --mujoco-actuator motor with hound_id.runtime",
         )
+    past = max((ex.past_overspeed(m.name) for m in ex.bundle.motors), default=(0.0, 0.0))
+    if past[0] > 0 and ex.mujoco_actuator.startswith("dcmotor"):
+        notes += (
+            f"past overspeed the runtime brakes by up to {past[0]:.4g} N m more than dcmotor's torque limit (motor "
+            f"side, to {past[1]:.4g} rad/s, twice the no-load speed): the back-EMF's forced braking, the diode "
+            "bridge's with a winding reactance; dcmotor's forcerange holds the torque limit there",
+        )
     if ex.mujoco_actuator == "dcmotor":
         notes = (
             "voltage input (loads in MuJoCo 3.x and 4.x): ctrl is each motor's voltage, limited to the bus; send "

@@ -22,6 +22,12 @@ from hound_id.errors import SpecError
 from hound_id.export.bundle import Bundle
 from hound_id.mor.robot import Robot
 
+#: Exports state what a straight-line actuator cannot hold up to this many no-load speeds (a leg overspeeds when
+#: the foot strikes or the gait reverses a joint; trainers reach it).
+TRAINER_REACH = 2.0
+#: Motor speeds between overspeed and that reach at which the forced braking is searched.
+PAST_POINTS = 2001
+
 
 @dataclass(frozen=True)
 class Export:
@@ -60,6 +66,21 @@ class Export:
         if id(spec) not in self._gaps:  # motors sharing a spec share its gap
             self._gaps[id(spec)] = straight_gap(operating_region(spec))
         return self._gaps[id(spec)]
+
+    def past_overspeed(self, motor: str) -> tuple[float, float]:
+        """(most braking past the torque limit [N m, motor side], up to speed [rad/s]): how much harder than a
+        straight-line actuator's torque limit the runtime brakes past the motor's overspeed, up to
+        :data:`TRAINER_REACH` x its no-load speed (the back-EMF's forced braking under the DC law, the diode
+        bridge's with a winding reactance)."""
+        from hound_id.mor.region import operating_region, torque_interval
+
+        region = operating_region(self.robot.motor_specs[motor])
+        top = TRAINER_REACH * region.no_load_speed
+        if top <= region.overspeed:
+            return 0.0, top
+        w = np.linspace(region.overspeed, top, PAST_POINTS)
+        braking = np.abs(torque_interval(w, region)[1])
+        return max(float(np.max(braking)) - region.torque_limit, 0.0), top
 
     @property
     def stem(self) -> str:

@@ -356,3 +356,21 @@ def test_a_robot_file_covering_part_of_the_urdf_says_what_the_other_joints_get(t
         assert "the URDF's joints FR_HAA, FR_HFE, FR_KFE, RL_HAA" in notes and "keep the URDF's own limits" in notes
     assert not any("URDF's joints" in n for n in report["formats"]["bundle"]["notes"])
     assert report["joints"] == ["FL_HAA", "FL_HFE", "FL_KFE"]
+
+
+def test_the_exports_state_the_braking_past_overspeed_they_cannot_hold(tmp_path):
+    """Past overspeed the runtime brakes harder than a straight-line actuator's torque limit (the diode bridge's
+    braking, with the sample's reactance): the MuJoCo and mjlab notes state by how much, to twice the no-load speed,
+    as a scan of the region's interval finds it."""
+    from hound_id.export.mjlab import not_held
+    from hound_id.mor.region import operating_region, torque_interval
+
+    ex = prepare(ROBOT, [])
+    region = operating_region(ex.robot.motor_specs["FL_HAA_motor"])
+    w = np.linspace(region.overspeed, 2.0 * region.no_load_speed, 20001)
+    most = float(np.max(np.abs(torque_interval(w, region)[1]))) - region.torque_limit
+    assert most == pytest.approx(5.32, abs=0.01)  # 13.74 N m of diode braking against the 8.416 N m limit
+    stated = f"up to {most:.4g} N m more than"
+    assert stated in not_held(ex, "voltage")[-1]
+    report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
+    assert any(f"up to {most:.4g} N m more than dcmotor" in n for n in report["formats"]["mujoco"]["notes"])
