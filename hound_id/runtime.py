@@ -90,6 +90,9 @@ class Runtime:
     """Per motor bus voltage [V]."""
     curves: tuple[CurrentCurve | None, ...] = ()
     """Per motor current-torque curve (bundle/2; empty for a bundle/1), whose exact inverse :meth:`current` uses."""
+    bus_voltage_range: NDArray[np.float64] | None = None
+    """Per motor (lowest, highest) bus voltage of its battery [V], shape (n, 2), from a bundle/3 whose specs state it
+    (None otherwise): draw each environment's ``bus_voltage`` within it."""
     own_motor: tuple[int, ...] = ()
     """Per joint, the index of the motor listed with it in the bundle (empty: motor i with joint i); differs when
     ``joint_names`` reorders the joints. Used by :meth:`clip_turn`'s per-joint comparison."""
@@ -381,6 +384,14 @@ def _curve_arrays(
     return frozen(limit_x), frozen(q), frozen(top)
 
 
+def _ranges(motors: list[Any]) -> NDArray[np.float64] | None:
+    """Per motor (lowest, highest) bus voltage [V] when every motor of a bundle/3 states its battery's range."""
+    ranges = [m.get("bus_voltage_range") for m in motors]
+    if not ranges or any(r is None for r in ranges):
+        return None
+    return frozen(np.array([[float(r[0]), float(r[1])] for r in ranges]))
+
+
 def _drive_fields(block: Mapping[str, Any], n: int, source: str) -> dict[str, Any]:
     """The Saturation fields of a bundle/3's nominal bus voltages and drive arrays (empty for older bundles and for
     the DC law); SpecError names a malformed one."""
@@ -473,6 +484,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         resistance=frozen(np.array([float(m["resistance"]) for m in motors])),
         kv=frozen(np.array([float(m["kv"]) for m in motors])),
         bus_voltage=frozen(np.array([float(m["bus_voltage"]) for m in motors])),
+        bus_voltage_range=_ranges(motors),
         compensation=tuple(comps),
         curves=tuple(curves) if any(c is not None for c in curves) else (),
         own_motor=own,

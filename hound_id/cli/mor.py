@@ -291,10 +291,8 @@ def _print_at_speed(spec: Any, speed: Any) -> None:
     if drive is not None:
         parts = []
         if drive.inductance_phase is not None:
-            parts.append(
-                f"{drive.inductance_phase * 1e6:.4g} uH per phase ({spec.inductance * 1e6:.4g} uH "
-                f"{(drive.convention or '').replace('_', '-')}), {drive.pole_pairs} pole pairs"
-            )
+            stated = "" if drive.convention == "phase" else f" ({spec.inductance * 1e6:.4g} uH line to line)"
+            parts.append(f"{drive.inductance_phase * 1e6:.4g} uH per phase{stated}, {drive.pole_pairs} pole pairs")
         parts.append("field weakening" if drive.field_weakening else "i_d = 0 (no field weakening)")
         console.print(f"at speed, the drive's dq model: {', '.join(parts)}", highlight=False)
         worst = speed.largest_cost
@@ -317,6 +315,14 @@ def _print_at_speed(spec: Any, speed: Any) -> None:
                 f"  without field weakening: motoring to {p.no_load_speed:.4g} rad/s, control to {p.overspeed:.4g}",
                 highlight=False,
             )
+            emf = d.no_load_speed / spec.kv  # the line-to-line back-EMF amplitude at the motoring reach
+            if emf > spec.bus_voltage:
+                console.print(
+                    f"  at {d.no_load_speed:.4g} rad/s the back-EMF is {emf:.4g} V against the "
+                    f"{spec.bus_voltage:.4g} V bus: a drive fault there regenerates uncontrolled into the bus; "
+                    "check the drive's and the battery's voltage ratings",
+                    highlight=False,
+                )
     if speed.battery:
         low, high = speed.battery
         console.print(

@@ -58,7 +58,8 @@ import numpy as np
 INDUCTANCE_CONVENTIONS = ("line_to_line", "phase")
 #: The convention taken (with a warning) when a spec gives an inductance without one.
 DEFAULT_INDUCTANCE_CONVENTION = "line_to_line"
-#: The window is held at its value at this many no-load speeds (u = D omega = this x S) and beyond: the braking has
+#: The window is held at its value at this many no-load speeds (u = D omega = this x S, or x X_lim if larger: a bus
+#: at 0 V) and beyond: the braking has
 #: long faded to the short-circuit current's few N m there, no motor survives it, and every square taken stays within
 #: float32's range for any finite speed.
 SPEED_CAP = 1e4
@@ -152,7 +153,9 @@ def _window(
     where, sqrt, relu = ops.where, ops.sqrt, ops.relu
     eager = ops.torch  # torch computes every branch (a test of the data would cost a device sync on a GPU)
     w = abs(u)
-    w = where(w > SPEED_CAP * stall, SPEED_CAP * stall, w)  # every square below float32's range (NaN stays NaN)
+    # every square below float32's range (NaN stays NaN); against the larger of S and X, so a bus at 0 V still brakes
+    cap = SPEED_CAP * where(stall > limit_x, stall, limit_x)
+    w = where(w > cap, cap, w)
     rho = k_rho * w
     n = 1.0 + rho * rho
     cq = -w / n

@@ -66,7 +66,7 @@ def _window_fn(has_fw: bool) -> Any:
         u: Any, stall: Any, k_rho: Any, limit_x: Any, M: Any, fw: Any, zero: Any, one: Any, speed_cap: Any
     ) -> tuple[Any, Any]:
         w = abs(u)
-        cap = speed_cap * stall
+        cap = speed_cap * (stall if stall > limit_x else limit_x)
         w = cap if w > cap else w
         rho = k_rho * w
         n = one + rho * rho

@@ -232,9 +232,18 @@ class AtSpeed:
                 "dc_law": list(self.torque_dc),
                 "drive": list(self.torque_drive),
                 "cost": [a - b for a, b in zip(self.torque_dc, self.torque_drive, strict=True)],
+                "about": "the upper edge (motoring, past the no-load speed the least braking) at shares "
+                f"{', '.join(f'{c:g}' for c in COST_SPEEDS)} of the DC law's no-load speed; cost = dc_law - drive, "
+                "positive where the drive model gives less torque (negative past no-load: less braking forced)",
             },
             "battery": [b.to_dict() for b in self.battery],
-            "units": "rad/s, N m, V (motor side)",
+            "units": {
+                "speeds, corner_speed, no_load_speed, overspeed": "rad/s (motor side)",
+                "torques, cost": "N m (motor side)",
+                "bus_voltage": "V",
+                "meaning": "with a drive model no_load_speed is where the motoring edge reaches zero (with field "
+                "weakening: how far motoring reaches) and overspeed where the drive loses control",
+            },
         }
 
 
@@ -854,13 +863,18 @@ def _drive_bindings(
         out.append(
             Binding("voltage", (no_load, over), "past the motoring reach the back-EMF forces braking; " + voltage)
         )
+    held = (
+        f"no current within the {drive.phase_current_limit:.4g} A circle"
+        if drive.field_weakening
+        else f"no current with i_d = 0 within {i_lim:.4g} A (field weakening would hold control further)"
+    )
     out.append(
         Binding(
             "back-EMF",
             (over, math.inf),
-            f"past {over:.4g} rad/s the drive cannot hold its current within {i_lim:.4g} A: its switches off, the "
-            "back-EMF drives current through the diode bridge, whose braking (smaller than (omega/Kv - V)/R with "
-            "the reactance, fading at high speed) is the torque whatever is commanded",
+            f"past {over:.4g} rad/s the bus can hold {held}: the drive's switches are taken as off, the back-EMF "
+            "drives current through the diode bridge, and its braking (smaller than (omega/Kv - V)/R with the "
+            "reactance, fading at high speed) is the torque whatever is commanded; the braking steps there",
         )
     )
     return tuple(out)

@@ -516,16 +516,21 @@ class Saturation:
 
             v = torch.as_tensor(bus_voltage, dtype=like.dtype, device=like.device)
             try:
-                return torch.broadcast_to(v, shape).contiguous()
-            except RuntimeError as err:
-                raise SaturationError(self._volts_shape(tuple(v.shape), shape)) from err
+                fits = tuple(torch.broadcast_shapes(v.shape, shape)) == shape
+            except RuntimeError:
+                fits = False
+            if not fits:
+                raise SaturationError(self._volts_shape(tuple(v.shape), shape))
+            return torch.broadcast_to(v, shape).contiguous()
         volts = np.asarray(bus_voltage, dtype=like.dtype)
         if volts.shape == shape and volts.flags.c_contiguous:
             return volts  # kept by the trainer at full shape: read as it is (the clip takes max(V, 0) itself)
         try:
-            np.broadcast_shapes(volts.shape, shape)
-        except ValueError as err:
-            raise SaturationError(self._volts_shape(volts.shape, shape)) from err
+            fits = np.broadcast_shapes(volts.shape, shape) == shape
+        except ValueError:
+            fits = False
+        if not fits:
+            raise SaturationError(self._volts_shape(volts.shape, shape))
         if volts.ndim == len(shape) and volts.shape[:-1] == shape[:-1] and volts.shape[-1] == 1 and shape[-1] > 1:
             return np.repeat(volts, shape[-1], axis=-1)
         return np.ascontiguousarray(np.broadcast_to(volts, shape))
@@ -533,7 +538,7 @@ class Saturation:
     def _volts_shape(self, got: tuple[int, ...], want: tuple[int, ...]) -> str:
         return (
             f"saturation: bus_voltage has shape {got}, which does not broadcast to the commands' {want}; give one "
-            f"voltage per environment as (..., 1) or one per motor as (..., {self.n}) [V]"
+            f"voltage per environment as (..., 1) or one per motor as (..., {self.n}) [V] (a 1-D array is per motor)"
         )
 
     def _bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:

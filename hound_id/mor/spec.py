@@ -447,6 +447,12 @@ def spec_warnings(spec: MotorSpec) -> tuple[str, ...]:
                 f"{DEFAULT_INDUCTANCE_CONVENTION} (what a meter across two terminals reads). A phase value has twice "
                 "the reactance and costs more torque at speed: add 'inductance_convention: line_to_line' or 'phase'"
             )
+    if spec.field_weakening and (spec.drive is None or spec.drive.reactance == 0.0):
+        out.append(
+            f"{spec.name}: field_weakening without a winding reactance (an inductance with pole_pairs): negative d "
+            "current lowers the voltage only through the reactance, so it changes nothing here; add inductance, "
+            "inductance_convention and pole_pairs"
+        )
     if spec.inductance is not None and spec.commutation == "six_step":
         out.append(
             f"{spec.name}: inductance with six_step commutation; the dq model of the voltage edge applies to "

@@ -176,3 +176,37 @@ def test_an_inductance_without_its_convention_is_taken_line_to_line_with_a_warni
     no_poles = motor_spec_from_mapping({k: v for k, v in BASE.items() if k != "pole_pairs"}, "m.yaml")
     assert no_poles.drive is None
     assert any("without pole_pairs; the voltage edge ignores it" in w for w in spec_warnings(no_poles))
+
+
+def test_a_bus_at_zero_volts_still_brakes_and_odd_shapes_are_refused():
+    """0 V (or a negative voltage, taken as 0): the shorted winding's current brakes, it is not a free wheel."""
+    sat = saturation_for(load_robot(ROBOT))
+    qd = np.zeros((2, 12))
+    qd[:, 0] = [100.0 / 9.0, -100.0 / 9.0]  # FL_HAA's motor at +-100 rad/s
+    for volts in (0.0, -5.0):
+        lo, hi = sat.torque_bounds(qd, bus_voltage=np.full((2, 1), volts))
+        assert hi[0, 0] < -1.0 and lo[1, 0] > 1.0 and lo[0, 0] == hi[0, 0]
+    with pytest.raises(SaturationError, match=r"bus_voltage has shape \(2, 1, 1\)"):
+        sat(np.zeros((2, 12)), qd, bus_voltage=np.full((2, 1, 1), 81.0))
+    with pytest.raises(SaturationError, match="does not broadcast"):
+        sat(torch.zeros((2, 12)), torch.tensor(qd, dtype=torch.float32), bus_voltage=torch.full((2, 1, 1), 81.0))
+
+
+def test_field_weakening_without_a_reactance_is_named():
+    from hound_id.mor.spec import spec_warnings
+
+    data = {k: v for k, v in BASE.items() if k != "inductance"} | {"field_weakening": True}
+    spec = motor_spec_from_mapping(data, "m.yaml")
+    assert any("field_weakening without a winding reactance" in w for w in spec_warnings(spec))
+
+
+def test_the_runtime_carries_the_batterys_range(tmp_path):
+    import hound_id.runtime
+    from hound_id.export.run import export_robot, formats_from, prepare
+
+    export_robot(prepare(ROBOT, []), formats_from("bundle"), tmp_path / "out")
+    rt = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.yaml")
+    assert rt.bus_voltage_range is not None and np.array_equal(rt.bus_voltage_range, np.tile([66.0, 84.0], (12, 1)))
+    tau, qd = np.full((3, 12), 200.0), np.full((3, 12), 30.0)
+    volts = np.array([[66.0], [81.0], [84.0]])
+    assert np.array_equal(rt.saturate(tau, qd, bus_voltage=volts), rt.clip(tau, qd, volts))
