@@ -515,6 +515,8 @@ class Saturation:
             import torch
 
             v = torch.as_tensor(bus_voltage, dtype=like.dtype, device=like.device)
+            if tuple(v.shape) == shape and v.is_contiguous():
+                return v  # kept by the trainer at full shape (torch's broadcast_shapes alone costs ~10 us)
             try:
                 fits = tuple(torch.broadcast_shapes(v.shape, shape)) == shape
             except RuntimeError:
