@@ -20,6 +20,7 @@ import numpy as np
 from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import Bundle
+from hound_id.mor.region import OperatingRegion
 from hound_id.mor.robot import Robot
 
 #: Exports state what a straight-line actuator cannot hold up to this many no-load speeds (a leg overspeeds when
@@ -36,10 +37,11 @@ class Export:
     robot: Robot
     """The robot, with fitted motor specs in place."""
     bundle: Bundle
-    """Its ``hound-id/bundle/2`` bundle."""
+    """Its ``hound-id/bundle/3`` bundle."""
     mujoco_actuator: str = "dcmotor"
     """``dcmotor`` (voltage input), ``dcmotor-ff`` (torque input, MuJoCo >= 4.0) or ``motor`` (plain torque, saturate
     with the runtime)."""
+    _regions: dict[int, OperatingRegion] = field(default_factory=dict, init=False, compare=False, repr=False)
     _gaps: dict[int, tuple[float, float]] = field(default_factory=dict, init=False, compare=False, repr=False)
 
     @property
@@ -60,21 +62,30 @@ class Export:
         """(over, under) [N m, motor side]: how far a straight-line DC-motor clip (Isaac Lab's DCMotor, MuJoCo's
         dcmotor) passes or falls short of the motor's region within +-overspeed
         (:func:`hound_id.mor.region.straight_gap`; 0 for a linear curve)."""
-        from hound_id.mor.region import operating_region, straight_gap
+        from hound_id.mor.region import straight_gap
 
         spec = self.robot.motor_specs[motor]
         if id(spec) not in self._gaps:  # motors sharing a spec share its gap
-            self._gaps[id(spec)] = straight_gap(operating_region(spec))
+            self._gaps[id(spec)] = straight_gap(self.region(motor))
         return self._gaps[id(spec)]
+
+    def region(self, motor: str) -> OperatingRegion:
+        """The motor's spec-sheet region, built once per spec (a drive model's takes ~0.1 s)."""
+        from hound_id.mor.region import operating_region
+
+        spec = self.robot.motor_specs[motor]
+        if id(spec) not in self._regions:
+            self._regions[id(spec)] = operating_region(spec)
+        return self._regions[id(spec)]
 
     def past_overspeed(self, motor: str) -> tuple[float, float]:
         """(most braking past the torque limit [N m, motor side], up to speed [rad/s]): how much harder than a
         straight-line actuator's torque limit the runtime brakes past the motor's overspeed, up to
         :data:`TRAINER_REACH` x its no-load speed (the back-EMF's forced braking under the DC law, the diode
         bridge's with a winding reactance)."""
-        from hound_id.mor.region import operating_region, torque_interval
+        from hound_id.mor.region import torque_interval
 
-        region = operating_region(self.robot.motor_specs[motor])
+        region = self.region(motor)
         top = TRAINER_REACH * region.no_load_speed
         if top <= region.overspeed:
             return 0.0, top

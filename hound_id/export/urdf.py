@@ -39,11 +39,11 @@ def open_limits(ex: Export) -> tuple[np.ndarray, np.ndarray]:
     :data:`OPEN_REACH` x overspeed: effort_j = sum_m |(A^-T)_jm| T_m with T_m the largest |torque| of motor m's
     interval there (the curve's top, or the back-EMF braking of a linear motor at that speed), velocity_j =
     sum_m |A_jm| OPEN_REACH overspeed_m."""
-    from hound_id.mor.region import operating_region, torque_interval
+    from hound_id.mor.region import torque_interval
 
     tops, speeds = [], []
     for m in ex.bundle.motors:
-        region = operating_region(ex.robot.motor_specs[m.name])
+        region = ex.region(m.name)
         w = np.linspace(-OPEN_REACH, OPEN_REACH, OPEN_POINTS) * region.overspeed
         lo, hi = torque_interval(w, region)
         mag = np.maximum(np.abs(lo), np.abs(hi))

@@ -28,7 +28,7 @@ current of at least (omega/Kv - V)/R through the inverter whatever is commanded
 from __future__ import annotations
 
 import math
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from typing import TYPE_CHECKING, Any
 
 import numpy as np
@@ -216,6 +216,10 @@ class AtSpeed:
     largest_cost: tuple[float, float, float]
     """(DC-law torque - drive torque [N m], at speed [rad/s], the DC law's torque there [N m]): the most motoring
     torque the drive model takes off the DC law's edge, up to the DC no-load speed (a fine grid)."""
+    dc_region: OperatingRegion = field(repr=False, compare=False)
+    """The DC law's region the comparison used (for plots)."""
+    battery_regions: tuple[OperatingRegion, ...] = field(default=(), repr=False, compare=False)
+    """The regions at the battery's lowest and highest voltage (for plots)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -261,9 +265,8 @@ def at_speed(spec: MotorSpec, region: OperatingRegion | None = None) -> AtSpeed:
     fine = np.unique(np.concatenate([np.linspace(0.0, dc.no_load_speed, COST_POINTS), [dc.corner_speed]]))
     cost = torque_interval(fine, dc)[1] - torque_interval(fine, sheet)[1]
     k = int(np.argmax(cost))
-    battery: tuple[Speeds, ...] = ()
-    if spec.bus_voltage_range is not None:
-        battery = tuple(_speeds(operating_region(replace(spec, bus_voltage=v)), v) for v in spec.bus_voltage_range)
+    ends = spec.bus_voltage_range or ()
+    battery_regions = tuple(operating_region(replace(spec, bus_voltage=v)) for v in ends)
     return AtSpeed(
         drive=_speeds(sheet, spec.bus_voltage),
         dc_law=_speeds(dc, spec.bus_voltage),
@@ -271,8 +274,10 @@ def at_speed(spec: MotorSpec, region: OperatingRegion | None = None) -> AtSpeed:
         speeds=tuple(float(x) for x in w),
         torque_dc=tuple(float(x) for x in torque_interval(w, dc)[1]),
         torque_drive=tuple(float(x) for x in torque_interval(w, sheet)[1]),
-        battery=battery,
+        battery=tuple(_speeds(r, v) for r, v in zip(battery_regions, ends, strict=True)),
         largest_cost=(float(cost[k]), float(fine[k]), float(torque_interval(fine[k : k + 1], dc)[1][0])),
+        dc_region=dc,
+        battery_regions=battery_regions,
     )
 
 
@@ -315,24 +320,12 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
         return drive_region(spec)
     if curve.form == "linear":
         return replace(linear_region(spec), curve=curve)
-    tl = spec.torque_limit
-    X = curve.kt * spec.limit_current
-    stall = curve.kt * spec.bus_voltage / spec.resistance  # linear-equivalent: Kt times the stall current V/R
-    damping = curve.kt / (spec.resistance * spec.kv)
+    base = _curve_base(spec)
+    tl, X, stall, damping = base.torque_limit, base.limit_x, base.stall_torque, base.back_emf_damping
     corner = max((stall - X) / damping, 0.0)
     if spec.max_speed is not None:
         corner = min(corner, spec.max_speed)
-    base = replace(
-        linear_region(spec),
-        corner_speed=corner,
-        overspeed=(stall + X) / damping,
-        torque_limit=tl,
-        stall_torque=stall,
-        back_emf_damping=damping,
-        curve=curve,
-        linear_limit=X,
-        linear_torque_limit=spec.linear_torque_limit,
-    )
+    base = replace(base, corner_speed=corner, overspeed=(stall + X) / damping)
     speeds, lower, upper = curved_edges(base)
     # The half-spaces: the edges' segments where they are concave (the upper edge up to the no-load speed, where the
     # current is positive; the lower edge likewise), and past them the voltage lines, tau <= S - D omega, which touch
@@ -353,6 +346,22 @@ def operating_region(spec: MotorSpec) -> OperatingRegion:
     return replace(region, vertices=frozen(vertices), inner_box=_traced_box(vertices))
 
 
+def _curve_base(spec: MotorSpec) -> OperatingRegion:
+    """The linear region with the current-torque curve's limits in the linear-equivalent torque x = Kt i: the torque
+    limit, X = Kt I (I the current it needs), the stall torque Kt V / R and the back-EMF damping Kt / (R Kv), Kt the
+    curve's (the edges and characteristic speeds are the caller's)."""
+    curve = spec.current_curve
+    return replace(
+        linear_region(spec),
+        torque_limit=spec.torque_limit,
+        stall_torque=curve.kt * spec.bus_voltage / spec.resistance,  # Kt times the stall current V/R
+        back_emf_damping=curve.kt / (spec.resistance * spec.kv),
+        curve=curve,
+        linear_limit=curve.kt * spec.limit_current,
+        linear_torque_limit=spec.linear_torque_limit,
+    )
+
+
 #: The drive region's characteristic speeds are searched up to this many DC no-load speeds (past it a drive with field
 #: weakening is taken to hold control: the short-circuit current lies within its current circle).
 DRIVE_SEARCH_REACH = 8.0
@@ -369,24 +378,12 @@ def drive_region(spec: MotorSpec, bus_voltage: float | None = None) -> Operating
     are the edges' crossings, found on a grid and bisected. ``bus_voltage`` [V] replaces the spec's."""
     if bus_voltage is not None:
         spec = replace(spec, bus_voltage=bus_voltage)
-    drive = spec.drive
-    if drive is None:
+    if spec.drive is None:
         raise ValueError(f"{spec.name}: the spec has no drive model (inductance with pole pairs, or field weakening)")
-    curve = spec.current_curve
-    tl = spec.torque_limit
-    X = curve.kt * spec.limit_current
-    stall = curve.kt * spec.bus_voltage / spec.resistance
-    damping = curve.kt / (spec.resistance * spec.kv)
-    base = replace(
-        linear_region(spec),
-        torque_limit=tl,
-        stall_torque=stall,
-        back_emf_damping=damping,
-        curve=None if curve.form == "linear" else curve,
-        linear_limit=X,
-        linear_torque_limit=spec.linear_torque_limit,
-        drive=replace(drive, circle_x=curve.kt * drive.phase_current_limit),
-    )
+    base = _curve_base(spec)
+    linear = base.curve is not None and base.curve.form == "linear"
+    base = replace(base, curve=None if linear else base.curve, drive=spec.drive)
+    tl = base.torque_limit
     corner, no_load, over = _drive_speeds(base)
     if spec.max_speed is not None:
         corner = min(corner, spec.max_speed)
@@ -408,42 +405,36 @@ def drive_region(spec: MotorSpec, bus_voltage: float | None = None) -> Operating
 def _drive_speeds(region: OperatingRegion) -> tuple[float, float, float]:
     """(corner, no-load, overspeed) [rad/s] of a drive region: the first speeds >= 0 at which the upper window falls
     below the full current, reaches zero, and at which control is lost (the window collapses onto the diode's
-    braking)."""
-    top = DRIVE_SEARCH_REACH * region.stall_torque / region.back_emf_damping
+    braking). One window on a grid for all three, then each crossing bisected to rounding."""
     X = region.limit_x
-
-    def below_full(w: NDArray[np.float64]) -> NDArray[np.bool_]:
-        return current_window(w, region)[1] < X * (1.0 - 1e-12)
-
-    def motoring_gone(w: NDArray[np.float64]) -> NDArray[np.bool_]:
-        return current_window(w, region)[1] <= 0.0
-
-    def lost(w: NDArray[np.float64]) -> NDArray[np.bool_]:
-        lo, hi = current_window(w, region)
-        return lo >= hi
-
-    return tuple(_first_speed(f, top) for f in (below_full, motoring_gone, lost))  # type: ignore[return-value]
-
-
-def _first_speed(pred: Any, top: float) -> float:
-    """The first speed in [0, top] [rad/s] at which ``pred`` holds (grid, then bisection), or ``top``."""
-    grid = np.linspace(0.0, top, DRIVE_SEARCH_POINTS)
-    hit = np.flatnonzero(pred(grid))
-    if hit.size == 0:
-        return top
-    k = int(hit[0])
-    if k == 0:
-        return 0.0
-    a, b = float(grid[k - 1]), float(grid[k])
-    for _ in range(60):
-        mid = 0.5 * (a + b)
-        if mid in (a, b):
-            break
-        if pred(np.array([mid]))[0]:
-            b = mid
-        else:
-            a = mid
-    return b
+    tests = (
+        lambda lo, hi: hi < X * (1.0 - 1e-12),  # below the full current
+        lambda lo, hi: hi <= 0.0,  # motoring gone
+        lambda lo, hi: lo >= hi,  # control lost
+    )
+    grid = np.linspace(0.0, DRIVE_SEARCH_REACH * region.stall_torque / region.back_emf_damping, DRIVE_SEARCH_POINTS)
+    lo, hi = current_window(grid, region)
+    out = []
+    for test in tests:
+        hit = np.flatnonzero(test(lo, hi))
+        if hit.size == 0:
+            out.append(float(grid[-1]))
+            continue
+        k = int(hit[0])
+        if k == 0:
+            out.append(0.0)
+            continue
+        a, b = float(grid[k - 1]), float(grid[k])
+        for _ in range(60):
+            mid = 0.5 * (a + b)
+            if mid in (a, b):
+                break
+            if test(*current_window(np.array([mid]), region))[0]:
+                b = mid
+            else:
+                a = mid
+        out.append(b)
+    return out[0], out[1], out[2]
 
 
 def linear_region(spec: MotorSpec) -> OperatingRegion:

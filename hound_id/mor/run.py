@@ -10,6 +10,7 @@ from __future__ import annotations
 import os
 from collections.abc import Callable
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -50,7 +51,7 @@ class MotorRegions:
 
         return overpromise(linear_region(self.spec), self.sheet)
 
-    @property
+    @cached_property
     def at_speed(self) -> AtSpeed | None:
         """The drive model's and the battery's effect on the spec sheet's region (None under the DC law at one bus)."""
         from hound_id.mor.region import at_speed
@@ -86,18 +87,17 @@ class MotorRegions:
         )
 
     def _outlines(self) -> tuple[tuple[OperatingRegion, str], ...]:
-        """The DC law's region (when the spec has a drive model) and the region at the battery's lowest voltage."""
-        from dataclasses import replace
-
-        from hound_id.mor.region import operating_region
-
+        """The DC law's region (when the spec has a drive model) and the region at the battery's lowest voltage, as
+        :attr:`at_speed` built them."""
+        speed = self.at_speed
         out: list[tuple[OperatingRegion, str]] = []
+        if speed is None:
+            return ()
         if self.spec.drive is not None:
-            dc = replace(self.spec, inductance=None, inductance_convention=None, field_weakening=False)
-            out.append((operating_region(dc), "DC law (no reactance, i_d = 0): what the paper's eq. 2 promises"))
-        if self.spec.bus_voltage_range is not None:
-            low = self.spec.bus_voltage_range[0]
-            out.append((operating_region(replace(self.spec, bus_voltage=low)), f"at the battery's lowest {low:.4g} V"))
+            out.append((speed.dc_region, "DC law (no reactance, i_d = 0): what the paper's eq. 2 promises"))
+        if speed.battery_regions:
+            low = speed.battery[0].bus_voltage
+            out.append((speed.battery_regions[0], f"at the battery's lowest {low:.4g} V"))
         return tuple(out)
 
 

@@ -267,7 +267,7 @@ class _Constants(NamedTuple):
     circle_x: Any = None
     """Per motor Kt I_max [N m], the field-weakening current circle."""
     fw: Any = None
-    """Per motor 1.0 where the drive weakens the field, else 0.0 (numpy: bool view where used)."""
+    """Per motor whether the drive weakens the field (booleans; the fused loop reads the stacked row, 1.0 or 0.0)."""
     has_drive: bool = False
     """Whether any motor has a drive model (then every motor's window is the dq one)."""
     has_fw: bool = False
@@ -336,6 +336,10 @@ class Saturation:
             polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r)
             for m, r in zip(robot.motors, regions, strict=True)
         )
+        held = tuple(  # a table curve's polyline under a drive model (a measured envelope's keeps its line bounds)
+            p is not None and r.drive is not None and robot.motor_specs[m].envelope is None
+            for m, r, p in zip(robot.motors, regions, polylines, strict=True)
+        )
         return cls(
             joints=robot.joints,
             A=frozen(A),
@@ -348,12 +352,7 @@ class Saturation:
             curve_q=frozen([_quadratic_q(r) for r in regions]),
             top_torque=frozen([_table_top(r) for r in regions]),
             polylines=polylines if any(p is not None for p in polylines) else (),
-            held=tuple(
-                p is not None and r.drive is not None and robot.motor_specs[m].envelope is None
-                for m, r, p in zip(robot.motors, regions, polylines, strict=True)
-            )
-            if any(r.drive is not None for r in regions)
-            else (),
+            held=held if any(held) else (),
             bus_voltage=frozen([robot.motor_specs[m].bus_voltage for m in robot.motors]),
             **_drive_arrays(regions),
         )
@@ -453,7 +452,7 @@ class Saturation:
             stall_per_volt=vecs[12],
             k_rho=vecs[13],
             circle_x=vecs[14],
-            fw=(vecs[15] > 0) if torch_like else vecs[15] > 0,
+            fw=vecs[15] > 0,
             has_drive=self.drive_k_rho is not None,
             has_fw=self.drive_fw is not None and bool(np.any(self.drive_fw)),
             ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), limit_x.max())) / colsum),

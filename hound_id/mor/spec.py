@@ -39,7 +39,13 @@ from hound_id.arrays import frozen
 from hound_id.errors import SpecError, where
 from hound_id.io import file_stem, read_yaml
 from hound_id.mor.current_curve import CurrentCurve, quadratic_cubic_table, sheet_curve
-from hound_id.mor.drive import DEFAULT_INDUCTANCE_CONVENTION, INDUCTANCE_CONVENTIONS, Drive, reactance_per_speed
+from hound_id.mor.drive import (
+    DEFAULT_INDUCTANCE_CONVENTION,
+    INDUCTANCE_CONVENTIONS,
+    PHASE_FACTOR,
+    Drive,
+    reactance_per_speed,
+)
 from hound_id.mor.envelope_effects import EFFECTS
 from hound_id.units import to_si
 
@@ -345,9 +351,10 @@ class MotorSpec:
         """The drive's dq model (:mod:`hound_id.mor.drive`) where it changes the region: an inductance with pole pairs
         under field-oriented control, or field weakening; None for the DC law V = R i + omega/Kv."""
         reactance = 0.0
-        convention = None
+        convention = phase = None
         if self.inductance is not None and self.pole_pairs is not None and self.commutation == "foc":
             convention = self.inductance_convention or DEFAULT_INDUCTANCE_CONVENTION
+            phase = self.inductance * PHASE_FACTOR[convention]
             reactance = reactance_per_speed(self.inductance, convention, self.pole_pairs)
         if reactance == 0.0 and not self.field_weakening:
             return None
@@ -358,7 +365,7 @@ class MotorSpec:
             circle_x=self.current_curve.kt * current,
             field_weakening=self.field_weakening,
             phase_current_limit=current,
-            inductance_phase=None if convention is None else reactance / (math.sqrt(3.0) * (self.pole_pairs or 1)),
+            inductance_phase=phase,
             convention=convention,
             pole_pairs=self.pole_pairs if convention is not None else None,
         )
