@@ -21,8 +21,13 @@ a CUDA device, torch is timed there too (synchronised around each call).
 ``--bus-voltage`` gives each environment its own bus voltage, drawn in the battery's range (66-84 V), to both
 clips as full (envs, joints) arrays set at reset, as a trainer randomising the charge keeps them: the per-joint
 clip's stall torque and no-load speed scaled by V / V_nom, the coupled clip's ``bus_voltage``.
+``--temperature`` gives each winding its own temperature (25-115 degC, a full (envs, joints) array, as a trainer
+carrying the runtime's temperature state holds it) to the coupled clip (``temperature``: R, Kt and the back-EMF at
+that temperature, the derated current limit; the general path, no fused loop); the per-joint baseline keeps its
+20 degC limits, so the ratio includes all of the temperature's arithmetic.
 
 Run: .venv/bin/python benchmarks/saturation.py [--envs 4096] [--processes 5] [--json] [--dc-law] [--bus-voltage]
+         [--temperature]
      .venv/bin/python benchmarks/saturation.py --scaling --json    # 256 ... 65,536 environments
      .venv/bin/python benchmarks/saturation.py --feasibility   # worst excess past the region, per dtype
 """
@@ -78,6 +83,7 @@ def main() -> None:
     parser.add_argument("--worker", action="store_true", help=argparse.SUPPRESS)
     parser.add_argument("--dc-law", action="store_true", help="the sample motor without its inductance (DC law)")
     parser.add_argument("--bus-voltage", action="store_true", help="a bus voltage per environment (66-84 V)")
+    parser.add_argument("--temperature", action="store_true", help="a winding temperature per motor (25-115 degC)")
     parser.add_argument(
         "--feasibility",
         action="store_true",
@@ -124,6 +130,10 @@ def main() -> None:
         consts32[1] = np.ascontiguousarray(consts32[1] * scale)
         consts32[3] = np.ascontiguousarray(consts32[1] * (1.0 + consts32[2] / consts32[0]))
 
+    temps = None
+    if args.temperature:
+        temps = rng.uniform(25.0, 115.0, tau.shape).astype(np.float32)
+
     # fewer rounds for big batches: each call is longer, and the total stays about the same
     rounds = max(3, int(args.repeats * 4096 / max(envs, 4096)) // 10)
 
@@ -150,9 +160,11 @@ def main() -> None:
     buf = np.empty_like(tau)
     fused_on = fused.available()
     results["numpy"] = timed(
-        lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd, volts), lambda: np.add(tau, qd, out=buf)
+        lambda: dc_motor_clip(tau, qd, *consts32),
+        lambda: sat(tau, qd, volts, temps),
+        lambda: np.add(tau, qd, out=buf),
     )
-    if fused_on:  # the same clip with numpy's steps (one pass each), as without numba
+    if fused_on and temps is None:  # the same clip with numpy's steps (one pass each), as without numba
         os.environ[fused.ENV] = "0"
         results["numpy-steps"] = timed(
             lambda: dc_motor_clip(tau, qd, *consts32), lambda: sat(tau, qd, volts), lambda: np.add(tau, qd, out=buf)
@@ -169,11 +181,12 @@ def main() -> None:
         for device in devices:
             tt, tq = torch.from_numpy(tau).to(device), torch.from_numpy(qd).to(device)
             tv = None if volts is None else torch.from_numpy(volts).to(device)
+            tT = None if temps is None else torch.from_numpy(temps).to(device)
             tc = [torch.from_numpy(c).to(device) for c in consts32]
             tb = torch.empty_like(tt)
             results[f"torch-{device}"] = timed(
                 lambda: dc_motor_clip(tt, tq, *tc),  # noqa: B023 (timed here, in this iteration)
-                lambda: sat(tt, tq, tv),  # noqa: B023
+                lambda: sat(tt, tq, tv, tT),  # noqa: B023
                 lambda: torch.add(tt, tq, out=tb),  # noqa: B023
                 sync=torch.cuda.synchronize if device == "cuda" else None,
             )
@@ -250,7 +263,7 @@ def report(args: argparse.Namespace) -> None:
         cmd = [sys.executable, __file__, "--worker", "--envs", str(envs), "--repeats", str(args.repeats)]
         if args.raw_malloc:
             cmd.append("--raw-malloc")
-        cmd += ["--dc-law"] * args.dc_law + ["--bus-voltage"] * args.bus_voltage
+        cmd += ["--dc-law"] * args.dc_law + ["--bus-voltage"] * args.bus_voltage + ["--temperature"] * args.temperature
         runs = [
             json.loads(subprocess.run(cmd, check=True, capture_output=True, text=True).stdout)
             for _ in range(args.processes)

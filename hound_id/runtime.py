@@ -15,8 +15,9 @@ torch, when given tensors) are imported, besides the standard library: of hound-
 :mod:`hound_id.mor.drive`, the drive's dq window the clip takes for a motor with a winding reactance or
 field weakening, :mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse
 :meth:`Runtime.current` gives,
-and :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
-(:meth:`Runtime.clip_turn`). With numba installed (``hound-id[fast]``) the first clip of an ordinary batch imports
+:mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
+(:meth:`Runtime.clip_turn`), and :mod:`hound_id.mor.thermal`, the winding temperature's step
+(:meth:`Runtime.step_temperature`, imported when first called). With numba installed (``hound-id[fast]``) the first clip of an ordinary batch imports
 it for the fused loop of :mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
 A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
 imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
@@ -49,7 +50,7 @@ from hound_id.mor.saturation import (
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.
-READABLE = ("hound-id/bundle/1", "hound-id/bundle/2", "hound-id/bundle/3")
+READABLE = ("hound-id/bundle/1", "hound-id/bundle/2", "hound-id/bundle/3", "hound-id/bundle/4")
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
 EPS_SPEED = 0.01
@@ -93,6 +94,10 @@ class Runtime:
     bus_voltage_range: NDArray[np.float64] | None = None
     """Per motor (lowest, highest) bus voltage of its battery [V], shape (n, 2), from a bundle/3 whose specs state it
     (None otherwise): draw each environment's ``bus_voltage`` within it."""
+    heat: NDArray[np.float64] | None = None
+    """Per motor rows (R_th [K/W], time constant [s], ambient [degC], c R20 [W/A^2], a_R [1/K], a_K [1/K]), shape
+    (6, n), from a bundle/4 whose specs state a thermal model (None otherwise; a motor without one relaxes to 20 degC
+    and is never derated), for :meth:`step_temperature`."""
     own_motor: tuple[int, ...] = ()
     """Per joint, the index of the motor listed with it in the bundle (empty: motor i with joint i); differs when
     ``joint_names`` reorders the joints. Used by :meth:`clip_turn`'s per-joint comparison."""
@@ -137,7 +142,7 @@ class Runtime:
                 self._consts[key] = tuple(np.asarray(v, dtype=dtype) for v in values)
         return self._consts[key]
 
-    def saturate(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None) -> Any:
+    def saturate(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> Any:
         """Joint torques [N m] after each motor's operating region, for (..., n_joints) commands and speeds.
 
         Feasible for every finite command, float32 or float64, numpy or torch (however large: the clipped
@@ -147,8 +152,13 @@ class Runtime:
         ``bus_voltage`` [V]: the battery's voltage per environment, (..., 1), or per motor, (..., n), to randomise
         its charge (e.g. drawn at each reset from the bundle's ``bus_voltage_range``); the region follows it (a
         bundle/3 or later). Keep it as a full (..., n) array of the commands' dtype for the cheapest clip.
+
+        ``temperature`` [degC]: each winding's temperature, shaped like ``bus_voltage`` (a bundle/4 whose specs state
+        a thermal model): R, Kt and the back-EMF constant follow it, the drive's current limit is derated, and the
+        clip takes the general path (no fused loop). Carry it with :meth:`step_temperature`, starting from
+        :attr:`ambient`.
         """
-        return self.clip(tau_cmd, qd, bus_voltage)
+        return self.clip(tau_cmd, qd, bus_voltage, temperature)
 
     __call__ = saturate
 
@@ -198,6 +208,45 @@ class Runtime:
             tau_cmd, tau_sat, self.clip.A, self._consts[key][0], self.joints, self.motors, floor, tau_ref, violation,
             reference,
         )  # fmt: skip
+
+    @property
+    def ambient(self) -> NDArray[np.float64]:
+        """Per motor ambient temperature [degC]: the winding temperature to start an episode from (or draw it)."""
+        if self.heat is None:
+            raise SaturationError("runtime: this bundle has no thermal model (a bundle/4 whose specs state one)")
+        return self.heat[2].copy()
+
+    def step_temperature(self, temperature: Any, tau: Any, dt: float) -> Any:
+        """The winding temperatures [degC] after ``dt`` [s] with the joint torques ``tau`` [N m] held, (..., n_motors).
+
+        Each motor's current is the inverse of its current-torque curve at its temperature (the curve scaled by
+        Kt(T)/Kt20) at the motor torque A^T tau; the copper loss c R(T) i^2 heats the winding, which cools to the
+        ambient through R_th; the step is exact for the held current (:func:`hound_id.mor.thermal.step`), so any
+        ``dt`` is stable. Pass the saturated torques (:meth:`saturate` at the same ``temperature``): past the
+        curve's top the current is infinite. Numpy or torch; field weakening's d current is not counted.
+        """
+        from hound_id.mor.thermal import REFERENCE, step
+
+        if self.heat is None:
+            raise SaturationError("runtime: this bundle has no thermal model (a bundle/4 whose specs state one)")
+        tau_m = self.motor_torque(tau)
+        key: Any = ("heat", type(tau_m), str(getattr(tau_m, "dtype", "")), str(getattr(tau_m, "device", "")))
+        if key not in self._consts:
+            if _is_torch(tau_m):
+                import torch
+
+                kw = {"dtype": tau_m.dtype, "device": tau_m.device}
+                self._consts[key] = tuple(torch.tensor(np.array(r), **kw) for r in self.heat)
+            else:
+                self._consts[key] = tuple(np.asarray(r, dtype=tau_m.dtype) for r in self.heat)
+        r_th, tau_th, ambient, loss, a_r, a_k = self._consts[key]
+        if not _is_torch(temperature):
+            temperature = np.asarray(temperature, dtype=tau_m.dtype)
+        s_k = 1.0 + a_k * (temperature - REFERENCE)
+        current = self.current(tau_m / s_k)
+        if not _is_torch(current):
+            current = current.astype(tau_m.dtype, copy=False)
+        return step(temperature, current, dt, r_th, tau_th, ambient, loss, a_r)
 
     def motor_velocity(self, qd: Any) -> Any:
         """Motor speeds A^-1 qd [rad/s], (..., n_motors)."""
@@ -392,6 +441,31 @@ def _ranges(motors: list[Any]) -> NDArray[np.float64] | None:
     return frozen(np.array([[float(r[0]), float(r[1])] for r in ranges]))
 
 
+def _heat_rows(motors: list[Any], source: str) -> NDArray[np.float64] | None:
+    """:attr:`Runtime.heat` from a bundle/4's motors (None when none has a thermal model)."""
+    blocks = [m.get("thermal") for m in motors]
+    if all(b is None for b in blocks):
+        return None
+    rows = np.empty((6, len(blocks)))
+    for k, b in enumerate(blocks):
+        if b is None:
+            rows[:, k] = (0.0, 1.0, 20.0, 0.0, 0.0, 0.0)
+            continue
+        try:
+            rows[:, k] = [
+                float(b[key])
+                for key in (
+                    "thermal_resistance", "thermal_time_constant", "ambient", "copper_loss_per_current_squared",
+                    "alpha_resistance", "alpha_kt",
+                )
+            ]  # fmt: skip
+        except (KeyError, TypeError, ValueError) as err:
+            raise SpecError(f"{source}: motor {k}'s thermal block is damaged ({err}); re-export the bundle") from err
+    if not (np.all(np.isfinite(rows)) and np.all(rows[1] > 0) and np.all(rows[0] >= 0) and np.all(rows[3] >= 0)):
+        raise SpecError(f"{source}: a motor's thermal block has a non-positive time constant or a negative value")
+    return frozen(rows)
+
+
 def _drive_fields(block: Mapping[str, Any], n: int, source: str) -> dict[str, Any]:
     """The Saturation fields of a bundle/3's nominal bus voltages and drive arrays (empty for older bundles and for
     the DC law); SpecError names a malformed one."""
@@ -412,6 +486,17 @@ def _drive_fields(block: Mapping[str, Any], n: int, source: str) -> dict[str, An
             ):
                 raise ValueError(f"drive needs {n} finite k_rho >= 0, circle_x > 0 and field_weakening flags")
             out.update(drive_k_rho=frozen(k_rho), drive_circle_x=frozen(circle), drive_fw=frozen(fw))
+        heat = block.get("thermal")
+        if heat is not None:
+            rows = np.array(
+                [
+                    [np.inf if v is None else float(v) for v in heat[key]]
+                    for key in ("alpha_resistance", "alpha_kt", "derate_start", "winding_limit", "current_x")
+                ]
+            )
+            if rows.shape != (5, n) or np.any(np.isnan(rows)) or not np.all(np.isfinite(rows[[0, 1, 4]])):
+                raise ValueError(f"thermal needs {n} numbers in each of its five rows")
+            out["thermal"] = frozen(rows)
     except (KeyError, TypeError, ValueError) as err:
         raise SpecError(f"{source}: saturation block is damaged ({err}); re-export the bundle") from err
     return out
@@ -485,6 +570,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         kv=frozen(np.array([float(m["kv"]) for m in motors])),
         bus_voltage=frozen(np.array([float(m["bus_voltage"]) for m in motors])),
         bus_voltage_range=_ranges(motors),
+        heat=_heat_rows(motors, source),
         compensation=tuple(comps),
         curves=tuple(curves) if any(c is not None for c in curves) else (),
         own_motor=own,

@@ -42,6 +42,9 @@ KINDS: dict[str, tuple[str, str, str]] = {
     "pressure": ("Pa", "a stress or modulus", "'71.7 GPa' or 7.17e10"),
     "resistance": ("ohm", "a resistance", "'120 mohm' or 0.12"),
     "speed_constant": ("rad/s/V", "a speed constant", "'95 rpm/V' or 9.95 (rad/s/V)"),
+    "temperature_coefficient": ("1/K", "a temperature coefficient", "'0.393 %/K' or 0.00393 (1/K)"),
+    "thermal_resistance": ("K/W", "a thermal resistance", "'2 K/W' or 2"),
+    "time": ("s", "a time", "'2 min' or 120 (s)"),
     "torque": ("N*m", "a torque", "'8 N*m' or 8"),
     "torque_constant": ("N*m/A", "a torque constant", "'0.087 N*m/A' or 0.087"),
     "voltage": ("V", "a voltage", "'81 V' or 81"),
@@ -189,6 +192,36 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
             f"{loc}: found {value!r}, expected a finite {label.split(' ', 1)[1]}", found=value, expected=si_unit
         )
     return result
+
+
+_TEMPERATURE = re.compile(
+    r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(degC|°C|deg C|C|degF|°F|deg F|F|K|kelvin)\s*$"
+)
+_TEMPERATURE_UNITS = {"degC": "degC", "°C": "degC", "deg C": "degC", "C": "degC", "degF": "degF", "°F": "degF",
+                      "deg F": "degF", "F": "degF", "K": "kelvin", "kelvin": "kelvin"}  # fmt: skip
+
+
+def to_celsius(value: Any, *, source: str | None = None, field: str | None = None) -> float:
+    """A temperature [degC] from a plain number (degC, as in the dyno logs) or text such as '120 degC', '248 degF' or
+    '393.15 K' (pint converts; a temperature is not a product of units, so it is read on its own).
+
+    Raises:
+        UnitError: Not a temperature, or not finite, or below absolute zero.
+    """
+    loc = where(source, field)
+    number = as_number(value)
+    if number is None and isinstance(value, str):
+        match = _TEMPERATURE.match(value)
+        if match:
+            unit = _TEMPERATURE_UNITS[match.group(2)]
+            number = float(registry().Quantity(float(match.group(1)), unit).to("degC").magnitude)
+    if number is None or not math.isfinite(number) or number < -273.15:
+        raise UnitError(
+            f"{loc}: found {value!r}, expected a temperature such as '120 degC', '393 K' or 120 (degC)",
+            found=value,
+            expected="degC",
+        )
+    return number
 
 
 def _is_number(text: str) -> bool:

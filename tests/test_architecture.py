@@ -26,6 +26,7 @@ RUNTIME_IMPORTS = {
     "hound_id.mor.current_curve",
     "hound_id.mor.fused",
     "hound_id.mor.saturation",
+    "hound_id.mor.thermal",
 }
 #: hound_id modules ``import hound_id.runtime`` loads (its module-level imports, followed through every module).
 RUNTIME_LOADS = {

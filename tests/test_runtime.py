@@ -221,6 +221,14 @@ def test_readme_legged_gym_example(bundle_dir):
     assert torch.allclose(torques, sat.saturate(80.0 * 2.0 - 2.0 * env.dof_vel, env.dof_vel))
 
 
+def test_readme_heat_example(bundle_dir):
+    ns: dict = {}
+    exec(readme_example("heat"), ns)
+    rt, temps = ns["rt"], ns["temps"]
+    assert temps.shape == (4096, 12) and np.all(temps > rt.ambient)  # 50 N m held for 2 ms warms every winding
+    assert np.all(temps < rt.ambient + 0.1)
+
+
 def test_wrong_shapes_are_named(fitted):
     from hound_id.errors import SaturationError
 

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import math
 import sys
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional
@@ -250,6 +251,8 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
     speed = run.at_speed
     if speed is not None:
         _print_at_speed(spec, speed)
+    if run.heat is not None:
+        _print_heat(run.heat)
     lk = run.linear_kt
     if lk.largest > 0:
         console.print(
@@ -282,6 +285,36 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
         )
     if plot is not None:
         console.print(f"plot written to {plot}", highlight=False)
+
+
+def _print_heat(h: Any) -> None:
+    """The thermal lines of ``mor --spec`` (:class:`hound_id.mor.heat.Heat`)."""
+    th = h.thermal
+    console.print(
+        f"heat: winding to ambient {th.resistance:.4g} K/W, time constant {th.time_constant:.4g} s, ambient "
+        f"{th.ambient:.4g} degC, winding limit {th.winding_limit:.4g} degC (the drive derates from "
+        f"{th.derate_start:.4g} degC); R {th.alpha_resistance * 100:+.3g} %/K, Kt {th.alpha_kt * 100:+.3g} %/K "
+        f"({th.alpha_kt_source or 'spec'})",
+        highlight=False,
+    )
+    runaway = "" if math.isinf(th.runaway_current) else f"; held above {th.runaway_current:.3g} A it runs away"
+    console.print(
+        f"  at the drive's {h.drive_limit:.4g} A the winding reaches {th.derate_start:.4g} degC in "
+        f"{h.time_to_derate:.3g} s (and would reach {th.winding_limit:.4g} degC in {h.time_to_limit:.3g} s)" + runaway,
+        highlight=False,
+    )
+    w, c = h.warm, h.continuous
+    console.print(
+        f"  warm ({th.derate_start:.4g} degC, full current): torque limit {h.warm_torque:.4g} N m, corner speed "
+        f"{w.corner_speed:.4g} rad/s, no-load speed {w.no_load_speed:.4g} rad/s",
+        highlight=False,
+    )
+    console.print(
+        f"  continuous: {h.continuous_current:.4g} A at {h.continuous_temperature:.4g} degC under the derating "
+        f"({h.limit_current:.4g} A at the limit without it): torque limit {h.continuous_torque:.4g} N m, inner box "
+        f"{c.inner_box[0]:.4g} N m to {c.inner_box[1]:.4g} rad/s",
+        highlight=False,
+    )
 
 
 def _print_at_speed(spec: Any, speed: Any) -> None:

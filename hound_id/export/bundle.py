@@ -1,4 +1,4 @@
-"""The parameter bundle (``hound-id/bundle/3``): everything a trainer needs, in one file.
+"""The parameter bundle (``hound-id/bundle/4``): everything a trainer needs, in one file.
 
 :func:`build_bundle` gathers, for a robot with its (optionally fitted) motors:
 
@@ -21,14 +21,17 @@
   edges where a motor has a measured envelope (``mor --compare --out``) or a table curve (``held``: the
   polyline's end values hold beyond it), the nominal ``bus_voltage`` per motor (the clip scales its stall torque
   to another bus), and ``drive`` (per motor ``k_rho``, ``circle_x``, ``field_weakening`` of the drive's dq model,
-  :mod:`hound_id.mor.drive`; null under the DC law);
+  :mod:`hound_id.mor.drive`; null under the DC law) and ``thermal`` (rows a_R, a_K, derating start, winding
+  limit and Kt times the drive's current limit per motor, for the clip at a winding temperature; null without a
+  thermal model); each motor carries its ``thermal`` model (:mod:`hound_id.mor.thermal`: R_th, time constant,
+  limits, temperature coefficients), which the runtime steps;
 * ``foot``: the optimised foot's inertial and contact sphere, from ``hound-id foot``'s JSON.
 
 Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unless a field says
 joint. The bundle is a frozen :class:`Bundle` (one :class:`BundleMotor` per motor, nested blocks
 read-only); :meth:`Bundle.to_dict` is the file's content. :func:`load_bundle` reads bundles of every
 schema version so far (/1: linear-Kt limits, ``compensation`` the polynomial; /2: the curve; /3: the drive's dq
-model, the bus voltage range and the nominal bus per motor in ``saturation``).
+model, the bus voltage range and the nominal bus per motor in ``saturation``; /4: the thermal model).
 """
 
 from __future__ import annotations
@@ -56,7 +59,7 @@ __all__ = [
     "load_bundle",
 ]  # fmt: skip
 
-SCHEMA = "hound-id/bundle/3"
+SCHEMA = "hound-id/bundle/4"
 #: Friction effects of the fit that the runtime and the simulators use (motor side).
 FRICTION = ("coulomb", "viscous", "stribeck")
 
@@ -118,6 +121,9 @@ class BundleMotor:
     """The drive's dq model (:meth:`hound_id.mor.drive.Drive.to_dict`; bundle/3), or None for the DC law."""
     bus_voltage_range: tuple[float, float] | None = None
     """(lowest, highest) bus voltage over the battery's discharge [V] (bundle/3), if the spec states it."""
+    thermal: Mapping[str, Any] | None = None
+    """The winding's thermal model and the drive's derating (:meth:`hound_id.mor.thermal.Thermal.to_dict`;
+    bundle/4), if the spec states one."""
 
     def to_dict(self) -> dict[str, Any]:
         """The motor's entry in the bundle file."""
@@ -127,17 +133,17 @@ class BundleMotor:
 #: BundleMotor fields older bundles lack.
 _OPTIONAL = (
     "envelope", "linear_torque_limit", "limit_current", "current_curve", "compensation_polynomial", "drive",
-    "bus_voltage_range",
+    "bus_voltage_range", "thermal",
 )  # fmt: skip
 
 
 @dataclass(frozen=True)
 class Bundle:
-    """A ``hound-id/bundle/3`` bundle (or a /1 or /2 one read back; see the module docstring); :meth:`to_dict` is
+    """A ``hound-id/bundle/4`` bundle (or a /1, /2 or /3 one read back; see the module docstring); :meth:`to_dict` is
     the file's content."""
 
     schema: str
-    """``hound-id/bundle/3`` (or /1, /2)."""
+    """``hound-id/bundle/4`` (or /1, /2, /3)."""
     robot: str
     """Robot name."""
     units: str
@@ -283,6 +289,7 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "envelope": spec.envelope.to_dict() if spec.envelope else None,
                 "drive": r["drive"],
                 "bus_voltage_range": None if spec.bus_voltage_range is None else list(spec.bus_voltage_range),
+                "thermal": None if spec.thermal is None else spec.thermal.to_dict(),
             }
         )
     rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
@@ -335,12 +342,30 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
                 "field_weakening": [bool(f) for f in sat.drive_fw],
                 "units": {"k_rho": "1/(N m)", "circle_x": "N m"},
             },
+            "thermal": None
+            if sat.thermal is None
+            else {
+                "alpha_resistance": sat.thermal[0].tolist(),
+                "alpha_kt": sat.thermal[1].tolist(),
+                "derate_start": _inf_to_none(sat.thermal[2]),
+                "winding_limit": _inf_to_none(sat.thermal[3]),
+                "current_x": sat.thermal[4].tolist(),
+                "units": {
+                    "alpha_resistance, alpha_kt": "1/K",
+                    "derate_start, winding_limit": "degC (null: no thermal model)",
+                    "current_x": "N m (Kt x the drive's current limit)",
+                },
+            },
         },
         "foot": foot,
     }
     # plain numbers and lists only (numpy scalars from the regions), so YAML and JSON agree
     content: dict[str, Any] = json.loads(json.dumps(bundle, default=lambda o: o.tolist()))
     return Bundle.from_dict(content)
+
+
+def _inf_to_none(values: Any) -> list[float | None]:
+    return [float(v) if math.isfinite(v) else None for v in values]
 
 
 def _nan_to_none(values: Any) -> list[float | None]:

@@ -109,11 +109,15 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                     )
                 else:
                     gap = ex.straight_gap(m.name)
+                    past, reach = ex.past_overspeed(m.name)
                     entry["dcmotor_error"] = {
                         "over": gap[0] * gear,
                         "under": gap[1] * gear,
+                        "past_overspeed": past * gear,
+                        "past_overspeed_to": reach / gear,
                         "units": "N m, joint side: the most DCMotor's clip passes (over) or falls short of (under) "
-                        "hound-id's within +-overspeed",
+                        "hound-id's within +-overspeed; past_overspeed: how much more braking hound-id's clip forces "
+                        "than DCMotor's torque limit, from the overspeed to past_overspeed_to [rad/s, joint side]",
                     }
                     if gap[0] > DCMOTOR_EXACT * m.torque_limit:
                         entry["use"] = "hound_id.runtime"

@@ -37,7 +37,7 @@ class Export:
     robot: Robot
     """The robot, with fitted motor specs in place."""
     bundle: Bundle
-    """Its ``hound-id/bundle/3`` bundle."""
+    """Its ``hound-id/bundle/4`` bundle."""
     mujoco_actuator: str = "dcmotor"
     """``dcmotor`` (voltage input), ``dcmotor-ff`` (torque input, MuJoCo >= 4.0) or ``motor`` (plain torque, saturate
     with the runtime)."""

@@ -131,6 +131,18 @@ class CurrentCurve:
         out = np.where(mag > self.top_torque, np.inf, out)
         return np.asarray(np.sign(tau) * out, dtype=float)
 
+    def scaled(self, factor: float, source: str | None = None) -> CurrentCurve:
+        """The curve with every torque times ``factor`` > 0 at the same current (the magnets' flux at another
+        temperature, :mod:`hound_id.mor.thermal`); its top stays at the same current."""
+        return CurrentCurve(
+            kt=self.kt * factor,
+            k_sat=self.k_sat * factor,
+            currents=self.currents,
+            torques=None if self.torques is None else frozen(self.torques * factor),
+            table_error=self.table_error,
+            source=self.source if source is None else source,
+        )
+
     def compensation(self) -> dict[str, Any]:
         """The ``compensation`` block of a fit report and a bundle: how the exact inverse is computed and its
         error [A] (0 for the closed form: rounding only)."""

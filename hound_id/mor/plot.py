@@ -90,7 +90,8 @@ def plot_region(
             ls="-.",
             label=f"linear-Kt region (tau = Kt i): |tau|<={linear.torque_limit:.3g} N m, what a linear model promises",
         )
-    for (other, text), colour in zip(outlines, ("tab:orange", "tab:brown", "tab:olive"), strict=False):
+    colours = ("tab:orange", "tab:brown", "tab:olive", "tab:pink", "tab:cyan")
+    for (other, text), colour in zip(outlines, colours, strict=False):
         ax.plot(*_closed(other.vertices).T, color=colour, lw=1.1, ls=(0, (5, 2, 1, 2)), label=text)
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
     _box(

@@ -183,9 +183,10 @@ class Speeds:
             "inner_box": {"torque": self.inner_box[0], "speed": self.inner_box[1]},
         }
 
-
-def _speeds(region: OperatingRegion, volts: float) -> Speeds:
-    return Speeds(volts, region.corner_speed, region.no_load_speed, region.overspeed, region.inner_box)
+    @classmethod
+    def of(cls, region: OperatingRegion, volts: float) -> Speeds:
+        """A region's speeds and box, at its bus voltage ``volts`` [V]."""
+        return cls(volts, region.corner_speed, region.no_load_speed, region.overspeed, region.inner_box)
 
 
 #: Speeds, as shares of the DC law's no-load speed, at which :func:`at_speed` compares the motoring edges.
@@ -260,7 +261,7 @@ def at_speed(spec: MotorSpec, region: OperatingRegion | None = None) -> AtSpeed:
     dc = operating_region(dc_spec)
     plain = None
     if spec.field_weakening:
-        plain = _speeds(operating_region(replace(spec, field_weakening=False)), spec.bus_voltage)
+        plain = Speeds.of(operating_region(replace(spec, field_weakening=False)), spec.bus_voltage)
     w = np.array(COST_SPEEDS) * dc.no_load_speed
     fine = np.unique(np.concatenate([np.linspace(0.0, dc.no_load_speed, COST_POINTS), [dc.corner_speed]]))
     cost = torque_interval(fine, dc)[1] - torque_interval(fine, sheet)[1]
@@ -268,13 +269,13 @@ def at_speed(spec: MotorSpec, region: OperatingRegion | None = None) -> AtSpeed:
     ends = spec.bus_voltage_range or ()
     battery_regions = tuple(operating_region(replace(spec, bus_voltage=v)) for v in ends)
     return AtSpeed(
-        drive=_speeds(sheet, spec.bus_voltage),
-        dc_law=_speeds(dc, spec.bus_voltage),
+        drive=Speeds.of(sheet, spec.bus_voltage),
+        dc_law=Speeds.of(dc, spec.bus_voltage),
         without_weakening=plain,
         speeds=tuple(float(x) for x in w),
         torque_dc=tuple(float(x) for x in torque_interval(w, dc)[1]),
         torque_drive=tuple(float(x) for x in torque_interval(w, sheet)[1]),
-        battery=tuple(_speeds(r, v) for r, v in zip(battery_regions, ends, strict=True)),
+        battery=tuple(Speeds.of(r, v) for r, v in zip(battery_regions, ends, strict=True)),
         largest_cost=(float(cost[k]), float(fine[k]), float(torque_interval(fine[k : k + 1], dc)[1][0])),
         dc_region=dc,
         battery_regions=battery_regions,

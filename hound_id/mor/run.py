@@ -17,6 +17,7 @@ from typing import TYPE_CHECKING, Any
 if TYPE_CHECKING:
     from matplotlib.figure import Figure
 
+    from hound_id.mor.heat import Heat
     from hound_id.mor.joint_space import RobotRegions
     from hound_id.mor.region import AtSpeed, Binding, OperatingRegion, Overpromise
     from hound_id.mor.robot import Robot
@@ -60,6 +61,13 @@ class MotorRegions:
             return None
         return at_speed(self.spec, self.sheet)
 
+    @cached_property
+    def heat(self) -> Heat | None:
+        """The warm and continuous regions (None without a thermal model, or with a measured envelope)."""
+        from hound_id.mor.heat import heat
+
+        return heat(self.spec)
+
     @property
     def measured(self) -> bool:
         """Whether the region is a measured envelope's."""
@@ -70,6 +78,7 @@ class MotorRegions:
         from hound_id.mor.region import motor_report
 
         data = motor_report(self.spec, self.region, self.sheet)
+        data["heat"] = None if self.heat is None else self.heat.to_dict()
         data["spec_sheet"] = self.sheet.to_dict() if self.measured else None
         return data
 
@@ -83,7 +92,7 @@ class MotorRegions:
             self.region,
             self.sheet if self.measured else None,
             linear_region(self.spec) if curved else None,
-            outlines=self._outlines(),
+            outlines=self._outlines() + self._heat_outlines(),
         )
 
     def _outlines(self) -> tuple[tuple[OperatingRegion, str], ...]:
@@ -99,6 +108,20 @@ class MotorRegions:
             low = speed.battery[0].bus_voltage
             out.append((speed.battery_regions[0], f"at the battery's lowest {low:.4g} V"))
         return tuple(out)
+
+    def _heat_outlines(self) -> tuple[tuple[OperatingRegion, str], ...]:
+        """The warm region and the continuous one (:attr:`heat`)."""
+        h = self.heat
+        if h is None:
+            return ()
+        return (
+            (h.warm_region, f"winding at {h.thermal.derate_start:.4g} degC, full current (where derating starts)"),
+            (
+                h.continuous_region,
+                f"continuous: {h.continuous_current:.3g} A at {h.continuous_temperature:.4g} degC, what the winding "
+                "holds for ever",
+            ),
+        )
 
 
 def motor_regions(path: str | Path) -> MotorRegions:

@@ -46,7 +46,7 @@ from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_regi
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
     from hound_id.mor.robot import Robot
-    from hound_id.mor.spec import MeasuredEnvelope
+    from hound_id.mor.spec import MeasuredEnvelope, MotorSpec
 
 #: Cached operator sets (dtype, device, batch shape) kept per Saturation.
 _CACHE_SIZE = 16
@@ -320,6 +320,10 @@ class Saturation:
     """Per motor Kt I_max [N m], the phase-current circle of field weakening (None with ``drive_k_rho``)."""
     drive_fw: NDArray[np.bool_] | None = None
     """Per motor whether the drive weakens the field (None with ``drive_k_rho``)."""
+    thermal: NDArray[np.float64] | None = None
+    """Rows (a_R [1/K], a_K [1/K], derating start [degC], winding limit [degC], Kt x the drive's current limit [N m])
+    per motor, shape (5, n), for ``temperature`` (:mod:`hound_id.mor.thermal`; a motor without a thermal model: 0, 0,
+    inf, inf, its limit); None: no motor has one."""
     _cache: dict[Any, Any] = field(default_factory=dict, compare=False, repr=False)
 
     @classmethod
@@ -354,6 +358,7 @@ class Saturation:
             polylines=polylines if any(p is not None for p in polylines) else (),
             held=held if any(held) else (),
             bus_voltage=frozen([robot.motor_specs[m].bus_voltage for m in robot.motors]),
+            thermal=_thermal_rows([robot.motor_specs[m] for m in robot.motors], regions),
             **_drive_arrays(regions),
         )
 
@@ -494,14 +499,18 @@ class Saturation:
             )
         return tau, qd
 
-    def torque_bounds(self, qd: Any, bus_voltage: Any = None) -> tuple[Any, Any]:
+    def torque_bounds(self, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> tuple[Any, Any]:
         """Per-motor feasible torque interval [lo, hi] at the motor speeds implied by ``qd`` (and, if given, the bus
-        voltage [V] of each element, broadcast against ``qd``: see :meth:`__call__`)."""
+        voltage [V] and winding temperature [degC] of each element, broadcast against ``qd``: see
+        :meth:`__call__`)."""
         _, qd = self._check(qd, qd)
         consts = self._constants(qd)
-        return self._bounds(qd, consts, self._volts(bus_voltage, qd))
+        volts = self._volts(bus_voltage, qd)
+        if temperature is not None:
+            return self._heated_bounds(qd, consts, volts, self._temperatures(temperature, qd))
+        return self._bounds(qd, consts, volts)
 
-    def _volts(self, bus_voltage: Any, like: Any) -> Any:
+    def _volts(self, bus_voltage: Any, like: Any, name: str = "bus_voltage", unit: str = "V") -> Any:
         """The bus voltage [V] per element of ``like``'s shape, in its array type, dtype and device, C-contiguous (the
         bounds take max(V, 0)); None stays None. One voltage per environment, (..., 1), is repeated along the motors
         (numpy's broadcasting of a length-1 axis is several times slower than a repeat)."""
@@ -521,7 +530,7 @@ class Saturation:
             except RuntimeError:
                 fits = False
             if not fits:
-                raise SaturationError(self._volts_shape(tuple(v.shape), shape))
+                raise SaturationError(self._volts_shape(tuple(v.shape), shape, name, unit))
             return torch.broadcast_to(v, shape).contiguous()
         volts = np.asarray(bus_voltage, dtype=like.dtype)
         if volts.shape == shape and volts.flags.c_contiguous:
@@ -531,15 +540,88 @@ class Saturation:
         except ValueError:
             fits = False
         if not fits:
-            raise SaturationError(self._volts_shape(volts.shape, shape))
+            raise SaturationError(self._volts_shape(volts.shape, shape, name, unit))
         if volts.ndim == len(shape) and volts.shape[:-1] == shape[:-1] and volts.shape[-1] == 1 and shape[-1] > 1:
             return np.repeat(volts, shape[-1], axis=-1)
         return np.ascontiguousarray(np.broadcast_to(volts, shape))
 
-    def _volts_shape(self, got: tuple[int, ...], want: tuple[int, ...]) -> str:
+    def _temperatures(self, temperature: Any, like: Any) -> Any:
+        """The winding temperature [degC] per element of ``like``'s shape (as :meth:`_volts`), or SaturationError."""
+        if self.thermal is None:
+            raise SaturationError(
+                "saturation: no motor has a thermal model, so the clip cannot take a temperature; add "
+                "thermal_time_constant, winding_limit and thermal_resistance (or continuous_current) to the specs"
+            )
+        if self.polylines:
+            raise SaturationError(
+                "saturation: a motor with a measured envelope or a table current-torque curve cannot be clipped at "
+                "another temperature (its edges are held as a polyline at 20 degC); drop the temperature, or use a "
+                "linear or quadratic curve"
+            )
+        if self.bus_voltage is None:
+            raise SaturationError("saturation: this clip has no nominal bus voltage, so it cannot take a temperature")
+        return self._volts(temperature, like, "temperature", "degC")
+
+    def _heated_bounds(self, qd: Any, consts: _Constants, volts: Any, temperature: Any) -> tuple[Any, Any]:
+        """The intervals at each element's winding temperature (:mod:`hound_id.mor.thermal`): s_K times the 20 degC
+        window at speed s_K omega / s_R and bus V / s_R, the reactance's k_rho / s_K and the derated current limit."""
+        from hound_id.mor.thermal import REFERENCE, derating
+
+        torch_like = _is_torch(qd)
+        rows = self._thermal_like(qd)
+        a_r, a_k, start, limit, current_x, nominal = rows
+        s_r = 1.0 + a_r * (temperature - REFERENCE)
+        s_k = 1.0 + a_k * (temperature - REFERENCE)
+        if volts is None:
+            volts = nominal
+        d = derating(temperature, start, limit)
+        c = consts
+        if torch_like:
+            import torch
+
+            lim = torch.minimum(c.limit_x, d * current_x)
+        else:
+            lim = np.minimum(c.limit_x, d * current_x)
+        c = c._replace(limit_x=lim, neg_limit_x=-lim, circle_x=c.circle_x * d, k_rho=c.k_rho / s_k)
+        qd = _capped(qd, consts.qd_cap)
+        u = (qd @ c.speed_map) * (s_k / s_r)
+        if torch_like:
+            lo, hi = _torch_bounds(c, u, volts / s_r)
+        else:
+            lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts / s_r)
+        lo, hi = lo * s_k, hi * s_k
+        if c.has_max_speed:
+            omega = qd @ c.A_inv.T
+            if torch_like:
+                hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
+                lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
+            else:
+                hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
+                lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
+        return lo, hi
+
+    def _thermal_like(self, like: Any) -> tuple[Any, ...]:
+        """The thermal rows and the nominal bus voltage, per motor, in the array type, dtype and device of ``like``."""
+        key: Any = ("thermal", type(like), like.dtype, getattr(like, "device", None))
+        hit = self._cache.get(key)
+        if hit is None:
+            assert self.thermal is not None and self.bus_voltage is not None
+            rows = [*self.thermal, self.bus_voltage]
+            if _is_torch(like):
+                import torch
+
+                hit = tuple(torch.tensor(np.array(r), dtype=like.dtype, device=like.device) for r in rows)
+            else:
+                hit = tuple(np.asarray(r, dtype=like.dtype) for r in rows)
+            self._remember(key, hit)
+        return hit  # type: ignore[no-any-return]
+
+    def _volts_shape(self, got: tuple[int, ...], want: tuple[int, ...], name: str, unit: str) -> str:
+        what = "voltage" if name == "bus_voltage" else name
         return (
-            f"saturation: bus_voltage has shape {got}, which does not broadcast to the commands' {want}; give one "
-            f"voltage per environment as (..., 1) or one per motor as (..., {self.n}) [V] (a 1-D array is per motor)"
+            f"saturation: {name} has shape {got}, which does not broadcast to the commands' {want}; give one "
+            f"{what} per environment as (..., 1) or one per motor as (..., {self.n}) [{unit}] (a 1-D array is per "
+            "motor)"
         )
 
     def _bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
@@ -597,7 +679,7 @@ class Saturation:
             lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
         return lo, hi
 
-    def __call__(self, tau: Any, qd: Any, bus_voltage: Any = None) -> Any:
+    def __call__(self, tau: Any, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> Any:
         """Saturate joint torque commands [N m] at joint velocities [rad/s], shapes (..., n).
 
         Returns joint torques (same type, dtype and device as ``tau``) whose motor torques lie in
@@ -624,17 +706,27 @@ class Saturation:
         as (..., 1), or one per motor as (..., n), to randomise the battery's charge. The stall torque scales with it
         (the voltage lines shift; a drive's dq window follows it); the nominal bus is the spec's ``bus_voltage``.
         Negative voltages are taken as 0. Not given: the nominal bus, as before.
+
+        ``temperature`` [degC] (optional) is each winding's temperature, shaped like ``bus_voltage``, for motors whose
+        specs carry a thermal model (:mod:`hound_id.mor.thermal`): the resistance, Kt and the back-EMF constant
+        follow it and the drive's current limit is derated. It takes the general path (fresh arrays, no fused
+        loop), and needs linear or quadratic current-torque curves. Not given: the 20 degC region, as before.
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
         volts = self._volts(bus_voltage, tau)
+        if temperature is not None:
+            return self._saturate(tau, qd, consts, volts, self._temperatures(temperature, tau))
         if self.polylines or (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
             return self._saturate(tau, qd, consts, volts)  # measured envelopes or autograd: the general path
         return self._saturate_in_place(tau, qd, consts, volts)
 
-    def _saturate(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
+    def _saturate(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None, temperature: Any = None) -> Any:
         """The clip with fresh arrays (autograd flows through it)."""
-        lo, hi = self._bounds(qd, consts, volts)
+        if temperature is not None:
+            lo, hi = self._heated_bounds(qd, consts, volts, temperature)
+        else:
+            lo, hi = self._bounds(qd, consts, volts)
         tau_m = _capped(tau, consts.tau_cap) @ consts.A
         if _is_torch(tau):
             import torch
@@ -769,12 +861,17 @@ class Saturation:
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 
-    def violation(self, tau: Any, qd: Any, bus_voltage: Any = None) -> Any:
+    def violation(self, tau: Any, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> Any:
         """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n), at the nominal bus or
-        the given ``bus_voltage`` [V] (as in :meth:`__call__`)."""
+        the given ``bus_voltage`` [V], and at 20 degC or the given winding ``temperature`` [degC] (as in
+        :meth:`__call__`)."""
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
-        lo, hi = self._bounds(qd, consts, self._volts(bus_voltage, tau))
+        volts = self._volts(bus_voltage, tau)
+        if temperature is not None:
+            lo, hi = self._heated_bounds(qd, consts, volts, self._temperatures(temperature, tau))
+        else:
+            lo, hi = self._bounds(qd, consts, volts)
         tau_m = _scaled_matmul(tau, consts.A, consts.tau_cap)
         if _is_torch(tau):
             import torch
@@ -912,6 +1009,22 @@ def _drive_arrays(regions: list[OperatingRegion]) -> dict[str, Any]:
         "drive_circle_x": frozen([r.limit_x if r.drive is None else r.drive.circle_x for r in regions]),
         "drive_fw": frozen(np.array([r.drive is not None and r.drive.field_weakening for r in regions])),
     }
+
+
+def _thermal_rows(specs: list[MotorSpec], regions: list[OperatingRegion]) -> NDArray[np.float64] | None:
+    """:attr:`Saturation.thermal` of the motors (None when none has a thermal model)."""
+    if all(s.thermal is None for s in specs):
+        return None
+    rows = np.empty((5, len(specs)))
+    for m, (spec, region) in enumerate(zip(specs, regions, strict=True)):
+        th = spec.thermal
+        if th is None:
+            rows[:, m] = (0.0, 0.0, math.inf, math.inf, region.limit_x)
+        else:
+            current = spec.max_current if spec.max_current is not None else spec.limit_current
+            current_x = spec.current_curve.kt * current
+            rows[:, m] = (th.alpha_resistance, th.alpha_kt, th.derate_start, th.winding_limit, current_x)
+    return frozen(rows)
 
 
 def saturation_for(robot: Robot) -> Saturation:

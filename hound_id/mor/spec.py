@@ -47,7 +47,8 @@ from hound_id.mor.drive import (
     reactance_per_speed,
 )
 from hound_id.mor.envelope_effects import EFFECTS
-from hound_id.units import to_si
+from hound_id.mor.thermal import AMBIENT, Thermal, thermal_from_fields
+from hound_id.units import to_celsius, to_si
 
 SCHEMA = "hound-id/motor/1"
 
@@ -72,7 +73,19 @@ _QUANTITY_KEYS: dict[str, tuple[str, bool]] = {
     "max_speed": ("angular_velocity", False),
     "rotor_inertia": ("inertia", False),
     "inductance": ("inductance", False),
+    "thermal_resistance": ("thermal_resistance", False),
+    "thermal_time_constant": ("time", False),
+    "continuous_current": ("current", False),
 }
+#: Temperatures a spec may state [degC] (:func:`hound_id.units.to_celsius`).
+_TEMPERATURE_KEYS = ("winding_limit", "ambient_temperature", "derate_start")
+#: Temperature coefficients [1/K] -> (lowest, highest): copper's 0.393 %/K and NdFeB's or SmCo's Kt drift, with margin.
+_COEFFICIENT_KEYS: dict[str, tuple[float, float]] = {
+    "resistance_temperature_coefficient": (0.0, 0.01),
+    "kt_temperature_coefficient": (-0.005, 0.001),
+}
+#: What the thermal model needs besides R_th or the continuous current (one of the two).
+_THERMAL_NEEDS = ("thermal_time_constant", "winding_limit")
 _OTHER_KEYS = (
     "name",
     "source",
@@ -90,7 +103,7 @@ _OTHER_KEYS = (
     "field_weakening",
     "bus_voltage_range",
 )
-KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS)))
+KNOWN_KEYS = tuple(sorted((*_QUANTITY_KEYS, *_OTHER_KEYS, *_TEMPERATURE_KEYS, *_COEFFICIENT_KEYS)))
 
 #: key -> (lowest, highest, SI unit): the span of electric motors from a hobby servo to a
 #: 100 kW traction motor, with margin. A value outside is a unit slip (mN m read as N m,
@@ -106,11 +119,21 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "max_speed": (0.1, 1e5, "rad/s"),
     "rotor_inertia": (1e-10, 10.0, "kg m^2"),
     "inductance": (1e-8, 10.0, "H"),
+    "thermal_resistance": (1e-3, 1e3, "K/W"),
+    "thermal_time_constant": (0.1, 1e5, "s"),
+    "continuous_current": (1e-3, 1e4, "A"),
 }
 
 
 #: Fields besides the quantities that ``assumed:`` may name.
-_ASSUMABLE = ("pole_pairs", "inductance_convention", "bus_voltage_range", "field_weakening")
+_ASSUMABLE = (
+    "pole_pairs",
+    "inductance_convention",
+    "bus_voltage_range",
+    "field_weakening",
+    *_TEMPERATURE_KEYS,
+    *_COEFFICIENT_KEYS,
+)
 
 
 def read_only(value: Any) -> Any:
@@ -345,6 +368,9 @@ class MotorSpec:
     bus_voltage_range: tuple[float, float] | None = None
     """(lowest, highest) bus voltage the battery gives over a discharge [V], if stated; ``bus_voltage`` is the
     nominal within it."""
+    thermal: Thermal | None = None
+    """The winding's thermal model and the drive's derating (:mod:`hound_id.mor.thermal`), if the spec states a
+    time constant, a winding limit and a thermal resistance or continuous current; None otherwise."""
 
     @cached_property
     def drive(self) -> Drive | None:
@@ -426,7 +452,7 @@ class MotorSpec:
         out: dict[str, Any] = {"schema": SCHEMA}
         for f in fields(self):
             value = getattr(self, f.name)
-            if isinstance(value, FitRecord | MeasuredEnvelope):
+            if isinstance(value, FitRecord | MeasuredEnvelope | Thermal):
                 value = value.to_dict()
             out[f.name] = list(value) if isinstance(value, tuple) else value
         return out
@@ -647,20 +673,23 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
         raise SpecError(f"{where(source, 'fit')}: found {type(fit).__name__}, expected the fit mapping")
+    fit_record = None if fit is None else FitRecord.from_mapping(fit, source)
+    thermal = _thermal(data, values, commutation, fit_record, source)
     spec = MotorSpec(
         name=name.strip(),
         pole_pairs=pole_pairs,
         source=src,
         assumed=tuple(assumed),
         extrapolated=tuple(extrapolated),
-        fit=None if fit is None else FitRecord.from_mapping(fit, source),
+        fit=fit_record,
         envelope=_envelope(data.get("envelope"), source),
         kt_curve=kt_curve,
         commutation=commutation,
         inductance_convention=convention,
         field_weakening=weakening,
         bus_voltage_range=bus_range,
-        **values,
+        thermal=thermal,
+        **{k: v for k, v in values.items() if k not in _THERMAL_QUANTITIES},
     )
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
         edges = [abs(v) for edge in (spec.envelope.lower, spec.envelope.upper) for v in edge if v == v]
@@ -671,6 +700,81 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
                 f"{spec.linear_torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
             )
     return spec
+
+
+#: The quantities the thermal model takes (carried by :attr:`MotorSpec.thermal`, not as fields of their own).
+_THERMAL_QUANTITIES = ("thermal_resistance", "thermal_time_constant", "continuous_current")
+
+
+def _thermal(
+    data: Mapping[str, Any], values: Mapping[str, float], commutation: str, fit: FitRecord | None, source: str | None
+) -> Thermal | None:
+    """The spec's thermal model (:mod:`hound_id.mor.thermal`), or None where it states none of its fields."""
+    stated = [k for k in (*_THERMAL_QUANTITIES, *_TEMPERATURE_KEYS, *_COEFFICIENT_KEYS) if data.get(k) is not None]
+    if not stated:
+        return None
+    missing = [k for k in _THERMAL_NEEDS if data.get(k) is None]
+    heat = [k for k in ("thermal_resistance", "continuous_current") if k in values]
+    if missing or len(heat) != 1:
+        what = ", ".join(missing) if missing else ""
+        if len(heat) != 1:
+            what = (what + " and " if what else "") + (
+                "one of thermal_resistance or continuous_current"
+                if not heat
+                else "only one of thermal_resistance and continuous_current (the other follows from it)"
+            )
+        raise SpecError(
+            f"{where(source, stated[0])}: a thermal model needs {what}; add them (winding to ambient in K/W, or the "
+            "current the winding holds at its limit) or drop the thermal fields",
+            field=missing[0] if missing else "thermal_resistance",
+        )
+    temps = {k: to_celsius(data[k], source=source, field=k) for k in _TEMPERATURE_KEYS if data.get(k) is not None}
+    coefficients: dict[str, float] = {}
+    for key, (lo, hi) in _COEFFICIENT_KEYS.items():
+        if data.get(key) is None:
+            continue
+        value = to_si(data[key], "temperature_coefficient", source=source, field=key)
+        if not lo <= value <= hi:
+            raise SpecError(
+                f"{where(source, key)}: found {data[key]!r} = {value * 100:.4g} %/K, expected {lo * 100:g} to "
+                f"{hi * 100:g} %/K (copper 0.393 %/K; NdFeB's Kt -0.09 to -0.12 %/K); check the unit (%/K or 1/K)",
+                field=key,
+                found=data[key],
+            )
+        coefficients[key] = value
+    limit = temps["winding_limit"]
+    ambient = temps.get("ambient_temperature")
+    start = temps.get("derate_start")
+    amb = AMBIENT if ambient is None else ambient
+    if not amb < limit:
+        raise SpecError(
+            f"{where(source, 'winding_limit')}: {limit:g} degC is not above the ambient {amb:g} degC; the winding "
+            "could never carry current",
+            field="winding_limit",
+        )
+    if start is not None and not amb <= start <= limit:
+        raise SpecError(
+            f"{where(source, 'derate_start')}: {start:g} degC, expected between the ambient and the winding limit "
+            f"{limit:g} degC (the drive lowers its current limit from there to zero at the limit)",
+            field="derate_start",
+        )
+    alpha_kt, alpha_source = coefficients.get("kt_temperature_coefficient"), "spec"
+    if alpha_kt is None and fit is not None and "kt_temp_coeff" in fit.parameters and fit.value("kt") > 0:
+        alpha_kt = fit.value("kt_temp_coeff") / fit.value("kt")
+        alpha_source = "fit (kt_temp_coeff / kt)"
+    return thermal_from_fields(
+        resistance_20=values["resistance"],
+        commutation=commutation,
+        time_constant=values["thermal_time_constant"],
+        winding_limit=limit,
+        thermal_resistance=values.get("thermal_resistance"),
+        continuous_current=values.get("continuous_current"),
+        ambient=ambient,
+        derate_start=start,
+        alpha_resistance=coefficients.get("resistance_temperature_coefficient"),
+        alpha_kt=alpha_kt,
+        alpha_kt_source=alpha_source if alpha_kt is not None else "",
+    )
 
 
 def _bus_range(data: Any, nominal: float, source: str | None) -> tuple[float, float] | None:

@@ -257,6 +257,42 @@ def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp
     assert worst <= max(gap) + 1e-9
 
 
+@pytest.mark.parametrize("fits", ["linear_fit", "sheet_curve"])
+def test_mujoco_to_twice_the_no_load_speed_within_the_stated_braking(tmp_path, fits):
+    """Motor speeds drawn to twice the no-load speed: MuJoCo's voltage-input dcmotor realises the runtime's torques
+    wherever the bus does not clamp, and elsewhere differs by no more than the export's notes state (the straight
+    line's gap, the braking past overspeed it holds at the torque limit), and by that much."""
+    import mujoco
+
+    from hound_id.export.target import TRAINER_REACH
+    from hound_id.mor.region import operating_region
+
+    ex = prepare(ROBOT, [fitted_motor(tmp_path)] if fits == "linear_fit" else [])
+    report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
+    model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "hound_like.xml"))
+    data = mujoco.MjData(model)
+    sat = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.yaml")
+    motor = ex.bundle.motors[0].name
+    past = ex.past_overspeed(motor)[0]
+    stated = max(ex.straight_gap(motor)[0], past)
+    assert any(f"up to {past:.4g} N m more than dcmotor" in n for n in report["formats"]["mujoco"]["notes"])
+    reach = TRAINER_REACH * operating_region(ex.robot.motor_specs[motor]).no_load_speed
+    aid = _ids(model, mujoco.mjtObj.mjOBJ_ACTUATOR, sat.motors)
+    vadr = model.jnt_dofadr[_ids(model, mujoco.mjtObj.mjOBJ_JOINT, sat.joints)]
+    rng = np.random.default_rng(11)
+    worst = 0.0
+    for _ in range(400):
+        omega = rng.uniform(-1, 1, 12) * reach
+        qd = omega @ sat.clip.A.T
+        tau = rng.uniform(-1, 1, 12) * 150.0
+        data.qvel[vadr] = qd
+        data.ctrl[aid] = sat.voltage(tau[None], qd[None])[0]
+        mujoco.mj_forward(model, data)
+        diff = np.abs(data.actuator_force[aid] - sat.motor_torque(sat.saturate(tau[None], qd[None]))[0])
+        worst = max(worst, float(np.max(diff)))
+    assert 0.95 * past < worst <= stated + 1e-9 * max(1.0, stated)
+
+
 def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tmp_path):
     """For simulators that enforce URDF effort limits (Genesis): the open limits hold every torque the runtime returns
     for motor speeds up to twice the overspeed, huge commands included; Pinocchio loads the file; the armature sidecar

@@ -11,6 +11,7 @@ from pathlib import Path
 import pytest
 
 from hound_id.export.run import export_robot, formats_from, prepare
+from hound_id.export.target import TRAINER_REACH
 from hound_id.mor.region import operating_region
 from tests.conftest import ROBOT, ROOT
 from tests.export.conftest import fitted_motor, trainer_python
@@ -35,11 +36,22 @@ def run_in(python: str, script: str, *args: object, path: tuple[str, ...] = ()) 
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def exported(tmp_path: Path, fits: list[Path], formats: str):
+def exported(tmp_path: Path, fits: list[Path], formats: str, reach: bool = False):
+    """(export, its folder, the largest motor speed to draw): just within every motor's overspeed, or with ``reach``
+    :data:`TRAINER_REACH` (2) times the no-load speed, where a robot at full tilt or a falling leg can spin them."""
     ex = prepare(ROBOT, fits)
     export_robot(ex, formats_from(formats), tmp_path / "out")
-    overspeed = min(operating_region(s).overspeed for s in ex.robot.motor_specs.values())
-    return ex, tmp_path / "out", 0.999 * overspeed
+    regions = [operating_region(s) for s in ex.robot.motor_specs.values()]
+    if reach:
+        return ex, tmp_path / "out", TRAINER_REACH * min(r.no_load_speed for r in regions)
+    return ex, tmp_path / "out", 0.999 * min(r.overspeed for r in regions)
+
+
+def stated(ex) -> float:
+    """The most the straight-line actuators may differ from the runtime to twice the no-load speed, as the exports
+    state it (motor side): the straight-line gap within the overspeed, the braking they cannot hold past it."""
+    m = ex.bundle.motors[0].name
+    return max(ex.straight_gap(m)[0], ex.past_overspeed(m)[0])
 
 
 @pytest.mark.parametrize("uncoupled", ["dcmotor", "voltage"])
@@ -70,6 +82,26 @@ def test_mjlab_misses_the_curved_sample_by_at_most_the_stated_gap(mjlab, tmp_pat
     assert r["max_difference_rollout"] < FLOAT32  # a PD rollout stays where the bus does not clamp
 
 
+@pytest.mark.parametrize("fits", ["linear_fit", "sheet_curve"])
+def test_mjlab_to_twice_the_no_load_speed_within_the_stated_braking(mjlab, tmp_path, fits):
+    """States drawn to twice the no-load speed, and a PD rollout started from the motors spinning there: mjlab's
+    dcmotor follows its own law, and differs from the runtime by no more than the export states (NOT_HELD: the
+    braking past overspeed it holds at the torque limit), and by that much."""
+    ex, out, speed = exported(tmp_path, [fitted_motor(tmp_path)] if fits == "linear_fit" else [], "mjlab", reach=True)
+    gap, past = stated(ex), ex.past_overspeed(ex.bundle.motors[0].name)[0]
+    assert f"{past:.4g} N m more than the torque limit" in (out / "hound_like_mjlab.py").read_text()
+    r = run_in(mjlab, "mjlab_check.py", out, "dcmotor", speed, speed)
+    tol = FLOAT32 * max(1.0, gap / 10.0)  # float32 rounding of the larger braking torques
+    gear = 9.0  # HAA: the only uncoupled joints
+    assert r["finite"] and r["max_difference_law"] < tol
+    assert 0.99 * past < r["max_difference_voltage"] <= gap + tol
+    assert r["max_difference_dcmotor"] <= gap * gear + tol * gear
+    # the rollout spins the motors to the drawn speed and past it (a coupled knee motor adds the hip's speed); the
+    # stated braking holds to twice the no-load speed, so the steps within it are compared
+    assert r["rollout_top_motor_speed"] >= 0.99 * speed
+    assert r["max_difference_rollout_within_speed"] <= gap * gear + tol * gear
+
+
 NEWTON = ("newton[sim]==1.8.0",)
 
 
@@ -97,6 +129,18 @@ def test_newton_misses_the_curved_sample_by_at_most_the_stated_gap(newton, tmp_p
     assert r["finite"] and r["max_difference_law"] < FLOAT32
     assert r["max_difference"] <= gap + FLOAT32
     assert r["max_difference_rollout"] < FLOAT32 and r["finite"]
+
+
+@pytest.mark.parametrize("fits", ["linear_fit", "sheet_curve"])
+def test_newton_to_twice_the_no_load_speed_within_the_stated_braking(newton, tmp_path, fits):
+    ex, out, speed = exported(tmp_path, [fitted_motor(tmp_path)] if fits == "linear_fit" else [], "newton", reach=True)
+    gap, past = stated(ex), ex.past_overspeed(ex.bundle.motors[0].name)[0]
+    assert f"{past:.4g} N m more than the torque limit" in (out / "hound_like_newton.py").read_text()
+    r = run_in(newton, "newton_check.py", out, speed, "warp", speed)
+    tol = FLOAT32 * max(1.0, gap / 10.0)
+    assert r["finite"] and r["max_difference_law"] < tol
+    assert 0.99 * past < r["max_difference"] <= gap + tol
+    assert r["rollout_top_motor_speed"] >= 0.99 * speed and r["max_difference_rollout_within_speed"] <= gap + tol
 
 
 ISAACLAB = ("isaaclab==2.3.2.post1", "torch==2.13.0", "usd-core")
@@ -136,6 +180,21 @@ def test_isaaclab_dcmotor_fields_and_the_hound_id_actuator_in_isaac_lab(isaaclab
     assert r["warnings"] == []  # no deprecation (or other) warning while Isaac Lab builds the actuators
 
 
+@pytest.mark.parametrize("fitted", [True, False], ids=["linear_fit", "sheet_curve"])
+def test_isaaclab_to_twice_the_no_load_speed_within_the_stated_braking(isaaclab, tmp_path, fitted):
+    """Past the overspeed Isaac Lab's DCMotor holds its torque limit where hound-id's clip forces more braking: the
+    fields' dcmotor_error.past_overspeed states how much; HoundIdActuator is the runtime there too."""
+    python, source = isaaclab
+    fits = [fitted_motor(tmp_path)] if fitted else []
+    ex, out, speed = exported(tmp_path, fits, "bundle,isaaclab", reach=True)
+    r = run_in(python, "isaaclab_check.py", out, speed, path=(source,))
+    past = ex.past_overspeed(ex.bundle.motors[0].name)[0] * 9.0  # HAA joints, gear 9
+    tol = FLOAT32 * max(1.0, r["dcmotor_stated_gap"] / 10.0)
+    assert r["dcmotor_stated_gap"] == pytest.approx(max(past, r["dcmotor_stated_gap"]))
+    assert 0.99 * past < r["dcmotor_max_difference"] <= r["dcmotor_stated_gap"] + tol
+    assert r["hound_max_difference"] == 0.0 and r["hound_max_difference_float32"] < 5 * FLOAT32 * max(1.0, past / 50)
+
+
 @pytest.mark.parametrize("trainer", ["mjlab", "newton"])
 def test_installing_hound_id_beside_a_trainer_leaves_its_mujoco_alone(request, tmp_path, trainer):
     """pip's own plan for installing hound-id into the trainer's environment: MuJoCo, MuJoCo-Warp, Warp and torch
@@ -163,9 +222,13 @@ def genesis() -> str:
 def test_genesis_applies_the_runtime_torques_from_the_open_urdf_and_fights_the_inner_one(genesis, tmp_path):
     """Genesis enforces URDF effort limits: with urdf-open's limits and the armature sidecar it applies the runtime's
     saturated torques to float32 rounding; with the inner boxes (format urdf) it clips them, as the review saw."""
-    _, out, speed = exported(tmp_path, [], "bundle,urdf,urdf-open")
+    ex, out, speed = exported(tmp_path, [], "bundle,urdf,urdf-open")
     r = run_in(genesis, "genesis_check.py", out, "hound_like_open_limits.urdf", speed)
     assert r["genesis"] == "1.4.5" and r["max_difference"] < FLOAT32
     assert r["armature"] == pytest.approx(r["expected_armature"], rel=1e-6)
     inner = run_in(genesis, "genesis_check.py", out, "hound_like_limits.urdf", speed)
     assert inner["max_difference"] > 1.0
+    # to twice the no-load speed: the open limits hold the diode bridge's braking too
+    reach = TRAINER_REACH * min(operating_region(s).no_load_speed for s in ex.robot.motor_specs.values())
+    far = run_in(genesis, "genesis_check.py", out, "hound_like_open_limits.urdf", reach)
+    assert far["max_difference"] < FLOAT32

@@ -69,7 +69,10 @@ for j, name in enumerate(sat.joints):
         qd[:, [j]],
     )
     dc_worst = max(dc_worst, float(torch.max(torch.abs(out.joint_efforts[:, 0] - want[:, j]))))
-    dc_gap = max(dc_gap, float(f.get("dcmotor_error", {}).get("over", 0.0)))
+    error = f.get("dcmotor_error", {})
+    dc_gap = max(dc_gap, float(error.get("over", 0.0)))
+    if speed > float(sat.kv[j] * sat.bus_voltage[j]):  # states past the no-load speed (motor j: joint j's) drawn
+        dc_gap = max(dc_gap, float(error.get("past_overspeed", 0.0)))
     dc_joints.append(name)
 
 # HoundIdActuator on every joint, in a breadth-first order (not the bundle's), with PD gains

@@ -1,7 +1,8 @@
 """Run inside an mjlab virtual environment (tests/export/test_trainers.py): load hound-id's mjlab export as the README
 snippet does, drive it at random states across the operating regions and then through a PD-controlled rollout, and
 print the realised torques' differences from hound_id.runtime (JSON on stdout). Arguments: the export folder, the
-uncoupled mode (dcmotor or voltage), the largest motor speed drawn [rad/s]."""
+uncoupled mode (dcmotor or voltage), the largest motor speed drawn [rad/s], and optionally the motor speed the
+rollout starts from [rad/s] (alternating signs per motor; default 0, from rest), to make the rollout reach it."""
 
 import json
 import sys
@@ -15,6 +16,7 @@ from mjlab.sim import Simulation, SimulationCfg
 import hound_id.runtime
 
 folder, uncoupled, speed = Path(sys.argv[1]), sys.argv[2], float(sys.argv[3])
+spin = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
 sys.path.insert(0, str(folder))
 import hound_like_mjlab as gen  # noqa: E402  (the generated module)
 
@@ -73,18 +75,26 @@ for _ in range(STATES):
     worst_v = max(worst_v, float(torch.max(torch.abs(got - want)[:, :nv]))) if nv else 0.0
     worst_law = max(worst_law, float(torch.max(torch.abs(got[:, :nv] - law)))) if nv else 0.0
     worst_dc = max(worst_dc, float(torch.max(torch.abs(got - want)[:, nv:]))) if dc_joints else 0.0
-# a PD-controlled rollout from rest (falling freely: no terrain), every step compared
-robot.write_joint_state_to_sim(robot.data.default_joint_pos, torch.zeros_like(robot.data.joint_vel))
+# a PD-controlled rollout from rest, or from the motors spinning at +-spin (falling freely: no terrain), every step
+# compared
+signs = torch.tensor([(-1.0) ** k for k in range(len(sat.motors))], dtype=torch.float64)
+start = ((spin * signs) @ A.T).repeat(ENVS, 1).float()
+robot.write_joint_state_to_sim(robot.data.default_joint_pos, start)
+top_speed = worst_within = 0.0  # worst_within: over the steps whose motor speeds stay within the drawn speed
 stand = torch.tensor([gen.STAND_JOINTS[j] for j in names], dtype=torch.float64)
 assert torch.allclose(robot.data.default_joint_pos[0].double(), stand)  # entity_cfg starts from the stand pose
 q0 = robot.data.joint_pos.double().clone()
 for step in range(STEPS):
     q, qd = robot.data.joint_pos.double(), robot.data.joint_vel.double()
+    fastest = float(torch.max(torch.abs(sat.motor_velocity(qd))))
+    top_speed = max(top_speed, fastest)
     target = q0 + 0.6 * torch.sin(torch.tensor(2 * torch.pi * 3 * step * sim.cfg.mujoco.timestep))
     want, _ = command(400.0 * (target - q) - 8.0 * qd, qd)
     scene.write_data_to_sim()
     sim.step()
-    worst_roll = max(worst_roll, float(torch.max(torch.abs(realised() - want))))
+    difference = float(torch.max(torch.abs(realised() - want)))
+    worst_roll = max(worst_roll, difference)
+    worst_within = max(worst_within, difference) if fastest <= speed else worst_within
     scene.update(dt=sim.cfg.mujoco.timestep)
 print(
     json.dumps(
@@ -96,6 +106,8 @@ print(
             "max_difference_law": worst_law,
             "max_difference_dcmotor": worst_dc,
             "max_difference_rollout": worst_roll,
+            "rollout_top_motor_speed": top_speed,
+            "max_difference_rollout_within_speed": worst_within,
             "clipped": float(torch.mean(torch.cat(clipped).double())),
             "finite": bool(torch.all(torch.isfinite(sim.data.qpos))),
         }

@@ -2,7 +2,8 @@
 README snippet does (add_urdf, then the generated add_actuators and joint_dofs), drive SolverMuJoCo at random states
 across the operating regions and then through a PD-controlled rollout with hound_id.runtime's voltages, and print
 the realised motor torques' differences from the runtime (JSON on stdout). Arguments: the export folder, the largest
-motor speed drawn [rad/s], MuJoCo-Warp (warp) or MuJoCo's CPU engine (cpu)."""
+motor speed drawn [rad/s], MuJoCo-Warp (warp) or MuJoCo's CPU engine (cpu), and optionally the motor speed the rollout
+starts from [rad/s] (alternating signs per motor; default 0, from rest), to make the rollout reach it."""
 
 import json
 import sys
@@ -15,6 +16,7 @@ import numpy as np
 import hound_id.runtime
 
 folder, speed, engine = Path(sys.argv[1]), float(sys.argv[2]), sys.argv[3]
+spin = float(sys.argv[4]) if len(sys.argv) > 4 else 0.0
 sys.path.insert(0, str(folder))
 import hound_like_newton as gen  # noqa: E402  (the generated module)
 
@@ -65,15 +67,22 @@ for _ in range(n):
     clipped += bool(np.any(np.abs(sat.saturate(tau, qd) - tau) > 1e-9))
     worst = max(worst, float(np.max(np.abs(force - want))))
     worst_law = max(worst_law, float(np.max(np.abs(force - law))))
-# a PD-controlled rollout from rest (falling freely), every step compared
-state0.joint_qd.assign(np.zeros(model.joint_dof_count, dtype=np.float32))
+# a PD-controlled rollout from rest, or from the motors spinning at +-spin (falling freely), every step compared
+signs = np.array([(-1.0) ** k for k in range(len(gen.MOTORS))])
+jqd = np.zeros(model.joint_dof_count, dtype=np.float32)
+jqd[dofs] = sat.clip.A @ (spin * signs)
+state0.joint_qd.assign(jqd)
+top_speed = worst_within = 0.0  # worst_within: over the steps whose motor speeds stay within the drawn speed
 start_q = [int(builder.joint_q_start[gen._joint_index(builder, j)]) for j in gen.JOINTS]
 q0 = state0.joint_q.numpy()[start_q].astype(float)
 for k in range(500):
     q, qd = state0.joint_q.numpy()[start_q].astype(float), state0.joint_qd.numpy()[dofs].astype(float)
+    fastest = float(np.max(np.abs(sat.motor_velocity(qd))))
+    top_speed = max(top_speed, fastest)
     target = q0 + 0.6 * np.sin(2 * np.pi * 3 * k * DT)
     force, want, _ = step(400.0 * (target - q) - 8.0 * qd, qd)
     worst_roll = max(worst_roll, float(np.max(np.abs(force - want))))
+    worst_within = max(worst_within, float(np.max(np.abs(force - want)))) if fastest <= speed else worst_within
 print(
     json.dumps(
         {
@@ -83,6 +92,8 @@ print(
             "max_difference": worst,
             "max_difference_law": worst_law,
             "max_difference_rollout": worst_roll,
+            "rollout_top_motor_speed": top_speed,
+            "max_difference_rollout_within_speed": worst_within,
             "clipped": clipped / n,
             "finite": bool(np.all(np.isfinite(state0.joint_q.numpy()))),
         }
