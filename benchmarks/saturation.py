@@ -212,6 +212,8 @@ def feasibility(args: argparse.Namespace) -> None:
     command the short path takes (uniform) and, in each dtype, the largest finite value in every
     joint; speeds uniform within +-120 rad/s (past every motor's overspeed). The
     saturated torques are mapped to motor space and compared with the intervals in float64.
+    With ``--temperature`` every winding has its own temperature, uniform in -20 to 140 degC (past the winding
+    limit: no current), and the intervals are those at it.
     """
     robot = load_robot(ROBOT)
     sat = saturation_for(robot)
@@ -219,6 +221,7 @@ def feasibility(args: argparse.Namespace) -> None:
     rows = 200_000
     magnitude = 10.0 ** rng.uniform(-3, 30, (rows, sat.n)) * rng.choice([-1.0, 1.0], (rows, sat.n))
     qd = rng.uniform(-120.0, 120.0, (rows, sat.n))
+    temps = rng.uniform(-20.0, 140.0, (rows, sat.n)) if args.temperature else None
     lo, hi = sat.torque_bounds(qd)
     results = {}
     import torch
@@ -232,17 +235,31 @@ def feasibility(args: argparse.Namespace) -> None:
         cases = (("huge", magnitude), ("ordinary", ordinary), (f"to {bound:.0f} N m", edge), ("dtype max", extreme))
         for name, tau in cases:
             q = qd[: len(tau)].astype(dtype)
-            lo_, hi_ = sat.torque_bounds(q.astype(np.float64))
+            temp = None if temps is None else temps[: len(tau)].astype(dtype)
+            lo_, hi_ = sat.torque_bounds(q.astype(np.float64), None, None if temp is None else temp.astype(np.float64))
             for backend in ("numpy", "torch"):
                 t = tau.astype(dtype)
-                out = sat(t, q) if backend == "numpy" else sat(torch.from_numpy(t), torch.from_numpy(q)).numpy()
+                if backend == "numpy":
+                    out = sat(t, q, None, temp)
+                else:
+                    tt = None if temp is None else torch.from_numpy(temp)
+                    out = sat(torch.from_numpy(t), torch.from_numpy(q), None, tt).numpy()
                 tau_m = out.astype(np.float64) @ sat.A
                 excess = np.maximum(np.maximum(tau_m - hi_, lo_ - tau_m), 0.0) / sat.torque_limit
                 key = f"{np.dtype(dtype).name} {backend} {name}"
                 results[key] = {"worst_excess_over_limit": float(excess.max()), "finite": bool(np.isfinite(out).all())}
     del lo, hi
     if args.json:
-        print(json.dumps({"schema": "hound-id/bench-saturation-feasibility/1", "rows": rows, "results": results}))
+        print(
+            json.dumps(
+                {
+                    "schema": "hound-id/bench-saturation-feasibility/1",
+                    "rows": rows,
+                    "temperature": bool(args.temperature),
+                    "results": results,
+                }
+            )
+        )
         return
     print("worst motor torque past its interval, over the torque limit (float64 check of the saturated torques):")
     for key, r in results.items():

@@ -17,8 +17,9 @@ field weakening, :mod:`hound_id.mor.current_curve`, the current-torque curves wh
 :meth:`Runtime.current` gives,
 :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
 (:meth:`Runtime.clip_turn`), and :mod:`hound_id.mor.thermal`, the winding temperature's step
-(:meth:`Runtime.step_temperature`, imported when first called). With numba installed (``hound-id[fast]``) the first clip of an ordinary batch imports
-it for the fused loop of :mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
+(:meth:`Runtime.step_temperature` and a clip at a temperature, imported when first called). With numba
+installed (``hound-id[fast]``) the first clip of an ordinary batch imports it for the fused loop of
+:mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
 A JSON bundle is read with the standard library; a YAML one with PyYAML (:func:`hound_id.io.read_yaml`),
 imported only then. ``tests/test_runtime.py`` and ``tests/test_architecture.py`` check this.
 """

@@ -119,7 +119,13 @@ def _window_fn(has_fw: bool) -> Any:
 
 @cache
 def _correction(
-    has_curve: bool, has_cap: bool, has_max_speed: bool, has_volts: bool, has_drive: bool, has_fw: bool
+    has_curve: bool,
+    has_cap: bool,
+    has_max_speed: bool,
+    has_volts: bool,
+    has_drive: bool,
+    has_fw: bool,
+    has_heat: bool = False,
 ) -> Any:
     """The loop for one set of motors' features: the flags are compile-time constants, so the loop has no branch
     and vectorises (a loop that tests them is 1.7x slower)."""
@@ -128,21 +134,52 @@ def _correction(
 
     @jit  # type: ignore[untyped-decorator]
     def correction(
-        tau_m: Any, u: Any, omega: Any, limits: Any, zero: Any, one: Any, speed_cap: Any, volts: Any, out: Any
+        tau_m: Any,
+        u: Any,
+        omega: Any,
+        limits: Any,
+        zero: Any,
+        one: Any,
+        speed_cap: Any,
+        volts: Any,
+        out: Any,
+        temps: Any,
+        heat: Any,
+        reference: Any,
     ) -> None:
         stall, neg_stall, limit_x, neg_limit_x = limits[0], limits[1], limits[4], limits[5]
         q, top, neg_top, cap, neg_cap, wmax = limits[6], limits[7], limits[8], limits[9], limits[10], limits[11]
         per_volt, k_rho, circle, fw = limits[12], limits[13], limits[14], limits[15]
+        a_r, a_k, start, end, current_x, nominal = heat[0], heat[1], heat[2], heat[3], heat[4], heat[5]
         for k in range(tau_m.size):
             uk = u[k]
-            if has_volts:  # the stall torque at this element's bus voltage
+            lim = limit_x[k]
+            nlim = neg_limit_x[k]
+            kr = k_rho[k]
+            ck = circle[k]
+            if has_heat:  # the 20 degC window at s_K omega / s_R and V / s_R, k_rho / s_K, the derated limit
+                temp = temps[k]
+                s_r = one + a_r[k] * (temp - reference)
+                s_k = one + a_k[k] * (temp - reference)
+                band = end[k] - start[k]
+                ramp = (end[k] - temp) / (band if band > zero else one) if band > zero else zero
+                d = one if temp < start[k] else _min(_max(ramp, zero), one)
+                d = temp if temp != temp else d
+                s = _max((volts[k] if has_volts else nominal[k]) / s_r, zero) * per_volt[k]
+                ns = -s
+                uk = uk * (s_k / s_r)
+                lim = _min(lim, d * current_x[k])
+                nlim = -lim
+                kr = kr / s_k
+                ck = ck * d
+            elif has_volts:  # the stall torque at this element's bus voltage
                 s = _max(volts[k], zero) * per_volt[k]
                 ns = -s
             else:
                 s = stall[k]
                 ns = neg_stall[k]
             if has_drive:
-                lo, up = _window(uk, s, k_rho[k], limit_x[k], circle[k], fw[k], zero, one, speed_cap)
+                lo, up = _window(uk, s, kr, lim, ck, fw[k], zero, one, speed_cap)
                 if has_curve:
                     lo = _min(_max(lo, neg_top[k]), top[k])
                     up = _min(_max(up, neg_top[k]), top[k])
@@ -152,14 +189,17 @@ def _correction(
                 if has_curve:  # the line ends that can pass the curve's top are held there
                     hi = _max(hi, neg_top[k])
                     lo = _min(lo, top[k])
-                up = _max(_min(hi, limit_x[k]), lo)  # the window cut to the driver's limit
-                lo = _min(_max(lo, neg_limit_x[k]), hi)
+                up = _max(_min(hi, lim), lo)  # the window cut to the driver's limit
+                lo = _min(_max(lo, nlim), hi)
             if has_curve:  # x - q x|x|, as numpy's steps round it
                 up = up - (abs(up) * q[k]) * up
                 lo = lo - (abs(lo) * q[k]) * lo
             if has_cap:
                 up = _min(_max(up, neg_cap[k]), cap[k])
                 lo = _min(_max(lo, neg_cap[k]), cap[k])
+            if has_heat:  # the flux scales the torque at every current
+                lo = lo * s_k
+                up = up * s_k
             t = tau_m[k]
             x = _min(_max(t, lo), up)
             if has_max_speed:  # past the rated speed only braking torque passes
@@ -190,12 +230,25 @@ def available() -> bool:
     return os.environ.get(ENV, "1") != "0" and _numba() is not None
 
 
-def clip_correction(tau_m: Any, u: Any, omega: Any, c: Any, out: Any, volts: Any = None) -> None:
+def clip_correction(
+    tau_m: Any,
+    u: Any,
+    omega: Any,
+    c: Any,
+    out: Any,
+    volts: Any = None,
+    temps: Any = None,
+    heat: Any = None,
+    reference: float = 0.0,
+) -> None:
     """``out`` = clip(tau_m, interval(u)) - tau_m for C-contiguous arrays of one shape and dtype, with the
     constants ``c`` (:class:`hound_id.mor.saturation._Constants`, their ``stacked`` limits expanded to that shape);
     ``omega`` (the motor speeds) is read only when the constants have a rated speed, ``volts`` (the bus voltage
-    per element, same shape) only when given."""
-    loop = _correction(c.has_curve, c.has_cap, c.has_max_speed, volts is not None, c.has_drive, c.has_fw)
+    per element, same shape) only when given, ``temps`` (the winding temperature per element [degC]) with ``heat``
+    (the six thermal rows of :meth:`hound_id.mor.saturation.Saturation._heated_bounds`, expanded to that shape) and
+    ``reference`` (the temperature [degC] the 20 degC constants hold at) only when given."""
+    has_heat = temps is not None
+    loop = _correction(c.has_curve, c.has_cap, c.has_max_speed, volts is not None, c.has_drive, c.has_fw, has_heat)
     flat = tau_m.reshape(-1)
     loop(
         flat,
@@ -207,6 +260,9 @@ def clip_correction(tau_m: Any, u: Any, omega: Any, c: Any, out: Any, volts: Any
         out.dtype.type(SPEED_CAP),
         flat if volts is None else np.ascontiguousarray(volts).reshape(-1),
         out.reshape(-1),
+        flat if temps is None else np.ascontiguousarray(temps).reshape(-1),
+        c.stacked if heat is None else heat,
+        out.dtype.type(reference),
     )
 
 

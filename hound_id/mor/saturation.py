@@ -709,17 +709,60 @@ class Saturation:
 
         ``temperature`` [degC] (optional) is each winding's temperature, shaped like ``bus_voltage``, for motors whose
         specs carry a thermal model (:mod:`hound_id.mor.thermal`): the resistance, Kt and the back-EMF constant
-        follow it and the drive's current limit is derated. It takes the general path (fresh arrays, no fused
-        loop), and needs linear or quadratic current-torque curves. Not given: the 20 degC region, as before.
+        follow it and the drive's current limit is derated. Ordinary commands on the CPU take the fused loop (numba;
+        numpy and CPU tensors), the others the general path (fresh arrays), with the same result. It needs linear
+        or quadratic current-torque curves. Not given: the 20 degC region, as before.
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
         volts = self._volts(bus_voltage, tau)
         if temperature is not None:
-            return self._saturate(tau, qd, consts, volts, self._temperatures(temperature, tau))
+            temps = self._temperatures(temperature, tau)
+            if not (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
+                fast = self._saturate_heated_fused(tau, qd, volts, temps)
+                if fast is not None:
+                    return fast
+            return self._saturate(tau, qd, consts, volts, temps)
         if self.polylines or (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
             return self._saturate(tau, qd, consts, volts)  # measured envelopes or autograd: the general path
         return self._saturate_in_place(tau, qd, consts, volts)
+
+    def _saturate_heated_fused(self, tau: Any, qd: Any, volts: Any, temps: Any) -> Any:
+        """The clip at winding temperatures ``temps`` through the fused loop
+        (:func:`hound_id.mor.fused.clip_correction`) for ordinary commands in C-contiguous numpy arrays or CPU
+        tensors; None where it does not apply (then the general path runs). Same result as :meth:`_saturate` with
+        the temperatures, to the correction's rounding."""
+        if _is_torch(tau):
+            views = _numpy_views(tau, qd)
+            if views is None or not (temps.is_contiguous() and (volts is None or volts.is_contiguous())):
+                return None
+            import torch
+
+            out = self._saturate_heated_fused(*views, None if volts is None else volts.numpy(), temps.detach().numpy())
+            return None if out is None else torch.from_numpy(out)
+        if not _fusable(tau, qd):
+            return None
+        c = self._constants(tau)
+        if not fused_within(tau, c.ordinary, qd, c.qd_cap):
+            return None
+        key: Any = ("heat-rows", tau.dtype, tuple(tau.shape))
+        rows = self._cache.get(key)
+        if rows is None:
+            per_motor = self._thermal_like(tau)
+            rows = np.empty((len(per_motor), tau.size), dtype=tau.dtype)
+            for row, values in zip(rows, per_motor, strict=True):
+                row.reshape(tau.shape)[...] = values
+            self._remember(key, rows)
+        u, v, tau_m, _, _, _ = self._workspace(tau)
+        np.matmul(qd, c.speed_map, out=u)
+        np.matmul(tau, c.A, out=tau_m)
+        from hound_id.mor.thermal import REFERENCE
+
+        omega = qd @ c.A_inv.T if c.has_max_speed else None
+        clip_correction(tau_m, u, omega, c, v, volts, temps, rows, REFERENCE)
+        out = np.matmul(v, c.A_inv)
+        out += tau
+        return out
 
     def _saturate(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None, temperature: Any = None) -> Any:
         """The clip with fresh arrays (autograd flows through it)."""

@@ -196,6 +196,28 @@ def test_20_degc_changes_nothing_and_numpy_torch_agree():
         SAT(tau, qd, temperature=np.ones(3))
 
 
+@pytest.mark.parametrize("dtype", [np.float64, np.float32])
+def test_the_fused_loop_at_a_temperature_is_the_general_path(dtype, monkeypatch):
+    """Ordinary commands take the fused loop (numba) with the temperatures; the general path (fresh arrays, numpy's
+    steps) gives the same torques to the correction's rounding, NaN where it gives NaN, and so do CPU tensors."""
+    rng = np.random.default_rng(9)
+    n = 2048
+    tau = rng.uniform(-300.0, 300.0, (n, 12)).astype(dtype)
+    qd = rng.uniform(-60.0, 60.0, (n, 12)).astype(dtype)
+    temps = rng.uniform(-10.0, 130.0, (n, 12)).astype(dtype)
+    volts = rng.uniform(66.0, 84.0, (n, 1)).astype(dtype)
+    temps[5, 3] = np.nan
+    fused = SAT(tau, qd, volts, temps)
+    monkeypatch.setenv("HOUND_ID_FUSED", "0")
+    general = SAT(tau, qd, volts, temps)
+    monkeypatch.delenv("HOUND_ID_FUSED")
+    assert np.array_equal(np.isnan(fused), np.isnan(general)) and np.isnan(fused[5]).any()
+    tol = 1e-12 if dtype == np.float64 else 2e-4
+    assert np.nanmax(np.abs(fused - general)) <= tol * 300
+    t = SAT(torch.from_numpy(tau), torch.from_numpy(qd), torch.from_numpy(volts), torch.from_numpy(temps)).numpy()
+    assert np.array_equal(t, fused, equal_nan=True)
+
+
 @settings(max_examples=40, deadline=None)
 @given(seed=st.integers(0, 2**32 - 1))
 def test_the_derated_clip_is_feasible_for_every_state(seed):
