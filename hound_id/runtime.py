@@ -226,28 +226,43 @@ class Runtime:
         ``dt`` is stable. Pass the saturated torques (:meth:`saturate` at the same ``temperature``): past the
         curve's top the current is infinite. Numpy or torch; field weakening's d current is not counted.
         """
-        from hound_id.mor.thermal import REFERENCE, step
+        from hound_id.mor.thermal import step
 
-        if self.heat is None:
-            raise SaturationError("runtime: this bundle has no thermal model (a bundle/4 whose specs state one)")
         tau_m = self.motor_torque(tau)
-        key: Any = ("heat", type(tau_m), str(getattr(tau_m, "dtype", "")), str(getattr(tau_m, "device", "")))
-        if key not in self._consts:
-            if _is_torch(tau_m):
-                import torch
-
-                kw = {"dtype": tau_m.dtype, "device": tau_m.device}
-                self._consts[key] = tuple(torch.tensor(np.array(r), **kw) for r in self.heat)
-            else:
-                self._consts[key] = tuple(np.asarray(r, dtype=tau_m.dtype) for r in self.heat)
-        r_th, tau_th, ambient, loss, a_r, a_k = self._consts[key]
+        key = self._heat_rows(tau_m)
+        r_th, tau_th, ambient, loss, a_r, _ = self._consts[key]
         if not _is_torch(temperature):
             temperature = np.asarray(temperature, dtype=tau_m.dtype)
-        s_k = 1.0 + a_k * (temperature - REFERENCE)
-        current = self.current(tau_m / s_k)
+        current = self.current(tau_m, temperature=temperature)
         if not _is_torch(current):
             current = current.astype(tau_m.dtype, copy=False)
         return step(temperature, current, dt, r_th, tau_th, ambient, loss, a_r)
+
+    def _heat_rows(self, like: Any) -> Any:
+        """The key of :attr:`heat`'s rows in the array type, dtype and device of ``like`` (cached), or
+        SaturationError without a thermal model."""
+        if self.heat is None:
+            raise SaturationError("runtime: this bundle has no thermal model (a bundle/4 whose specs state one)")
+        key: Any = ("heat", type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
+        if key not in self._consts:
+            if _is_torch(like):
+                import torch
+
+                kw = {"dtype": like.dtype, "device": like.device}
+                self._consts[key] = tuple(torch.tensor(np.array(r), **kw) for r in self.heat)
+            else:
+                dtype = like.dtype if isinstance(like, np.ndarray) and like.dtype.kind == "f" else np.float64
+                self._consts[key] = tuple(np.asarray(r, dtype=dtype) for r in self.heat)
+        return key
+
+    def _kt_scale(self, temperature: Any, like: Any) -> Any:
+        """Kt(T)/Kt20 per motor at ``temperature`` [degC], in the array type of ``like``."""
+        from hound_id.mor.thermal import REFERENCE
+
+        a_k = self._consts[self._heat_rows(like)][5]
+        if not _is_torch(temperature):
+            temperature = np.asarray(temperature, dtype=a_k.dtype)
+        return 1.0 + a_k * (temperature - REFERENCE)
 
     def motor_velocity(self, qd: Any) -> Any:
         """Motor speeds A^-1 qd [rad/s], (..., n_motors)."""
@@ -279,7 +294,7 @@ class Runtime:
         f_motor = -(coulomb * sgn + viscous * w + stribeck * sgn * exp)
         return f_motor @ A_inv  # tau_j = A^-T f, row-vector form f @ A^-1
 
-    def current(self, tau_motor: Any, method: str = "exact") -> Any:
+    def current(self, tau_motor: Any, method: str = "exact", temperature: Any = None) -> Any:
         """Motor currents [A] that make the motor torques [N m], (..., n_motors) in, same shape out.
 
         ``exact`` (default): the exact inverse of each motor's current-torque curve (the fit's, or the quadratic
@@ -288,10 +303,16 @@ class Runtime:
         there the fit's polynomial, else tau / Kt, as before. ``polynomial``: the fit's odd polynomial (its error
         against the exact inverse is in the bundle's ``compensation_polynomial``) where the motor has one, the
         exact inverse elsewhere.
+
+        ``temperature`` [degC] (a bundle/4 with a thermal model): each winding's temperature, (..., n_motors) or
+        (..., 1); the flux scales the curve's torque by Kt(T)/Kt20 at every current, so the current for a torque is
+        the 20 degC inverse at tau / (Kt(T)/Kt20).
         """
         if method not in ("exact", "polynomial"):
             raise SaturationError(f"runtime.current: method {method!r}; expected 'exact' or 'polynomial'")
         tau_motor = self._array(tau_motor, "tau_motor")
+        if temperature is not None:
+            tau_motor = tau_motor / self._kt_scale(temperature, tau_motor)
         out: Any
         if _is_torch(tau_motor):
             import torch
@@ -311,7 +332,7 @@ class Runtime:
                 out[..., m] = t / float(self.kt[m])
         return out
 
-    def voltage(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None) -> Any:
+    def voltage(self, tau_cmd: Any, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> Any:
         """Motor voltages [V] for MuJoCo's voltage-input dcmotor (``hound-id export``, ``--mujoco-actuator dcmotor``):
         v = R tau_m / Kt + omega_m / Kv of the saturated motor torques, clamped to +-V_bus, (..., n_motors).
 
@@ -320,10 +341,14 @@ class Runtime:
         current-torque curve past the no-load speed, and past overspeed, the clamp binds and MuJoCo applies its
         straight line instead (by at most the export note's straight-line gap). Numpy or torch, like
         :meth:`saturate`.
+
+        ``temperature`` [degC]: the torques saturated at each winding's temperature (:meth:`saturate`), turned into
+        the voltage MuJoCo's 20 degC dcmotor needs for them. A warm winding's weaker flux reaches speeds its 20 degC
+        model cannot drive at the bus: there the clamp binds and MuJoCo applies less than the runtime.
         """
         if self.resistance is None or self.kv is None or self.bus_voltage is None:
             raise SaturationError("runtime.voltage: this runtime has no motor resistance, Kv and bus voltage")
-        tau_m = self.motor_torque(self.saturate(tau_cmd, qd, bus_voltage))
+        tau_m = self.motor_torque(self.saturate(tau_cmd, qd, bus_voltage, temperature))
         omega = self.motor_velocity(qd)
         r_kt, inv_kv, v_bus = self.resistance / self.kt, 1.0 / self.kv, self.bus_voltage
         if _is_torch(tau_m):

@@ -35,12 +35,21 @@ def mor(
     out: Optional[Path] = typer.Option(
         None, "--out", help="With --compare: write a motor spec YAML with the measured envelope (for saturate/export)."
     ),
+    bus_range: Optional[str] = typer.Option(
+        None,
+        "--bus-range",
+        metavar="LOW,HIGH",
+        help="With --spec: the battery's lowest and highest bus voltage, e.g. '66 V,84 V' (instead of the spec's "
+        "bus_voltage_range).",
+    ),
     json_out: bool = typer.Option(
-        False, "--json", help="Print JSON (schema hound-id/mor/1, mor-robot/1 or mor-compare/2)."
+        False, "--json", help="Print JSON (schema hound-id/mor/3, mor-robot/1 or mor-compare/2)."
     ),
 ) -> None:
     """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot); with
     --compare LOG, the region against measured data and the effects that explain the difference."""
+    if bus_range is not None and (spec is None or compare is not None):
+        raise HoundIdError("mor: --bus-range goes with --spec MOTOR.yaml (without --compare)")
     if compare is not None:
         if spec is None:
             raise HoundIdError(
@@ -56,7 +65,7 @@ def mor(
     if (spec is None) == (robot is None):
         raise HoundIdError("mor: give exactly one of --spec MOTOR.yaml or --robot ROBOT.yaml")
     if spec is not None:
-        _mor_spec(spec, plot, json_out)
+        _mor_spec(spec, plot, json_out, bus_range)
     else:
         assert robot is not None
         _mor_robot(robot, plot, json_out)
@@ -169,11 +178,11 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
 VERTICES_SHOWN = 12
 
 
-def _mor_spec(path: Path, plot: Path | None, json_out: bool) -> None:
+def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | None = None) -> None:
     from hound_id.mor.run import motor_regions
 
     check_output(plot, (".png",), "plot")
-    run = motor_regions(path)
+    run = motor_regions(path, bus_range)
     spec, sheet, region, measured = run.spec, run.sheet, run.region, run.measured
     for w in run.warnings:
         warn(w)

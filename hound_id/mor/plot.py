@@ -124,6 +124,21 @@ def plot_region(
     )
     ax.plot(forced, past, color="tab:red", lw=1.6, ls=":", label=what)
     ax.plot(-forced, -past, color="tab:red", lw=1.6, ls=":")
+    held = float(torque_interval(np.array([region.overspeed * (1.0 - 1e-9)]), region)[1][0])
+    if region.drive is not None and abs(held - forced[0]) > 0.01 * region.torque_limit:
+        # a drive holding i_d = 0 has no state between its last held current and the diode bridge: the braking steps
+        ax.plot([held, forced[0]], [region.overspeed] * 2, color="tab:red", lw=2.2)
+        ax.annotate(
+            f"braking steps {abs(held):.3g} -> {abs(forced[0]):.3g} N m\n"
+            f"where control is lost ({region.overspeed:.4g} rad/s)",
+            (0.5 * (held + forced[0]), region.overspeed),
+            textcoords="offset points",
+            xytext=(0, 12),
+            ha="center",
+            fontsize=8,
+            color="tab:red",
+            bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8},
+        )
     tl = max(tl, float(np.max(np.abs(forced))) / 1.3)
     w = max(w, PAST_OVERSPEED * region.overspeed / 1.1)
     ax.axhline(0, color="0.4", lw=0.8)

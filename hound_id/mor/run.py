@@ -124,13 +124,16 @@ class MotorRegions:
         )
 
 
-def motor_regions(path: str | Path) -> MotorRegions:
-    """Load a motor spec and build its regions (``hound-id mor --spec``)."""
+def motor_regions(path: str | Path, bus_range: str | None = None) -> MotorRegions:
+    """Load a motor spec and build its regions (``hound-id mor --spec``); ``bus_range`` (``"66 V,84 V"``) replaces
+    its battery's range."""
     from hound_id.mor.joint_space import motor_region
     from hound_id.mor.region import operating_region
-    from hound_id.mor.spec import load_motor_spec, spec_warnings
+    from hound_id.mor.spec import load_motor_spec, spec_warnings, with_bus_range
 
     spec = load_motor_spec(path)
+    if bus_range is not None:
+        spec = with_bus_range(spec, bus_range)
     sheet = operating_region(spec)
     region = motor_region(spec)  # the measured envelope, if the spec carries one
     return MotorRegions(spec, region, sheet, tuple(spec_warnings(spec)))

@@ -26,7 +26,7 @@ from __future__ import annotations
 import difflib
 import math
 from collections.abc import Mapping
-from dataclasses import dataclass, field, fields
+from dataclasses import dataclass, field, fields, replace
 from functools import cached_property
 from pathlib import Path
 from types import MappingProxyType
@@ -124,6 +124,10 @@ PLAUSIBLE: dict[str, tuple[float, float, str]] = {
     "continuous_current": (1e-3, 1e4, "A"),
 }
 
+
+#: Most pole pairs a spec may state: large-diameter torque motors reach a few dozen; more is a typo (or poles, or
+#: slots) that would multiply the winding's reactance.
+MAX_POLE_PAIRS = 200
 
 #: Fields besides the quantities that ``assumed:`` may name.
 _ASSUMABLE = (
@@ -595,9 +599,12 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         )
 
     pole_pairs = data.get("pole_pairs")
-    if pole_pairs is not None and (isinstance(pole_pairs, bool) or not isinstance(pole_pairs, int) or pole_pairs < 1):
+    if pole_pairs is not None and (
+        isinstance(pole_pairs, bool) or not isinstance(pole_pairs, int) or not 1 <= pole_pairs <= MAX_POLE_PAIRS
+    ):
         raise SpecError(
-            f"{where(source, 'pole_pairs')}: found {pole_pairs!r}, expected a positive integer",
+            f"{where(source, 'pole_pairs')}: found {pole_pairs!r}, expected a whole number from 1 to {MAX_POLE_PAIRS} "
+            "(pole pairs, not poles: a 20-pole motor has 10)",
             field="pole_pairs",
         )
     name = data.get("name")
@@ -777,24 +784,39 @@ def _thermal(
     )
 
 
-def _bus_range(data: Any, nominal: float, source: str | None) -> tuple[float, float] | None:
+def _bus_range(
+    data: Any, nominal: float, source: str | None, key: str | None = "bus_voltage_range"
+) -> tuple[float, float] | None:
     """A spec's ``bus_voltage_range`` ([lowest, highest], with units), checked: 0 < lowest <= nominal <= highest."""
     if data is None:
         return None
     if not isinstance(data, list | tuple) or len(data) != 2:
         raise SpecError(
-            f"{where(source, 'bus_voltage_range')}: found {data!r}, expected [lowest, highest], e.g. [66 V, 84 V]",
+            f"{where(source, key)}: found {data!r}, expected [lowest, highest], e.g. [66 V, 84 V]",
             field="bus_voltage_range",
         )
-    low, high = (to_si(v, "voltage", source=source, field="bus_voltage_range") for v in data)
+    low, high = (to_si(v, "voltage", source=source, field=key) for v in data)
     lo, hi, _ = PLAUSIBLE["bus_voltage"]
     if not (lo <= low <= nominal <= high <= hi):
         raise SpecError(
-            f"{where(source, 'bus_voltage_range')}: found {low:.4g} V to {high:.4g} V, expected a range holding "
+            f"{where(source, key)}: found {low:.4g} V to {high:.4g} V, expected a range holding "
             f"bus_voltage {nominal:.4g} V (lowest <= bus_voltage <= highest, within {lo:g} to {hi:g} V)",
             field="bus_voltage_range",
         )
     return (low, high)
+
+
+def with_bus_range(spec: MotorSpec, text: str, option: str = "--bus-range") -> MotorSpec:
+    """The spec with the battery's range given on the command line, ``"66 V,84 V"`` (or ``"66,84"``, volts), in place
+    of its own ``bus_voltage_range``; SpecError names what is wrong."""
+    parts = [p.strip() for p in text.split(",")]
+    if len(parts) != 2 or not all(parts):
+        raise SpecError(
+            f"{option}: found {text!r}, expected the lowest and highest bus voltage separated by a comma, e.g. "
+            "'66 V,84 V' or 66,84",
+            field="bus_voltage_range",
+        )
+    return replace(spec, bus_voltage_range=_bus_range(parts, spec.bus_voltage, option, None))
 
 
 def _envelope(data: Any, source: str | None) -> MeasuredEnvelope | None:

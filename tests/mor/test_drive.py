@@ -210,3 +210,35 @@ def test_the_runtime_carries_the_batterys_range(tmp_path):
     tau, qd = np.full((3, 12), 200.0), np.full((3, 12), 30.0)
     volts = np.array([[66.0], [81.0], [84.0]])
     assert np.array_equal(rt.saturate(tau, qd, bus_voltage=volts), rt.clip(tau, qd, volts))
+
+
+def test_the_battery_range_from_the_command_line():
+    import json
+
+    from tests.conftest import run_cli
+
+    out = run_cli("mor", "--spec", str(SHEET), "--bus-range", "60 V,84 V", "--json")
+    assert out.returncode == 0, out.stderr
+    battery = json.loads(out.stdout)["at_speed"]["battery"]
+    assert [b["bus_voltage"] for b in battery] == [60.0, 84.0]
+    want = operating_region(dataclasses.replace(SPEC, bus_voltage=60.0))
+    assert battery[0]["corner_speed"] == pytest.approx(want.corner_speed)
+    for args, message in (
+        (("--spec", str(SHEET), "--bus-range", "90,100"), "--bus-range: found 90 V to 100 V, expected a range holding"),
+        (("--spec", str(SHEET), "--bus-range", "66"), "separated by a comma"),
+        (("--spec", str(SHEET), "--bus-range", "66 A,84 V"), "expected a voltage"),
+        (("--robot", str(ROBOT), "--bus-range", "66,84"), "--bus-range goes with --spec"),
+    ):
+        bad = run_cli("mor", *args)
+        assert bad.returncode == 2 and message in bad.stderr and "Traceback" not in bad.stderr
+        assert len(bad.stderr.strip().splitlines()) == 1
+
+
+@pytest.mark.parametrize("pairs", [0, 201, 2.5, True])
+def test_pole_pairs_outside_the_span_of_motors_are_refused(pairs):
+    import yaml
+
+    data = yaml.safe_load(SHEET.read_text())
+    data["pole_pairs"] = pairs
+    with pytest.raises(HoundIdError, match="pole_pairs.*expected a whole number from 1 to 200"):
+        motor_spec_from_mapping(data, "m.yaml")

@@ -124,3 +124,66 @@ def test_the_drive_region_is_the_dc_law_without_reactance():
     lo_dc, hi_dc = torque_interval(w, replace(drive_region(with_zero), drive=None))
     lo, hi = torque_interval(w, drive_region(with_zero))
     assert np.allclose(lo, lo_dc, atol=1e-9) and np.allclose(hi, hi_dc, atol=1e-9)
+
+
+@pytest.mark.parametrize(("temperature", "volts"), [(100.0, 84.0), (112.0, 66.0)], ids=["100C_84V", "112C_66V"])
+def test_the_clip_at_a_temperature_is_what_motulators_warm_drive_holds(motulator, temperature, volts):
+    """The winding warm: motulator's machine with the resistance and flux at that temperature, written here from the
+    physics (R_ph (1 + a_R (T - 20)), psi (1 + a_K (T - 20)), L unchanged) and the drive's derated current limit;
+    hound-id's clip at ``temperature`` (its exact scaling of the 20 degC window, no region rebuilt) sets the edges.
+    At 112 degC the drive has derated to 40 % of its current."""
+    from hound_id.mor.robot import load_robot
+    from hound_id.mor.saturation import saturation_for
+    from tests.conftest import ROBOT
+
+    spec = load_motor_spec(SAMPLES / "motors" / "hound_ilm85.yaml")
+    th = spec.thermal
+    sat = saturation_for(load_robot(ROBOT))
+    gear = 1.0 / float(sat.A[0, 0])  # motor 0 (FL_HAA) turns with joint 0 alone
+    s_r = 1.0 + th.alpha_resistance * (temperature - 20.0)
+    s_k = 1.0 + th.alpha_kt * (temperature - 20.0)
+    derate = min(1.0, (th.winding_limit - temperature) / (th.winding_limit - th.derate_start))
+    i_max = derate * spec.max_current
+    curve = spec.current_curve
+    from hound_id.mor.heat import hot_spec
+
+    warm = drive_region(replace(hot_spec(spec, temperature), bus_voltage=volts))  # only to place the speeds
+    speeds = np.concatenate(
+        [np.linspace(0.0, 2.0 * spec.kv * volts / s_k, SPEEDS), np.linspace(warm.corner_speed, warm.overspeed, 22)]
+    )
+    qd = np.zeros((speeds.size, 12))
+    qd[:, 0] = speeds / gear
+    lo, hi = sat.torque_bounds(qd, bus_voltage=np.full((speeds.size, 1), volts), temperature=temperature)
+    points = []
+    for w, t_lo, t_hi in zip(speeds, lo[:, 0], hi[:, 0], strict=True):
+        if not t_lo < t_hi:
+            continue  # past control: the diode bridge's braking, which motulator cannot show
+        for tau, inward in ((t_hi, -1.0), (t_lo, 1.0)):
+            edge = float(curve.current(tau / s_k))  # the current of that torque on the warm curve
+            if abs(abs(edge) - i_max) <= 1e-9 * i_max:
+                continue  # the (derated) current limit sets it
+            for inside in (True, False):
+                i_q = edge + (inward if inside else -inward) * MARGIN * i_max
+                points.append({"speed": float(w), "i_d": 0.0, "i_q": i_q, "inside": inside, "edge": edge})
+    request = {
+        "mode": "references",
+        "R": s_r * spec.resistance / math.sqrt(3.0),
+        "L": spec.drive.inductance_phase,
+        "psi": s_k / (math.sqrt(3.0) * spec.kv * spec.pole_pairs),
+        "n_p": spec.pole_pairs,
+        "u_dc": volts,
+        "i_max": i_max,
+        "points": [{k: p[k] for k in ("speed", "i_d", "i_q")} for p in points],
+    }
+    proc = subprocess.run(
+        [motulator, str(SCRIPT)], input=json.dumps(request), capture_output=True, text=True, timeout=900
+    )
+    assert proc.returncode == 0, proc.stderr[-3000:]
+    result = json.loads(proc.stdout)
+    for p, r in zip(points, result["points"], strict=True):
+        where = f"{temperature:g} degC, {volts:g} V, {p['speed']:.1f} rad/s, edge {p['edge']:.2f} A, i_q {p['i_q']:.2f}"
+        if p["inside"]:
+            assert r["held_control"], f"inside the warm region but not held: {where}, u_ratio {r['u_ratio']:.4f}"
+        elif r["held_control"]:
+            assert r["u_ratio_ideal"] <= 1.0 + 3.0 * r["edge_bias"], f"outside but held: {where}"
+    assert len(points) >= 40

@@ -331,3 +331,20 @@ def test_mor_prints_and_writes_the_warm_and_continuous_regions(tmp_path):
 def test_loss_factor_per_commutation():
     assert LOSS_FACTOR["six_step"] == 1.0 and LOSS_FACTOR["foc"] == pytest.approx(math.sqrt(3) / 2)
     assert isinstance(TH, Thermal)
+
+
+def test_the_current_at_a_temperature_follows_the_weaker_flux(rt):
+    """i = g20^-1(tau / s_K): a warm motor needs more current for the same torque, and the runtime's current and
+    voltage take the temperature."""
+    tau = np.full((1, rt.n), 5.0)
+    temps = np.full((1, rt.n), 100.0)
+    s_k = 1 + TH.alpha_kt * 80.0
+    want = SPEC.current_curve.current(5.0 / s_k)
+    assert np.allclose(rt.current(tau, temperature=temps), want, rtol=1e-12)
+    assert np.all(rt.current(tau, temperature=temps) > rt.current(tau))
+    tensor = rt.current(torch.tensor(tau), temperature=torch.tensor(temps)).numpy()
+    assert np.allclose(tensor, want, rtol=1e-12)
+    qd = np.zeros((1, rt.n))
+    cmd = np.full((1, rt.n), 1e3)
+    v_cold, v_warm = rt.voltage(cmd, qd), rt.voltage(cmd, qd, temperature=np.full((1, 1), 110.0))
+    assert np.all(np.abs(v_warm) < np.abs(v_cold))  # derated to half the current at 110 degC
