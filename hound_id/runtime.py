@@ -155,9 +155,9 @@ class Runtime:
         bundle/3 or later). Keep it as a full (..., n) array of the commands' dtype for the cheapest clip.
 
         ``temperature`` [degC]: each winding's temperature, shaped like ``bus_voltage`` (a bundle/4 whose specs state
-        a thermal model): R, Kt and the back-EMF constant follow it, the drive's current limit is derated, and the
-        clip takes the general path (no fused loop). Carry it with :meth:`step_temperature`, starting from
-        :attr:`ambient`.
+        a thermal model): R, Kt and the back-EMF constant follow it and the drive's current limit is derated (the
+        fused loop for ordinary commands on the CPU, as without it). Carry it with :meth:`step_temperature`, starting
+        from :attr:`ambient`. A NaN temperature gives NaN in its coupled group, like a NaN command.
         """
         return self.clip(tau_cmd, qd, bus_voltage, temperature)
 
@@ -223,20 +223,43 @@ class Runtime:
         Each motor's current is the inverse of its current-torque curve at its temperature (the curve scaled by
         Kt(T)/Kt20) at the motor torque A^T tau; the copper loss c R(T) i^2 heats the winding, which cools to the
         ambient through R_th; the step is exact for the held current (:func:`hound_id.mor.thermal.step`), so any
-        ``dt`` is stable. Pass the saturated torques (:meth:`saturate` at the same ``temperature``): past the
-        curve's top the current is infinite. Numpy or torch; field weakening's d current is not counted.
+        ``dt`` is stable. The drive's derating is read by :meth:`saturate` at the step's start, so keep ``dt`` well
+        below the thermal time constant (a control step is). Pass the saturated torques (:meth:`saturate` at the
+        same ``temperature``): past the curve's top no current makes the torque, and the temperature becomes NaN.
+
+        ``temperature`` is (..., n_motors), or (..., 1) per environment; the result has ``tau``'s shape, array type
+        and device, and the wider of the two dtypes in numpy (the temperature's in torch). Field weakening's d
+        current is not counted.
         """
         from hound_id.mor.thermal import step
 
+        if isinstance(dt, bool) or not isinstance(dt, int | float) or not (math.isfinite(dt) and dt > 0):
+            raise SaturationError(f"runtime.step_temperature: dt = {dt!r}; expected a positive, finite time step [s]")
         tau_m = self.motor_torque(tau)
+        if _is_torch(tau_m):
+            import torch
+
+            temperature = torch.as_tensor(temperature, device=tau_m.device)
+            if not temperature.is_floating_point():
+                temperature = temperature.to(tau_m.dtype)
+            tau_m = tau_m.to(temperature.dtype)
+            shape_ok = _broadcasts(tuple(temperature.shape), tuple(tau_m.shape))
+        else:
+            temperature = np.asarray(temperature)
+            dtype = np.promote_types(temperature.dtype if temperature.dtype.kind == "f" else np.float64, tau_m.dtype)
+            temperature, tau_m = temperature.astype(dtype, copy=False), tau_m.astype(dtype, copy=False)
+            shape_ok = _broadcasts(temperature.shape, tau_m.shape)
+        if not shape_ok:
+            raise SaturationError(
+                f"runtime.step_temperature: temperature has shape {tuple(temperature.shape)}; expected tau's "
+                f"{tuple(tau_m.shape)} or one per environment, {(*tuple(tau_m.shape)[:-1], 1)} [degC]"
+            )
         key = self._heat_rows(tau_m)
         r_th, tau_th, ambient, loss, a_r, _ = self._consts[key]
-        if not _is_torch(temperature):
-            temperature = np.asarray(temperature, dtype=tau_m.dtype)
         current = self.current(tau_m, temperature=temperature)
         if not _is_torch(current):
             current = current.astype(tau_m.dtype, copy=False)
-        return step(temperature, current, dt, r_th, tau_th, ambient, loss, a_r)
+        return step(temperature, current, dt, r_th, tau_th, ambient, loss, a_r) + 0.0 * tau_m
 
     def _heat_rows(self, like: Any) -> Any:
         """The key of :attr:`heat`'s rows in the array type, dtype and device of ``like`` (cached), or
@@ -362,6 +385,14 @@ class Runtime:
         if bus_voltage is not None:
             v_bus = np.maximum(np.asarray(bus_voltage, dtype=float), 0.0)
         return np.clip(tau_m * r_kt + omega * inv_kv, -v_bus, v_bus)
+
+
+def _broadcasts(small: tuple[int, ...], full: tuple[int, ...]) -> bool:
+    """Whether a per-environment or per-motor array of shape ``small`` broadcasts to ``full`` without growing it."""
+    try:
+        return tuple(np.broadcast_shapes(small, full)) == full
+    except ValueError:
+        return False
 
 
 def _inverse(curve: CurrentCurve, t: Any) -> Any:

@@ -180,6 +180,8 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
     elif isinstance(value, str) and _is_number(value):
         result = float(value)  # YAML 1.1 reads 1e3 (no dot) as text: a plain number, so SI
     elif isinstance(value, str):
+        if kind in _PER_DEGREE:  # a difference of 1 degC is 1 K (pint refuses offset units in products)
+            value = _DEGREE_C.sub("K", _DEGREE_F.sub("delta_degF", value))
         result = _parse_string(value, kind, loc)
     else:
         raise UnitError(
@@ -195,10 +197,13 @@ def to_si(value: Any, kind: str, *, source: str | None = None, field: str | None
 
 
 _TEMPERATURE = re.compile(
-    r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*(degC|°C|deg C|C|degF|°F|deg F|F|K|kelvin)\s*$"
+    r"\s*([+-]?(?:\d+\.?\d*|\.\d+)(?:[eE][+-]?\d+)?)\s*"
+    r"(degC|°C|deg C|C|celsius|degF|°F|deg F|F|fahrenheit|K|kelvin)\s*$",
+    re.IGNORECASE,
 )
-_TEMPERATURE_UNITS = {"degC": "degC", "°C": "degC", "deg C": "degC", "C": "degC", "degF": "degF", "°F": "degF",
-                      "deg F": "degF", "F": "degF", "K": "kelvin", "kelvin": "kelvin"}  # fmt: skip
+_TEMPERATURE_UNITS = {"degc": "degC", "°c": "degC", "deg c": "degC", "c": "degC", "celsius": "degC", "degf": "degF",
+                      "°f": "degF", "deg f": "degF", "f": "degF", "fahrenheit": "degF", "k": "kelvin",
+                      "kelvin": "kelvin"}  # fmt: skip
 
 
 def to_celsius(value: Any, *, source: str | None = None, field: str | None = None) -> float:
@@ -213,15 +218,23 @@ def to_celsius(value: Any, *, source: str | None = None, field: str | None = Non
     if number is None and isinstance(value, str):
         match = _TEMPERATURE.match(value)
         if match:
-            unit = _TEMPERATURE_UNITS[match.group(2)]
+            unit = _TEMPERATURE_UNITS[match.group(2).lower()]
             number = float(registry().Quantity(float(match.group(1)), unit).to("degC").magnitude)
-    if number is None or not math.isfinite(number) or number < -273.15:
+    if number is not None and number < -273.15:
+        raise UnitError(f"{loc}: found {value!r}, below absolute zero (-273.15 degC)", found=value, expected="degC")
+    if number is None or not math.isfinite(number):
         raise UnitError(
             f"{loc}: found {value!r}, expected a temperature such as '120 degC', '393 K' or 120 (degC)",
             found=value,
             expected="degC",
         )
     return number
+
+
+#: Kinds whose units may name a temperature difference in degrees (``%/degC``, ``degC/W``).
+_PER_DEGREE = ("temperature_coefficient", "thermal_resistance")
+_DEGREE_C = re.compile(r"(?:°|deg\s?)C\b")
+_DEGREE_F = re.compile(r"(?:°|deg\s?)F\b")
 
 
 def _is_number(text: str) -> bool:

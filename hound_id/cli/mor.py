@@ -261,7 +261,7 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
     if speed is not None:
         _print_at_speed(spec, speed)
     if run.heat is not None:
-        _print_heat(run.heat)
+        _print_heat(spec, run.heat)
     lk = run.linear_kt
     if lk.largest > 0:
         console.print(
@@ -296,7 +296,7 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
         console.print(f"plot written to {plot}", highlight=False)
 
 
-def _print_heat(h: Any) -> None:
+def _print_heat(spec: Any, h: Any) -> None:
     """The thermal lines of ``mor --spec`` (:class:`hound_id.mor.heat.Heat`)."""
     th = h.thermal
     console.print(
@@ -307,21 +307,37 @@ def _print_heat(h: Any) -> None:
         highlight=False,
     )
     runaway = "" if math.isinf(th.runaway_current) else f"; held above {th.runaway_current:.3g} A it runs away"
-    console.print(
-        f"  at the drive's {h.drive_limit:.4g} A the winding reaches {th.derate_start:.4g} degC in "
-        f"{h.time_to_derate:.3g} s (and would reach {th.winding_limit:.4g} degC in {h.time_to_limit:.3g} s)" + runaway,
-        highlight=False,
-    )
+    amps = "A (peak phase)" if spec.commutation == "foc" else "A"
+    if h.derates:
+        reach = (
+            f"would reach {th.winding_limit:.4g} degC in {h.time_to_limit:.3g} s"
+            if math.isfinite(h.time_to_limit)
+            else f"would settle below {th.winding_limit:.4g} degC"
+        )
+        held = (
+            f"  at the drive's {h.drive_limit:.4g} {amps} the winding reaches {th.derate_start:.4g} degC in "
+            f"{h.time_to_derate:.3g} s (and {reach} without the derating)"
+        )
+    else:
+        held = (
+            f"  at the drive's {h.drive_limit:.4g} {amps} the winding settles at {h.continuous_temperature:.4g} degC, "
+            f"below the derating ({th.derate_start:.4g} degC): the drive's limit is its continuous current"
+        )
+    console.print(held + runaway, highlight=False)
     w, c = h.warm, h.continuous
     console.print(
         f"  warm ({th.derate_start:.4g} degC, full current): torque limit {h.warm_torque:.4g} N m, corner speed "
-        f"{w.corner_speed:.4g} rad/s, no-load speed {w.no_load_speed:.4g} rad/s",
+        f"{w.corner_speed:.4g} rad/s, no-load speed {w.no_load_speed:.4g} rad/s (the flux is weaker)",
         highlight=False,
     )
+    where = (
+        f"at {h.continuous_temperature:.4g} degC under the derating ({h.limit_current:.4g} A at the limit without it)"
+        if h.derates
+        else f"(the drive's limit; the winding settles at {h.continuous_temperature:.4g} degC)"
+    )
     console.print(
-        f"  continuous: {h.continuous_current:.4g} A at {h.continuous_temperature:.4g} degC under the derating "
-        f"({h.limit_current:.4g} A at the limit without it): torque limit {h.continuous_torque:.4g} N m, inner box "
-        f"{c.inner_box[0]:.4g} N m to {c.inner_box[1]:.4g} rad/s",
+        f"  continuous: {h.continuous_current:.4g} {amps} {where}: torque limit {h.continuous_torque:.4g} N m, inner "
+        f"box {c.inner_box[0]:.4g} N m to {c.inner_box[1]:.4g} rad/s",
         highlight=False,
     )
 

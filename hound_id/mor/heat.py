@@ -123,13 +123,19 @@ class Heat:
     warm_region: OperatingRegion = field(repr=False, compare=False)
     continuous_region: OperatingRegion = field(repr=False, compare=False)
 
+    @property
+    def derates(self) -> bool:
+        """Whether the drive's current limit, held, warms the winding into the derating band."""
+        return self.continuous_temperature >= self.thermal.derate_start
+
     def to_dict(self) -> dict[str, Any]:
         th = self.thermal
         return {
             "thermal": th.to_dict(),
             "drive_current_limit": self.drive_limit,
-            "time_to_derate": self.time_to_derate,
-            "time_to_limit": self.time_to_limit,
+            "time_to_derate": None if math.isinf(self.time_to_derate) else self.time_to_derate,
+            "time_to_limit": None if math.isinf(self.time_to_limit) else self.time_to_limit,
+            "derates": self.derates,
             "runaway_current": None if math.isinf(th.runaway_current) else th.runaway_current,
             "continuous": {
                 "current": self.continuous_current,
@@ -146,8 +152,10 @@ class Heat:
                 "torque_limit, inner_box.torque": "N m (motor side)",
                 "speeds": "rad/s (motor side)",
                 "meaning": "time_to_derate / time_to_limit: from the ambient with the drive's current limit held "
-                "(closed form); continuous: where the drive's derated limit meets the current the winding holds in "
-                "steady state; warm: the full current at the start of derating",
+                "(closed form; null: never, the winding settles below); derates: whether the drive's limit, held, "
+                "warms the winding into the derating; continuous: where the drive's derated limit meets the current "
+                "the winding holds in steady state; warm: the full current at the start of derating; currents are "
+                "peak phase amplitudes under foc",
             },
         }
 

@@ -544,6 +544,12 @@ def _cut(
     return replace(region, convexity_loss=max(loss, 0.0))
 
 
+#: Points of a traced ring closer than this (relative to the ring's extent in torque and speed) are one vertex.
+RING_MERGE = 1e-9
+#: A point whose cross product with its neighbours (relative coordinates) is below this lies on their straight line.
+RING_STRAIGHT = 1e-9
+
+
 def _ring(speeds: NDArray[np.float64], lower: NDArray[np.float64], upper: NDArray[np.float64]) -> NDArray[np.float64]:
     """Vertices (tau, omega), counter-clockwise from the largest torque, of the region between two edges."""
     ok = np.isfinite(lower) & np.isfinite(upper) & (lower <= upper + 1e-12)
@@ -551,14 +557,17 @@ def _ring(speeds: NDArray[np.float64], lower: NDArray[np.float64], upper: NDArra
     ring = np.vstack([np.column_stack([hi, w]), np.column_stack([lo, w])[::-1]])
     scale = np.abs(ring).max(axis=0)
     unit = ring / scale
-    # drop repeated points and points on the straight line through their neighbours (flat torque limits)
-    keep = np.any(np.abs(unit - np.roll(unit, 1, axis=0)) > 1e-9, axis=1)
+    # drop repeated points, then walk the ring dropping each point on the straight line from the last point kept to
+    # the next (flat torque limits); measured from the last point kept, a cluster of nearly coincident points (where an
+    # edge's slope grows without bound, as at the drive's loss of control) cannot hide the corner it ends in
+    keep = np.any(np.abs(unit - np.roll(unit, 1, axis=0)) > RING_MERGE, axis=1)
     unit = unit[keep]
-    before, after = np.roll(unit, 1, axis=0), np.roll(unit, -1, axis=0)
-    cross = (unit[:, 0] - before[:, 0]) * (after[:, 1] - before[:, 1]) - (unit[:, 1] - before[:, 1]) * (
-        after[:, 0] - before[:, 0]
-    )
-    ring = unit[np.abs(cross) > 1e-9] * scale
+    kept = [0]
+    for k in range(1, len(unit)):
+        a, p, b = unit[kept[-1]], unit[k], unit[(k + 1) % len(unit)]
+        if abs((p[0] - a[0]) * (b[1] - a[1]) - (p[1] - a[1]) * (b[0] - a[0])) > RING_STRAIGHT:
+            kept.append(k)
+    ring = unit[kept] * scale
     start = int(np.lexsort((-ring[:, 1], -ring[:, 0]))[0])  # max torque, then max speed
     return np.roll(ring, -start, axis=0)
 

@@ -115,7 +115,11 @@ class MotorRegions:
         if h is None:
             return ()
         return (
-            (h.warm_region, f"winding at {h.thermal.derate_start:.4g} degC, full current (where derating starts)"),
+            (
+                h.warm_region,
+                f"winding at {h.thermal.derate_start:.4g} degC, full current (where derating starts; the weaker flux "
+                "reaches a higher no-load speed)",
+            ),
             (
                 h.continuous_region,
                 f"continuous: {h.continuous_current:.3g} A at {h.continuous_temperature:.4g} degC, what the winding "

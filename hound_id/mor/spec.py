@@ -86,6 +86,14 @@ _COEFFICIENT_KEYS: dict[str, tuple[float, float]] = {
 }
 #: What the thermal model needs besides R_th or the continuous current (one of the two).
 _THERMAL_NEEDS = ("thermal_time_constant", "winding_limit")
+_THERMAL_EXAMPLE = {"thermal_time_constant": "120 s", "winding_limit": "120 degC"}
+#: Temperature key -> (lowest, highest) [degC]: winding limits from enamel class A (105) to above class H (180),
+#: ambients a robot meets; a kelvin value written as a plain number (393) falls outside.
+_TEMPERATURE_SPAN = {
+    "winding_limit": (40.0, 250.0),
+    "ambient_temperature": (-60.0, 80.0),
+    "derate_start": (-60.0, 250.0),
+}
 _OTHER_KEYS = (
     "name",
     "source",
@@ -568,12 +576,8 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
             )
         lo, hi, unit = PLAUSIBLE[key]
         if not lo <= value <= hi:
-            raise SpecError(
-                f"{where(source, key)}: found {data[key]!r} = {value:.4g} {unit}, expected {lo:g} to {hi:g} {unit} "
-                "(the span of real motors); check the number and its unit",
-                field=key,
-                found=data[key],
-            )
+            advice = "(the span of real motors); check the number and its unit"
+            raise _out_of_span(source, key, data[key], value, (lo, hi, unit), advice)
         values[key] = value
 
     commutation = data.get("commutation", "foc")
@@ -713,6 +717,19 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
 _THERMAL_QUANTITIES = ("thermal_resistance", "thermal_time_constant", "continuous_current")
 
 
+def _out_of_span(
+    source: str | None, key: str, found: Any, value: float, span: tuple[float, float, str], advice: str
+) -> SpecError:
+    """The one-line refusal of a value outside its span (lowest, highest, unit)."""
+    lo, hi, unit = span
+    sep = "" if advice.startswith(";") else " "
+    return SpecError(
+        f"{where(source, key)}: found {found!r} = {value:.4g} {unit}, expected {lo:g} to {hi:g} {unit}{sep}{advice}",
+        field=key,
+        found=found,
+    )
+
+
 def _thermal(
     data: Mapping[str, Any], values: Mapping[str, float], commutation: str, fit: FitRecord | None, source: str | None
 ) -> Thermal | None:
@@ -722,20 +739,31 @@ def _thermal(
         return None
     missing = [k for k in _THERMAL_NEEDS if data.get(k) is None]
     heat = [k for k in ("thermal_resistance", "continuous_current") if k in values]
-    if missing or len(heat) != 1:
-        what = ", ".join(missing) if missing else ""
-        if len(heat) != 1:
-            what = (what + " and " if what else "") + (
-                "one of thermal_resistance or continuous_current"
-                if not heat
-                else "only one of thermal_resistance and continuous_current (the other follows from it)"
-            )
+    if missing:
         raise SpecError(
-            f"{where(source, stated[0])}: a thermal model needs {what}; add them (winding to ambient in K/W, or the "
-            "current the winding holds at its limit) or drop the thermal fields",
-            field=missing[0] if missing else "thermal_resistance",
+            f"{where(source, missing[0])}: missing; the thermal model ({stated[0]} is given) needs "
+            f"{' and '.join(missing)}: add {', '.join(f'{k}: {_THERMAL_EXAMPLE[k]}' for k in missing)}, or drop the "
+            "thermal fields",
+            field=missing[0],
+        )
+    if not heat:
+        raise SpecError(
+            f"{where(source, 'thermal_resistance')}: missing; the thermal model needs thermal_resistance (winding to "
+            "ambient, e.g. '2 K/W') or continuous_current (the peak phase current the winding holds at its limit)",
+            field="thermal_resistance",
+        )
+    if len(heat) == 2:
+        raise SpecError(
+            f"{where(source, 'continuous_current')}: give only one of thermal_resistance and continuous_current (the "
+            "other follows from it); drop one",
+            field="continuous_current",
         )
     temps = {k: to_celsius(data[k], source=source, field=k) for k in _TEMPERATURE_KEYS if data.get(k) is not None}
+    for key, value in temps.items():
+        lo, hi = _TEMPERATURE_SPAN[key]
+        if not lo <= value <= hi:
+            advice = "; a plain number is degC: write a kelvin value with its unit ('393 K')"
+            raise _out_of_span(source, key, data[key], value, (lo, hi, "degC"), advice)
     coefficients: dict[str, float] = {}
     for key, (lo, hi) in _COEFFICIENT_KEYS.items():
         if data.get(key) is None:

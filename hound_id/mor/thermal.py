@@ -57,7 +57,7 @@ NDFEB = -0.0011
 #: Ambient temperature [degC] when the spec gives none (assumed).
 AMBIENT = 25.0
 #: Width of the derating band below the winding limit [K] when the spec gives no ``derate_start``: ODrive's
-#: thermistor defaults (``temp_limit_lower`` 100 degC, ``temp_limit_upper`` 120 degC).
+#: thermistor defaults (``temp_limit_lower`` 100 degC, ``temp_limit_upper`` 120 degC); no lower than the ambient.
 DERATE_BAND = 20.0
 #: True copper loss over the model's R i^2, per commutation (module docstring).
 LOSS_FACTOR = {"foc": math.sqrt(3.0) / 2.0, "six_step": 1.0}
@@ -203,7 +203,7 @@ def thermal_from_fields(
         resistance=thermal_resistance,
         time_constant=time_constant,
         winding_limit=winding_limit,
-        derate_start=winding_limit - DERATE_BAND if derate_start is None else derate_start,
+        derate_start=max(winding_limit - DERATE_BAND, amb) if derate_start is None else derate_start,
         ambient=amb,
         alpha_resistance=a_r,
         alpha_kt=NDFEB if alpha_kt is None else alpha_kt,

@@ -65,7 +65,7 @@ def test_foc_conversion_matches_the_physics_notes():
         ({"bus_voltage": 0}, SpecError, "field 'bus_voltage'.*positive"),
         ({"resistance_line_to_line": 0.2}, SpecError, "both 'resistance' and"),
         ({"commutation": "trapezoid"}, SpecError, "commutation"),
-        ({"pole_pairs": 2.5}, SpecError, "pole_pairs.*positive integer"),
+        ({"pole_pairs": 2.5}, SpecError, "pole_pairs.*whole number from 1 to 200"),
         ({"name": ""}, SpecError, "field 'name'"),
         ({"schema": "hound-id/motor/9"}, SpecError, "schema"),
         ({"assumed": ["colour"]}, SpecError, "assumed"),

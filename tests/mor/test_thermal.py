@@ -96,10 +96,13 @@ def _yaml(text):
 @pytest.mark.parametrize(
     ("edit", "message"),
     [
-        (("thermal_time_constant: 120 s", ""), "needs thermal_time_constant"),
-        (("thermal_resistance: 2.0 K/W", ""), "one of thermal_resistance or continuous_current"),
-        (("thermal_resistance: 2.0 K/W", "thermal_resistance: 2.0 K/W\ncontinuous_current: 20 A"), "only one of"),
-        (("winding_limit: 120 degC", "winding_limit: 20 degC"), "not above the ambient"),
+        (("thermal_time_constant: 120 s", ""), "field 'thermal_time_constant': missing; the thermal model"),
+        (("thermal_resistance: 2.0 K/W", ""), "field 'thermal_resistance': missing; the thermal model needs"),
+        (("thermal_resistance: 2.0 K/W", "thermal_resistance: 2.0 K/W\ncontinuous_current: 20 A"), "give only one"),
+        (("winding_limit: 120 degC", "winding_limit: 393"), "393 degC, expected 40 to 250 degC; a plain number"),
+        (("ambient_temperature: 25 degC", "ambient_temperature: 298"), "field 'ambient_temperature'"),
+        (("winding_limit: 120 degC", "winding_limit: -300 degC"), "below absolute zero"),
+        (("ambient_temperature: 25 degC", "ambient_temperature: 25 degC\nderate_start: 20 degC"), "derate_start"),
         (("winding_limit: 120 degC", "winding_limit: hot"), "expected a temperature"),
         (("ambient_temperature: 25 degC", "ambient_temperature: 25 degC\nderate_start: 130 degC"), "derate_start"),
         (("ambient_temperature: 25 degC", "ambient_temperature: 25 degC\nkt_temperature_coefficient: -11"), "%/K"),
@@ -112,10 +115,39 @@ def test_a_bad_thermal_field_is_one_clear_line(edit, message):
         motor_spec_from_mapping(_yaml(text), "m.yaml")
 
 
+def test_a_winding_limit_not_above_the_ambient_is_refused():
+    text = MOTOR.read_text().replace("winding_limit: 120 degC", "winding_limit: 60 degC")
+    text = text.replace("ambient_temperature: 25 degC", "ambient_temperature: 70 degC")
+    with pytest.raises(HoundIdError, match="60 degC is not above the ambient 70 degC"):
+        motor_spec_from_mapping(_yaml(text), "m.yaml")
+
+
 def test_temperatures_read_in_any_unit():
     assert to_celsius("393.15 K") == pytest.approx(120.0)
     assert to_celsius("248 degF") == pytest.approx(120.0)
-    assert to_celsius(120) == 120.0 and to_celsius("120 °C") == 120.0
+    assert to_celsius(120) == 120.0 and to_celsius("120 °C") == 120.0 and to_celsius("120 celsius") == 120.0
+    text = MOTOR.read_text().replace("thermal_resistance: 2.0 K/W", "thermal_resistance: 2 °C/W")
+    text = text.replace(
+        "ambient_temperature: 25 degC", "ambient_temperature: 25 degC\nkt_temperature_coefficient: -0.1 %/°C"
+    )
+    spec = motor_spec_from_mapping(_yaml(text), "m.yaml")  # datasheets' per-degree units: a difference of 1 degC is 1 K
+    assert spec.thermal.resistance == 2.0 and spec.thermal.alpha_kt == pytest.approx(-0.001)
+
+
+def test_a_warm_ambient_moves_the_default_derating_start_and_a_small_drive_never_derates(tmp_path):
+    import json
+
+    text = MOTOR.read_text().replace("ambient_temperature: 25 degC", "ambient_temperature: 80 degC")
+    text = text.replace("winding_limit: 120 degC", "winding_limit: 95 degC")
+    assert motor_spec_from_mapping(_yaml(text), "m.yaml").thermal.derate_start == 80.0  # not below the ambient
+    small = tmp_path / "small.yaml"
+    small.write_text(MOTOR.read_text().replace("max_current: 70 A ", "max_current: 15 A "))
+    out = run_cli("mor", "--spec", str(small), "--json")
+    assert out.returncode == 0, out.stderr
+    h = json.loads(out.stdout, parse_constant=lambda c: pytest.fail(f"{c} is not JSON"))["heat"]
+    assert h["time_to_derate"] is None and h["derates"] is False and h["continuous"]["current"] == 15.0
+    text_out = run_cli("mor", "--spec", str(small)).stdout
+    assert "settles at 71.7 degC, below the derating" in text_out and "inf s" not in text_out
 
 
 def test_the_fits_kt_drift_is_taken_when_the_spec_gives_none():
@@ -324,13 +356,33 @@ def test_mor_prints_and_writes_the_warm_and_continuous_regions(tmp_path):
     assert h["warm"]["torque_limit"] == pytest.approx(SPEC.torque_limit * (1 - 0.0011 * 80), rel=1e-9)
     text = run_cli("mor", "--spec", str(MOTOR), "--plot", str(tmp_path / "r.png"))
     assert text.returncode == 0, text.stderr
-    assert "continuous: 19.45 A at 114.4 degC" in text.stdout and "reaches 100 degC in 9.51 s" in text.stdout
+    assert (
+        "continuous: 19.45 A (peak phase) at 114.4 degC" in text.stdout and "reaches 100 degC in 9.51 s" in text.stdout
+    )
     assert (tmp_path / "r.png").stat().st_size > 0
 
 
 def test_loss_factor_per_commutation():
     assert LOSS_FACTOR["six_step"] == 1.0 and LOSS_FACTOR["foc"] == pytest.approx(math.sqrt(3) / 2)
     assert isinstance(TH, Thermal)
+
+
+def test_step_temperature_refuses_what_it_cannot_step(rt):
+    tau = np.full((4, rt.n), 5.0)
+    for bad, message in (
+        (np.zeros((4, 13)), r"temperature has shape \(4, 13\); expected tau's \(4, 12\)"),
+        (np.zeros((2, 4, 12)), r"temperature has shape \(2, 4, 12\)"),
+    ):
+        with pytest.raises(SaturationError, match=message):
+            rt.step_temperature(bad, tau, 0.01)
+    for dt in (-1.0, float("nan"), 0.0):
+        with pytest.raises(SaturationError, match="expected a positive, finite time step"):
+            rt.step_temperature(np.full((4, 1), 25.0), tau, dt)
+    per_env = rt.step_temperature(np.full((4, 1), 25.0), tau, 0.01)
+    assert per_env.shape == (4, rt.n)
+    assert rt.step_temperature(np.full((4, 1), 25.0), tau.astype(np.float32), 0.01).dtype == np.float64
+    mixed = rt.step_temperature(np.full((4, 1), 25.0), torch.tensor(tau), 0.01)
+    assert isinstance(mixed, torch.Tensor) and np.allclose(mixed.numpy(), per_env)
 
 
 def test_the_current_at_a_temperature_follows_the_weaker_flux(rt):
