@@ -71,7 +71,9 @@ for j, name in enumerate(sat.joints):
     dc_worst = max(dc_worst, float(torch.max(torch.abs(out.joint_efforts[:, 0] - want[:, j]))))
     error = f.get("dcmotor_error", {})
     dc_gap = max(dc_gap, float(error.get("over", 0.0)))
-    if speed > float(sat.kv[j] * sat.bus_voltage[j]):  # states past the no-load speed (motor j: joint j's) drawn
+    d = f["dcmotor_isaaclab2"]  # the straight line's overspeed, joint side, to motor side (motor j turns with joint j)
+    overspeed = d["velocity_limit"] * (1.0 + d["effort_limit"] / d["saturation_effort"]) / abs(float(sat.clip.A[j][j]))
+    if speed > overspeed:  # states past the overspeed are drawn
         dc_gap = max(dc_gap, float(error.get("past_overspeed", 0.0)))
     dc_joints.append(name)
 
