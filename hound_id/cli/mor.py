@@ -429,6 +429,14 @@ def _mor_robot(path: Path, plot: Path | None, json_out: bool) -> None:
         "outer box: bounds of what is reachable at all.",
         highlight=False,
     )
+    low = sorted({v for jr in regions.joints for v, m in zip(jr.inner_box_bus_voltage, jr.motors, strict=True)
+                  if v != robot.motor_specs[m].bus_voltage})  # fmt: skip
+    if low:
+        console.print(
+            f"inner boxes at the battery's lowest bus voltage ({', '.join(f'{v:.4g} V' for v in low)}) and 20 degC: "
+            "every charge holds them; outer boxes and regions at the nominal bus",
+            highlight=False,
+        )
     measured = sorted({s.name for s in robot.motor_specs.values() if s.envelope})
     if measured:
         console.print(

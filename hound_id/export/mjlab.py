@@ -44,23 +44,29 @@ def coupled_motors(ex: Export) -> list[bool]:
 def not_held(ex: Export, uncoupled: str) -> list[str]:
     """What a trainer's dcmotor/DcMotor actuators cannot hold of this robot, each with its size."""
     lines = []
-    gaps = {m.name: ex.straight_gap(m.name)[0] for m in ex.bundle.motors if not m.envelope}
-    gaps = {k: v for k, v in gaps.items() if v > 0}
+    both = {m.name: ex.straight_gap(m.name) for m in ex.bundle.motors if not m.envelope}
+    gaps = {k: v[0] for k, v in both.items() if v[0] > 0}
+    short = max((v[1] for v in both.values()), default=0.0)
     if gaps:
         specs = ex.robot.motor_specs
         curved = [k for k in gaps if specs[k].current_curve.form != "linear"]
         rated = [k for k in gaps if specs[k].max_speed is not None]
         driven = [k for k in gaps if specs[k].drive is not None]
+        weak = [k for k in gaps if specs[k].field_weakening]
         causes = (
             ([f"a saturating current-torque curve (motors {', '.join(curved)})"] if curved else [])
             + ([f"a rated-speed cut-off, braking only above max_speed (motors {', '.join(rated)})"] if rated else [])
             + ([f"the drive's dq model, a winding reactance (motors {', '.join(driven)})"] if driven else [])
+            + ([f"field weakening, motoring past the no-load speed (motors {', '.join(weak)})"] if weak else [])
         )
         lines.append(
             "straight lines: hound-id's edges are not straight where a motor has "
             + " and ".join(causes)
             + f"; a dcmotor's voltage lines and DcMotor's torque-speed line are, and pass them by up to "
-            f"{max(gaps.values()):.4g} N m (motor side). Fed the runtime's voltage, a dcmotor applies the runtime's "
+            f"{max(gaps.values()):.4g} N m (motor side)"
+            + (f" and fall short of them by up to {short:.4g} N m" if short > 1e-9 * max(gaps.values()) else "")
+            + ", either way (just past the drive's loss of control the diode bridge brakes less than the torque "
+            "limit, which a dcmotor holds). Fed the runtime's voltage, a dcmotor applies the runtime's "
             "torque (rated-speed cut included) wherever that voltage is within the bus"
             + ("" if uncoupled == "voltage" else "; DcMotor joints (uncoupled) take the straight line and no cut")
         )

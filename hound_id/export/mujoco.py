@@ -190,11 +190,15 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     bent = _curve_gaps(ex)
     if bent and ex.mujoco_actuator.startswith("dcmotor"):
         worst = max(bent.values())
+        short = max(ex.straight_gap(m)[1] for m in bent)
         notes += (
             f"motors {', '.join(bent)} have a saturating current-torque curve: dcmotor's torque limit is the curve's "
             f"but its voltage lines are straight, passing hound-id's curved edges by up to {worst:.3g} N m (motor "
-            "side, between the corner and the overspeed); past overspeed dcmotor holds the torque limit where the "
-            "back-EMF forces more braking. For the exact clip use --mujoco-actuator motor with hound_id.runtime",
+            "side, between the corner and the overspeed, either way: just past the drive's loss of control the diode "
+            "bridge brakes less than the limit dcmotor holds)"
+            + (f" and falling short of them by up to {short:.3g} N m (field weakening)" if short > 1e-9 * worst else "")
+            + "; past overspeed dcmotor holds the torque limit where the back-EMF forces more braking. For the exact "
+            "clip use --mujoco-actuator motor with hound_id.runtime",
         )
     past = max((ex.past_overspeed(m.name) for m in ex.bundle.motors), default=(0.0, 0.0))
     if past[0] > 0 and ex.mujoco_actuator.startswith("dcmotor"):

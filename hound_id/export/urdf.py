@@ -107,7 +107,11 @@ def write_urdf(ex: Export, out: Path) -> Written:
     """``<robot>_limits.urdf``: :func:`limited_urdf`."""
     path = out / f"{ex.stem}_limits.urdf"
     io.write_text(path, limited_urdf(ex, out))
-    notes = ["effort/velocity limits are the inner boxes (always feasible); coupled joints get the group's box"]
+    notes = [
+        "effort/velocity limits are the inner boxes, feasible at every point at the battery's lowest bus voltage where "
+        "the specs state a range (else the nominal) and at 20 degC (a warm winding: apply hound_id.runtime with its "
+        "temperature); coupled joints get the group's box"
+    ]
     return Written((str(path),), tuple(notes))
 
 

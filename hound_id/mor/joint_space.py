@@ -23,7 +23,7 @@ constraint is sum_i |P_mi| T_i + sum_i |Q_mi| W_i (P = A^T, Q = A^-1).
 from __future__ import annotations
 
 import itertools
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from typing import Any
 
 import numpy as np
@@ -76,9 +76,13 @@ class JointRegion:
     projection: NDArray[np.float64]
     """Vertices (tau, qd), counter-clockwise, of everything reachable with the others free."""
     inner_box: Box
-    """Box whose every point is feasible while the coupled joints stay in their inner boxes."""
+    """Box whose every point is feasible while the coupled joints stay in their inner boxes, at the battery's lowest
+    bus voltage where the motors' specs state a range (``inner_box_bus_voltage``), at 20 degC."""
     outer_box: Box
-    """Bounds of the projection."""
+    """Bounds of the projection (at the nominal bus)."""
+    inner_box_bus_voltage: tuple[float, ...] = ()
+    """Per motor of the group, the bus voltage [V] the inner box holds at (the lowest of its battery's range, else the
+    nominal)."""
 
     def to_dict(self) -> dict[str, Any]:
         return {
@@ -87,6 +91,7 @@ class JointRegion:
             "transmission": self.transmission,
             "coupled": self.coupled,
             "inner_box": self.inner_box.to_dict(),
+            "inner_box_bus_voltage": list(self.inner_box_bus_voltage),
             "outer_box": self.outer_box.to_dict(),
             "section_vertices": self.section.tolist(),
             "projection_vertices": self.projection.tolist(),
@@ -229,11 +234,21 @@ def robot_regions(robot: Robot) -> RobotRegions:
         if id(spec) not in by_spec:
             by_spec[id(spec)] = motor_region(spec)
         motor_regions[m] = by_spec[id(spec)]
+    low: dict[int, OperatingRegion] = {}  # the inner boxes hold at every charge: at the battery's lowest voltage
+    low_volts = {}
+    for m in robot.motors:
+        spec = robot.motor_specs[m]
+        volts = spec.bus_voltage_range[0] if spec.bus_voltage_range and spec.envelope is None else spec.bus_voltage
+        if id(spec) not in low:
+            low[id(spec)] = (
+                motor_region(replace(spec, bus_voltage=volts)) if volts != spec.bus_voltage else (by_spec[id(spec)])
+            )
+        low_volts[m] = volts
     per_joint: dict[str, JointRegion] = {}
     for tx in robot.transmissions:
         regions = [motor_regions[m] for m in tx.motors]
         G, h = _group_constraints(tx, regions)
-        boxes = _inner_boxes(tx, regions)
+        boxes = _inner_boxes(tx, [low[id(robot.motor_specs[m])] for m in tx.motors])
         for i, joint in enumerate(tx.joints):
             proj = _projection(tx, regions, i)
             per_joint[joint] = JointRegion(
@@ -245,6 +260,7 @@ def robot_regions(robot: Robot) -> RobotRegions:
                 projection=frozen(proj),
                 inner_box=boxes[i],
                 outer_box=Box(effort=float(np.max(np.abs(proj[:, 0]))), velocity=float(np.max(np.abs(proj[:, 1])))),
+                inner_box_bus_voltage=tuple(low_volts[m] for m in tx.motors),
             )
     return RobotRegions(
         robot=robot.name,

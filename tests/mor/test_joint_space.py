@@ -1,4 +1,5 @@
 import itertools
+from dataclasses import replace
 from types import SimpleNamespace
 
 import numpy as np
@@ -51,11 +52,14 @@ def mixed(write_yaml):
 def test_uncoupled_inner_box_is_the_motors_box_through_the_ratio(sample):
     robot, regions, _ = sample
     jr = regions.joints[robot.joints.index("FL_HAA")]
-    motor = operating_region(robot.motor_specs["FL_HAA_motor"])
+    spec = robot.motor_specs["FL_HAA_motor"]
+    # the inner box holds at every charge: the motor's box at the battery's lowest voltage
+    motor = operating_region(replace(spec, bus_voltage=spec.bus_voltage_range[0]))
+    assert jr.inner_box_bus_voltage == (spec.bus_voltage_range[0],)
     assert jr.inner_box.effort == pytest.approx(9.0 * motor.inner_box[0], rel=1e-4)
     assert jr.inner_box.velocity == pytest.approx(motor.inner_box[1] / 9.0, rel=1e-4)
     # the half-spaces' polygon meets the curved edges to within EDGE_TOLERANCE near the steep edge at overspeed
-    assert jr.outer_box.velocity == pytest.approx(motor.overspeed / 9.0, rel=1e-4)
+    assert jr.outer_box.velocity == pytest.approx(operating_region(spec).overspeed / 9.0, rel=1e-4)
 
 
 @pytest.fixture(scope="module")
@@ -77,7 +81,8 @@ def test_uncoupled_inner_box_is_torque_limit_to_corner_speed_under_the_dc_law(dc
     """Without the winding's reactance the region is the paper's hexagon: the box runs to the corner speed."""
     robot, regions, _ = dc_sample
     jr = regions.joints[robot.joints.index("FL_HAA")]
-    motor = operating_region(next(iter(robot.motor_specs.values())))
+    spec = next(iter(robot.motor_specs.values()))
+    motor = operating_region(replace(spec, bus_voltage=spec.bus_voltage_range[0]))  # the box every charge holds
     assert motor.drive is None
     assert jr.inner_box.effort == pytest.approx(9.0 * motor.torque_limit, rel=1e-6)
     assert jr.inner_box.velocity == pytest.approx(motor.corner_speed / 9.0, rel=1e-6)
@@ -88,6 +93,9 @@ def test_every_corner_of_the_inner_boxes_is_feasible_and_the_boxes_are_tight(whi
     robot, regions, sat = request.getfixturevalue(which)
     T = np.array([j.inner_box.effort for j in regions.joints])
     W = np.array([j.inner_box.velocity for j in regions.joints])
+    # the boxes hold at the battery's lowest voltage (each group's motors'), and are tight there
+    low = {m: v for j in regions.joints for m, v in zip(j.motors, j.inner_box_bus_voltage, strict=True)}
+    volts = np.array([low[m] for m in robot.motors])
     for tx in robot.transmissions:
         idx = [robot.joints.index(j) for j in tx.joints]
         corners = []
@@ -98,8 +106,8 @@ def test_every_corner_of_the_inner_boxes_is_feasible_and_the_boxes_are_tight(whi
             corners.append((tau, qd))
         tau = np.array([c[0] for c in corners])
         qd = np.array([c[1] for c in corners])
-        assert sat.violation(tau, qd).max() <= 1e-7
-        grown = sat.violation(tau * 1.001, qd * 1.001)
+        assert sat.violation(tau, qd, bus_voltage=volts).max() <= 1e-7
+        grown = sat.violation(tau * 1.001, qd * 1.001, bus_voltage=volts)
         assert grown.max() > 0.0, f"inner box of {tx.joints} is not tight"
 
 
@@ -178,7 +186,9 @@ transmissions:
     joints = robot_regions(robot).joints
     for joint, motor, gear in (("a", "ma", 6.0), ("b", "mb", 7.5), ("c", "mc", 10.0), ("d", "md", 8.0)):
         box = joints[robot.joints.index(joint)].inner_box
-        T, W = operating_region(robot.motor_specs[motor]).inner_box
+        spec = robot.motor_specs[motor]  # the box every charge holds: at the battery's lowest voltage, if stated
+        low = spec.bus_voltage_range[0] if spec.bus_voltage_range else spec.bus_voltage
+        T, W = operating_region(replace(spec, bus_voltage=low)).inner_box
         assert (box.effort, box.velocity) == pytest.approx((T * gear, W / gear), rel=1e-9)
 
 
@@ -218,6 +228,12 @@ def test_a_measured_envelope_shrinks_the_joint_boxes_to_its_corner(dc_sample, me
     # point's curve (8.416 N m there): the measured box may be that much stronger, never more
     linear_over_curve = motor.torque_limit / sample[1].motors[0].torque_limit
     assert linear_over_curve == pytest.approx(9.66 / 8.415792)
-    for mine, sheet in zip(regions.joints, sample[1].joints, strict=True):
+    # the envelope was measured at the nominal bus, where its box holds (the sheet's boxes hold at the battery's lowest
+    # voltage, 66 V); against the sheet's box at the same 81 V
+    nominal = robot_regions(replace(sample[0], motor_specs={
+        k: replace(s, bus_voltage_range=None) for k, s in sample[0].motor_specs.items()
+    }))  # fmt: skip
+    assert all(j.inner_box_bus_voltage == (81.0,) * len(j.motors) for j in regions.joints)
+    for mine, sheet in zip(regions.joints, nominal.joints, strict=True):
         assert mine.inner_box.velocity < sheet.inner_box.velocity
         assert mine.inner_box.effort <= sheet.inner_box.effort * linear_over_curve * (1 + 1e-9)

@@ -400,3 +400,25 @@ def test_the_current_at_a_temperature_follows_the_weaker_flux(rt):
     cmd = np.full((1, rt.n), 1e3)
     v_cold, v_warm = rt.voltage(cmd, qd), rt.voltage(cmd, qd, temperature=np.full((1, 1), 110.0))
     assert np.all(np.abs(v_warm) < np.abs(v_cold))  # derated to half the current at 110 degC
+
+
+def test_the_exported_inner_boxes_hold_at_the_lowest_battery_voltage():
+    """The joint inner boxes (mor --robot, the bundle, the inner URDF, Isaac Lab) are the boxes every charge holds:
+    their corners are feasible at 66 V in every combination of signs, for every coupled group together."""
+    from itertools import product
+
+    from hound_id.mor.joint_space import robot_regions
+
+    regions = robot_regions(ROBOT_)
+    box = np.array([[j.inner_box.effort for j in regions.joints], [j.inner_box.velocity for j in regions.joints]])
+    assert all(v == (66.0,) * len(j.motors) for j in regions.joints for v in [j.inner_box_bus_voltage])
+    corners = np.array(list(product([-1.0, 1.0], repeat=6)))  # one leg's three joints, torque and speed signs
+    for leg in range(4):
+        cols = [3 * leg, 3 * leg + 1, 3 * leg + 2]
+        tau = np.zeros((len(corners), 12))
+        qd = np.zeros((len(corners), 12))
+        tau[:, cols] = corners[:, :3] * box[0, cols] * (1 - 1e-9)
+        qd[:, cols] = corners[:, 3:] * box[1, cols] * (1 - 1e-9)
+        assert np.max(SAT.violation(tau, qd, bus_voltage=66.0)) <= 1e-9
+    # at 66 V the box is the 66 V corner speed (359.6 rad/s at the motor), not the nominal 450.7
+    assert regions.joints[0].inner_box.velocity == pytest.approx(359.65 / 9.0, rel=1e-3)
