@@ -335,6 +335,11 @@ class Runtime:
             raise SaturationError(f"runtime.current: method {method!r}; expected 'exact' or 'polynomial'")
         tau_motor = self._array(tau_motor, "tau_motor")
         if temperature is not None:
+            if not _broadcasts(tuple(np.shape(temperature)), tuple(tau_motor.shape)):
+                raise SaturationError(
+                    f"runtime.current: temperature has shape {tuple(np.shape(temperature))}; expected tau_motor's "
+                    f"{tuple(tau_motor.shape)} or one per environment (..., 1) [degC]"
+                )
             tau_motor = tau_motor / self._kt_scale(temperature, tau_motor)
         out: Any
         if _is_torch(tau_motor):

@@ -256,5 +256,9 @@ def step(
     b = (resistance * p0 + ambient) / time_constant
     z = a * dt
     small = abs(z) < _SMALL
+    if lib is np:
+        with np.errstate(over="ignore"):  # a runaway held for long: inf, as the physics says
+            phi = np.where(small, 1.0 + 0.5 * z, np.expm1(z) / np.where(small, 1.0, z))
+            return temperature + (a * temperature + b) * dt * phi
     phi = lib.where(small, 1.0 + 0.5 * z, lib.expm1(z) / lib.where(small, lib.ones_like(z), z))
     return temperature + (a * temperature + b) * dt * phi

@@ -422,3 +422,8 @@ def test_the_exported_inner_boxes_hold_at_the_lowest_battery_voltage():
         assert np.max(SAT.violation(tau, qd, bus_voltage=66.0)) <= 1e-9
     # at 66 V the box is the 66 V corner speed (359.6 rad/s at the motor), not the nominal 450.7
     assert regions.joints[0].inner_box.velocity == pytest.approx(359.65 / 9.0, rel=1e-3)
+
+
+def test_current_refuses_a_temperature_of_the_wrong_shape(rt):
+    with pytest.raises(SaturationError, match=r"runtime.current: temperature has shape \(3, 2\)"):
+        rt.current(np.ones((3, rt.n)), temperature=np.full((3, 2), 100.0))
