@@ -123,16 +123,14 @@ class Runtime:
 
     def _constants(self, like: Any) -> tuple[Any, ...]:
         """(A^-1, A, friction arrays) in the array type, dtype and device of ``like``, cached."""
-        key = (type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
+        values = (self.clip.A_inv, self.clip.A, self.coulomb, self.viscous, self.stribeck, self.stribeck_speed)
+        return self._like("constants", values, like)
+
+    def _like(self, name: str, values: Sequence[Any], like: Any) -> tuple[Any, ...]:
+        """``values`` (arrays) in the array type, dtype and device of ``like`` (float64 for a non-float numpy
+        array), cached under ``name``."""
+        key = (name, type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
         if key not in self._consts:
-            values = (
-                self.clip.A_inv,
-                self.clip.A,
-                self.coulomb,
-                self.viscous,
-                self.stribeck,
-                self.stribeck_speed,
-            )
             if _is_torch(like):
                 import torch
 
@@ -254,35 +252,24 @@ class Runtime:
                 f"runtime.step_temperature: temperature has shape {tuple(temperature.shape)}; expected tau's "
                 f"{tuple(tau_m.shape)} or one per environment, {(*tuple(tau_m.shape)[:-1], 1)} [degC]"
             )
-        key = self._heat_rows(tau_m)
-        r_th, tau_th, ambient, loss, a_r, _ = self._consts[key]
+        r_th, tau_th, ambient, loss, a_r, _ = self._heat_rows(tau_m)
         current = self.current(tau_m, temperature=temperature)
         if not _is_torch(current):
             current = current.astype(tau_m.dtype, copy=False)
         return step(temperature, current, dt, r_th, tau_th, ambient, loss, a_r) + 0.0 * tau_m
 
-    def _heat_rows(self, like: Any) -> Any:
-        """The key of :attr:`heat`'s rows in the array type, dtype and device of ``like`` (cached), or
-        SaturationError without a thermal model."""
+    def _heat_rows(self, like: Any) -> tuple[Any, ...]:
+        """:attr:`heat`'s rows in the array type, dtype and device of ``like`` (cached), or SaturationError without a
+        thermal model."""
         if self.heat is None:
             raise SaturationError("runtime: this bundle has no thermal model (a bundle/4 whose specs state one)")
-        key: Any = ("heat", type(like), str(getattr(like, "dtype", "")), str(getattr(like, "device", "")))
-        if key not in self._consts:
-            if _is_torch(like):
-                import torch
-
-                kw = {"dtype": like.dtype, "device": like.device}
-                self._consts[key] = tuple(torch.tensor(np.array(r), **kw) for r in self.heat)
-            else:
-                dtype = like.dtype if isinstance(like, np.ndarray) and like.dtype.kind == "f" else np.float64
-                self._consts[key] = tuple(np.asarray(r, dtype=dtype) for r in self.heat)
-        return key
+        return self._like("heat", tuple(self.heat), like)
 
     def _kt_scale(self, temperature: Any, like: Any) -> Any:
         """Kt(T)/Kt20 per motor at ``temperature`` [degC], in the array type of ``like``."""
         from hound_id.mor.thermal import REFERENCE
 
-        a_k = self._consts[self._heat_rows(like)][5]
+        a_k = self._heat_rows(like)[5]
         if not _is_torch(temperature):
             temperature = np.asarray(temperature, dtype=a_k.dtype)
         return 1.0 + a_k * (temperature - REFERENCE)

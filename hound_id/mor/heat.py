@@ -29,11 +29,6 @@ from hound_id.mor.thermal import Thermal
 _XTOL = 1e-12
 
 
-def drive_current(spec: MotorSpec) -> float:
-    """The drive's current limit at 20 degC [A]: ``max_current``, else the current of the torque limit."""
-    return spec.max_current if spec.max_current is not None else spec.limit_current
-
-
 def hot_spec(spec: MotorSpec, temperature: float, current_limit: float | None = None) -> MotorSpec:
     """The motor at a winding ``temperature`` [degC] (module docstring), with the drive's current limit
     ``current_limit`` [A] (default: derated at that temperature by the spec's thermal model).
@@ -56,7 +51,7 @@ def hot_spec(spec: MotorSpec, temperature: float, current_limit: float | None = 
     if not (s_r > 0 and s_k > 0):
         raise SpecError(f"{spec.name}: at {temperature:g} degC the resistance or Kt scale is not positive")
     if current_limit is None:
-        current_limit = float(th.derating(temperature)) * drive_current(spec)
+        current_limit = float(th.derating(temperature)) * spec.drive_current
     if not current_limit > 0:
         raise SpecError(
             f"{spec.name}: at {temperature:g} degC the drive's current limit is derated to {current_limit:g} A; the "
@@ -166,7 +161,7 @@ def heat(spec: MotorSpec) -> Heat | None:
     th = spec.thermal
     if th is None or spec.envelope is not None:
         return None
-    limit = drive_current(spec)
+    limit = spec.drive_current
     current, temperature = continuous_point(th, limit)
     warm_spec = hot_spec(spec, th.derate_start, limit)
     cont_spec = hot_spec(spec, temperature, current)

@@ -240,9 +240,8 @@ def robot_regions(robot: Robot) -> RobotRegions:
         spec = robot.motor_specs[m]
         volts = spec.bus_voltage_range[0] if spec.bus_voltage_range and spec.envelope is None else spec.bus_voltage
         if id(spec) not in low:
-            low[id(spec)] = (
-                motor_region(replace(spec, bus_voltage=volts)) if volts != spec.bus_voltage else (by_spec[id(spec)])
-            )
+            same = volts == spec.bus_voltage
+            low[id(spec)] = by_spec[id(spec)] if same else motor_region(replace(spec, bus_voltage=volts))
         low_volts[m] = volts
     per_joint: dict[str, JointRegion] = {}
     for tx in robot.transmissions:

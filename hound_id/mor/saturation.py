@@ -1064,8 +1064,7 @@ def _thermal_rows(specs: list[MotorSpec], regions: list[OperatingRegion]) -> NDA
         if th is None:
             rows[:, m] = (0.0, 0.0, math.inf, math.inf, region.limit_x)
         else:
-            current = spec.max_current if spec.max_current is not None else spec.limit_current
-            current_x = spec.current_curve.kt * current
+            current_x = spec.current_curve.kt * spec.drive_current
             rows[:, m] = (th.alpha_resistance, th.alpha_kt, th.derate_start, th.winding_limit, current_x)
     return frozen(rows)
 

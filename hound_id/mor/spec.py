@@ -396,7 +396,7 @@ class MotorSpec:
             reactance = reactance_per_speed(self.inductance, convention, self.pole_pairs)
         if reactance == 0.0 and not self.field_weakening:
             return None
-        current = self.max_current if self.max_current is not None else self.limit_current
+        current = self.drive_current
         return Drive(
             reactance=reactance,
             k_rho=reactance * self.kv / self.current_curve.kt,
@@ -438,6 +438,11 @@ class MotorSpec:
         if self.max_current is None:
             return self.peak_torque
         return min(self.peak_torque, self.kt * self.max_current)
+
+    @property
+    def drive_current(self) -> float:
+        """The drive's current limit [A]: ``max_current``, else the current the torque limit needs."""
+        return self.max_current if self.max_current is not None else self.limit_current
 
     @property
     def limit_current(self) -> float:

@@ -113,11 +113,9 @@ class Thermal:
 
     def rates(self, current: float) -> tuple[float, float]:
         """(a [1/s], b [K/s]) of dT/dt = a T + b with ``current`` [A] held."""
-        i2 = current * current
-        k = self.copper_loss * self.alpha_resistance * i2
-        p0 = self.copper_loss * (1.0 - REFERENCE * self.alpha_resistance) * i2
-        tau = self.time_constant
-        return (self.resistance * k - 1.0) / tau, (self.resistance * p0 + self.ambient) / tau
+        return rates(
+            current, self.resistance, self.time_constant, self.ambient, self.copper_loss, self.alpha_resistance
+        )
 
     def steady(self, current: float) -> float:
         """Steady winding temperature [degC] with ``current`` [A] held; inf past the runaway current."""
@@ -236,6 +234,16 @@ def derating(temperature: Any, start: Any, limit: Any) -> Any:
     return lib.where(lib.isnan(temperature), temperature, d)
 
 
+def rates(
+    current: Any, resistance: Any, time_constant: Any, ambient: Any, copper_loss: Any, alpha_resistance: Any
+) -> tuple[Any, Any]:
+    """(a [1/s], b [K/s]) of dT/dt = a T + b with ``current`` [A] held (module docstring), elementwise."""
+    i2 = current * current
+    k = copper_loss * alpha_resistance * i2
+    p0 = copper_loss * (1.0 - REFERENCE * alpha_resistance) * i2
+    return (resistance * k - 1.0) / time_constant, (resistance * p0 + ambient) / time_constant
+
+
 def step(
     temperature: Any,
     current: Any,
@@ -249,11 +257,7 @@ def step(
     """One exact step of the winding temperature [degC] over ``dt`` [s] with each ``current`` [A] held (module
     docstring); the parameters broadcast (per motor), numpy or torch, float32 or float64."""
     lib = _lib(temperature)
-    i2 = current * current
-    k = copper_loss * alpha_resistance * i2
-    p0 = copper_loss * (1.0 - REFERENCE * alpha_resistance) * i2
-    a = (resistance * k - 1.0) / time_constant
-    b = (resistance * p0 + ambient) / time_constant
+    a, b = rates(current, resistance, time_constant, ambient, copper_loss, alpha_resistance)
     z = a * dt
     small = abs(z) < _SMALL
     if lib is np:
