@@ -4,7 +4,7 @@ of a hound-id bundle, for numpy arrays or torch tensors on any device.
     import hound_id.runtime
     sat = hound_id.runtime.load("bundle.yaml", joint_names=sim_joint_order)  # from hound-id export
     tau = sat.saturate(tau_cmd, qd)                    # (..., n_joints) joint torques [N m]
-    tau_sim = tau + sat.friction_torque(qd)            # in simulation, optionally: the fitted friction
+    tau_sim = tau + sat.friction_torque(qd, tau)       # in simulation, optionally: the fitted friction
     i_cmd = sat.current(sat.motor_torque(tau))         # on the robot: motor currents [A] for tau
 
 Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order of
@@ -16,7 +16,8 @@ torch, when given tensors) are imported, besides the standard library: of hound-
 field weakening, :mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse
 :meth:`Runtime.current` gives,
 :mod:`hound_id.mor.clip_turn`, the statistics of how far the clip turns coupled joint torques
-(:meth:`Runtime.clip_turn`), and :mod:`hound_id.mor.thermal`, the winding temperature's step
+(:meth:`Runtime.clip_turn`), :mod:`hound_id.mor.friction`, the fitted friction terms,
+and :mod:`hound_id.mor.thermal`, the winding temperature's step
 (:meth:`Runtime.step_temperature` and a clip at a temperature, imported when first called). With numba
 installed (``hound-id[fast]``) the first clip of an ordinary batch imports it for the fused loop of
 :mod:`hound_id.mor.fused` (same results; ``HOUND_ID_FUSED=0`` turns it off).
@@ -40,6 +41,7 @@ from hound_id.arrays import frozen
 from hound_id.errors import SaturationError, SpecError
 from hound_id.mor.clip_turn import ANGLE_FLOOR, ClipTurn, clip_turn
 from hound_id.mor.current_curve import CurrentCurve, polynomial
+from hound_id.mor.friction import EPS_SPEED, TERMS, parameters
 from hound_id.mor.saturation import (
     PER_JOINT_REFERENCE,
     Saturation,
@@ -51,10 +53,7 @@ from hound_id.mor.saturation import (
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.
-READABLE = ("hound-id/bundle/1", "hound-id/bundle/2", "hound-id/bundle/3", "hound-id/bundle/4")
-
-#: Smoothing speed of the friction sign, tanh(omega / EPS) [rad/s], as in the fit.
-EPS_SPEED = 0.01
+READABLE = tuple(f"hound-id/bundle/{n}" for n in range(1, 6))
 
 
 def _is_torch(x: Any) -> bool:
@@ -71,14 +70,10 @@ class Runtime:
     """Motor order: motor i is the one listed with joint i."""
     clip: Saturation
     """The coupled motor-space clip."""
-    coulomb: NDArray[np.float64]
-    """Per motor Coulomb friction [N m] (0 where not fitted)."""
-    viscous: NDArray[np.float64]
-    """Per motor viscous friction [N m s/rad]."""
-    stribeck: NDArray[np.float64]
-    """Per motor extra static friction at rest [N m]."""
-    stribeck_speed: NDArray[np.float64]
-    """Per motor speed over which the static friction fades [rad/s] (1 where not fitted)."""
+    friction: Mapping[str, NDArray[np.float64]]
+    """Per friction parameter (:func:`hound_id.mor.friction.parameters`: coulomb [N m], viscous [N m s/rad], stribeck
+    [N m], stribeck_speed [rad/s], gear_friction [N m/A]), its value per motor (a parameter's value without a fit
+    where not fitted: 0, and 1 rad/s for stribeck_speed)."""
     kt: NDArray[np.float64]
     """Per motor torque constant [N m/A] (the fitted one where a fit was given)."""
     compensation: tuple[tuple[tuple[int, ...], tuple[float, ...]] | None, ...]
@@ -122,9 +117,21 @@ class Runtime:
         return x
 
     def _constants(self, like: Any) -> tuple[Any, ...]:
-        """(A^-1, A, friction arrays) in the array type, dtype and device of ``like``, cached."""
-        values = (self.clip.A_inv, self.clip.A, self.coulomb, self.viscous, self.stribeck, self.stribeck_speed)
+        """(A^-1, A, then each friction parameter's array in :func:`hound_id.mor.friction.parameters` order) in the
+        array type, dtype and device of ``like``, cached."""
+        values = (self.clip.A_inv, self.clip.A, *(self.friction[name] for name, _, _ in parameters()))
         return self._like("constants", values, like)
+
+    @property
+    def load_friction(self) -> tuple[str, ...]:
+        """Motors whose friction grows with their load (a fitted ``gear_friction``): :meth:`friction_torque` needs
+        the joint torques for them."""
+        loaded = [t for t in TERMS.values() if t.needs_load]
+        return tuple(
+            m
+            for i, m in enumerate(self.motors)
+            if any(self.friction[p][i] != 0 for t in loaded for p, _, _ in t.parameters)
+        )
 
     def _like(self, name: str, values: Sequence[Any], like: Any) -> tuple[Any, ...]:
         """``values`` (arrays) in the array type, dtype and device of ``like`` (float64 for a non-float numpy
@@ -286,22 +293,48 @@ class Runtime:
         A = self._constants(tau)[1]
         return tau @ A
 
-    def friction_torque(self, qd: Any) -> Any:
-        """The fitted motor friction seen at the joints, A^-T f(omega_m) [N m]; opposes the motors' motion.
+    def friction_torque(self, qd: Any, tau: Any = None, temperature: Any = None) -> Any:
+        """The fitted motor friction seen at the joints, A^-T f [N m]; opposes the motors' motion.
 
-        f(omega) = -(coulomb sgn(omega) + viscous omega + stribeck sgn(omega) exp(-(omega/stribeck_speed)^2)),
-        sgn(omega) = tanh(omega / 0.01 rad/s) as in the fit.
+        f is the sum of the fitted terms of :mod:`hound_id.mor.friction`, motor side, at the motor speeds
+        omega = A^-1 qd: -(coulomb sgn(omega) + viscous omega + stribeck sgn(omega) exp(-(omega/stribeck_speed)^2)
+        + gear_friction |i| sgn(omega)), sgn(omega) = tanh(omega / 0.01 rad/s) as in the fit.
+
+        Load-dependent friction (``gear_friction``, per amp) takes i, the current each motor's curve needs for the
+        motor torques A^T ``tau`` (at ``temperature`` [degC], if given): pass ``tau``, the joint torques the motors
+        make (what :meth:`saturate` returned). Without ``tau`` a bundle whose motors have it raises SaturationError
+        (:attr:`load_friction` names them), rather than leave it out.
         """
         qd = self._array(qd, "qd")
-        A_inv, _, coulomb, viscous, stribeck, w_s = self._constants(qd)
+        A_inv, _, *values = self._constants(qd)
+        p = {name: v for (name, _, _), v in zip(parameters(), values, strict=True)}
         w = qd @ A_inv.T
+        exp: Any = np.exp
         if _is_torch(qd):
             import torch
 
-            sgn, exp = torch.tanh(w / EPS_SPEED), torch.exp(-((w / w_s) ** 2))
+            sgn, exp = torch.tanh(w / EPS_SPEED), torch.exp
         else:
-            sgn, exp = np.tanh(w / EPS_SPEED), np.exp(-((w / w_s) ** 2))
-        f_motor = -(coulomb * sgn + viscous * w + stribeck * sgn * exp)
+            sgn = np.tanh(w / EPS_SPEED)
+        load = None
+        if self.load_friction:
+            if tau is None:
+                raise SaturationError(
+                    f"runtime.friction_torque: motors {', '.join(self.load_friction)} have load-dependent friction "
+                    "(gear_friction, per amp of motor current); pass tau, the joint torques the motors make "
+                    "(saturate's output): friction_torque(qd, tau)"
+                )
+            tau = self._array(tau, "tau")
+            if tuple(tau.shape) != tuple(qd.shape):
+                raise SaturationError(
+                    f"runtime.friction_torque: tau has shape {tuple(tau.shape)}, qd {tuple(qd.shape)}; expected the "
+                    "same (..., n_joints)"
+                )
+            load = abs(self.current(self.motor_torque(tau), temperature=temperature))
+        # a term that needs the load is zero on every motor when no motor has it (load_friction is empty)
+        f_motor = sum(
+            term.torque(p, w, sgn, load, exp) for term in TERMS.values() if load is not None or not term.needs_load
+        )
         return f_motor @ A_inv  # tau_j = A^-T f, row-vector form f @ A^-1
 
     def current(self, tau_motor: Any, method: str = "exact", temperature: Any = None) -> Any:
@@ -600,7 +633,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
     )
 
     def per_motor(key: str, default: float) -> NDArray[np.float64]:
-        return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))
+        return frozen(np.array([float(m["friction"].get(key) or default) for m in motors]))  # or: a null is unfitted
 
     comps = []
     for m in motors:
@@ -610,10 +643,7 @@ def from_bundle(bundle: Any, joint_names: Sequence[str] | None = None, source: s
         joints=tuple(joints),
         motors=tuple(m["name"] for m in motors),
         clip=clip,
-        coulomb=per_motor("coulomb", 0.0),
-        viscous=per_motor("viscous", 0.0),
-        stribeck=per_motor("stribeck", 0.0),
-        stribeck_speed=per_motor("stribeck_speed", 1.0),
+        friction={name: per_motor(name, default) for name, _, default in parameters()},
         kt=frozen(np.array([float(m["kt"]) for m in motors])),
         resistance=frozen(np.array([float(m["resistance"]) for m in motors])),
         kv=frozen(np.array([float(m["kv"]) for m in motors])),

@@ -70,7 +70,7 @@ def test_current_compensation(fitted):
 
 def test_current_is_the_exact_inverse_of_the_sheet_curve():
     """An unfitted robot: the quadratic through the 20 % point, inverted in closed form (numpy and torch), against
-    the forward curve written out here; the odd polynomial of the issue missed by 3 % at small torque."""
+    the forward curve written out here; the odd polynomial used before missed by 3 % at small torque."""
     sat = hound_id.runtime.from_bundle(build_bundle(load_robot(ROBOT)))
     kt, k = 0.138, 0.16 * 0.138**2 / 12.0
     current = np.linspace(-120.0, 120.0, 12 * 101).reshape(101, 12)
@@ -341,3 +341,61 @@ def test_clip_turn_of_a_batch_is_what_saturate_reports(fitted):
     assert without.groups[0].reference is None and without.groups[0].angle == expected.groups[0].angle
     with pytest.raises(SaturationError, match="tau_sat has shape"):
         sat.clip_turn(tau, tau[:, :11])
+
+
+def _gear_fitted(folder, gear=0.05):
+    """The fitted sample motor with load-dependent friction of ``gear`` [N m/A] besides Coulomb and viscous."""
+    text = fitted_motor(folder).read_text()
+    text = text.replace("model: [linear, coulomb, viscous]", "model: [linear, coulomb, viscous, gear_friction]")
+    text = text.replace(
+        "  compensation:", f"    gear_friction: {{value: {gear}, stderr: 1.0e-4, unit: N m/A}}\n  compensation:"
+    )
+    path = folder / "gear.yaml"
+    path.write_text(text)
+    return path
+
+
+def test_load_dependent_friction_takes_the_current_of_the_joint_torques(tmp_path):
+    """Gear friction per amp reaches the runtime: at the motors, f = -(f_c sgn + b w + c |i| sgn) with i the current
+    the curve needs for the motor torques (tau / Kt on this linear fit), mapped back through A^-T; it dissipates;
+    without the joint torques the runtime refuses rather than leave it out; torch agrees and carries gradients."""
+    robot = apply_fits(load_robot(ROBOT), [load_motor_spec(_gear_fitted(tmp_path))])
+    bundle = build_bundle(robot)
+    assert {m.friction["gear_friction"] for m in bundle.motors} == {0.05}
+    sat = hound_id.runtime.from_bundle(bundle.to_dict())
+    assert sat.load_friction == sat.motors
+    rng = np.random.default_rng(3)
+    qd = rng.uniform(-30, 30, (400, 12))
+    tau = sat.saturate(rng.uniform(-150, 150, (400, 12)), qd)
+    tau_f = sat.friction_torque(qd, tau)
+    w, tau_m = sat.motor_velocity(qd), sat.motor_torque(tau)
+    sgn = np.tanh(w / 0.01)
+    expected = -(0.08 * sgn + 2e-4 * w + 0.05 * np.abs(tau_m / 0.1375) * sgn)
+    assert np.allclose(sat.motor_torque(tau_f), expected, rtol=1e-10, atol=1e-12)
+    assert np.all((tau_f * qd).sum(-1) <= 1e-12)
+    # at rest on the load, the load-dependent part alone: twice the load current, twice that part
+    part = sat.friction_torque(qd, 2 * tau) - sat.friction_torque(qd, 0 * tau)
+    half = sat.friction_torque(qd, tau) - sat.friction_torque(qd, 0 * tau)
+    assert np.allclose(part, 2 * half, atol=1e-9)
+    with pytest.raises(SaturationError, match=r"load-dependent friction .*friction_torque\(qd, tau\)"):
+        sat.friction_torque(qd)
+    with pytest.raises(SaturationError, match="tau has shape"):
+        sat.friction_torque(qd, tau[:1])
+    t = torch.tensor(tau, dtype=torch.float32, requires_grad=True)
+    out = sat.friction_torque(torch.tensor(qd, dtype=torch.float32), t)
+    out.sum().backward()
+    assert out.dtype == torch.float32 and t.grad is not None
+    assert np.allclose(out.detach().numpy(), tau_f, atol=2e-3)
+
+
+def test_a_bundle_before_load_dependent_friction_reads_it_as_none(fitted):
+    """A bundle/4 has no gear_friction: the runtime reads 0 and needs no joint torques for its friction."""
+    robot, sat = fitted
+    old = build_bundle(robot).to_dict()
+    old["schema"] = "hound-id/bundle/4"
+    for m in old["motors"]:
+        del m["friction"]["gear_friction"]
+    read = hound_id.runtime.from_bundle(old)
+    qd = np.random.default_rng(4).uniform(-30, 30, (50, 12))
+    assert read.load_friction == ()
+    assert np.array_equal(read.friction_torque(qd), sat.friction_torque(qd))

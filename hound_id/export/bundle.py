@@ -1,4 +1,4 @@
-"""The parameter bundle (``hound-id/bundle/4``): everything a trainer needs, in one file.
+"""The parameter bundle (``hound-id/bundle/5``): everything a trainer needs, in one file.
 
 :func:`build_bundle` gathers, for a robot with its (optionally fitted) motors:
 
@@ -11,7 +11,8 @@
   current compensation, its exact inverse (``compensation``: method and error); when a dyno fit is
   given, its odd compensation polynomial (``compensation_polynomial``, with its error against the
   exact inverse) and every fitted effect, each parameter with its value, standard error and unit;
-  ``friction`` collects the friction effects (motor side, zero where not fitted);
+  ``friction`` collects every parameter of the friction terms of :mod:`hound_id.mor.friction` (motor side: Coulomb,
+  viscous, Stribeck and load-dependent friction; 0 where not fitted), which the runtime applies;
 * per transmission its velocity map A (qd_joint = A thetad_motor) and the global map;
 * per joint the inner box (every point feasible whatever the coupled joints do) and the
   outer box (everything reachable), and the reflected rotor inertia A^-T diag(J) A^-1;
@@ -31,7 +32,8 @@ Units are SI throughout (N m, rad/s, A, V, ohm, kg, m, kg m^2), motor side unles
 joint. The bundle is a frozen :class:`Bundle` (one :class:`BundleMotor` per motor, nested blocks
 read-only); :meth:`Bundle.to_dict` is the file's content. :func:`load_bundle` reads bundles of every
 schema version so far (/1: linear-Kt limits, ``compensation`` the polynomial; /2: the curve; /3: the drive's dq
-model, the bus voltage range and the nominal bus per motor in ``saturation``; /4: the thermal model).
+model, the bus voltage range and the nominal bus per motor in ``saturation``; /4: the thermal model; /5:
+``gear_friction`` in ``friction``, read as 0 from the earlier ones).
 """
 
 from __future__ import annotations
@@ -48,6 +50,7 @@ import numpy as np
 from hound_id.errors import SpecError
 from hound_id.io import TEXT_MAX_BYTES, read_json
 from hound_id.mor.current_curve import polynomial
+from hound_id.mor.friction import parameters as friction_parameters
 from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import Robot
 from hound_id.mor.saturation import Saturation
@@ -59,9 +62,9 @@ __all__ = [
     "load_bundle",
 ]  # fmt: skip
 
-SCHEMA = "hound-id/bundle/4"
-#: Friction effects of the fit that the runtime and the simulators use (motor side).
-FRICTION = ("coulomb", "viscous", "stribeck")
+SCHEMA = "hound-id/bundle/5"
+#: Friction parameters of the fit that the runtime applies (motor side), :mod:`hound_id.mor.friction`'s.
+FRICTION = tuple(name for name, _, _ in friction_parameters())
 
 
 @dataclass(frozen=True)
@@ -103,7 +106,8 @@ class BundleMotor:
     effects: Mapping[str, Mapping[str, Any]]
     """Every fitted parameter: value, stderr, unit, at_bound (empty without a fit)."""
     friction: Mapping[str, float]
-    """coulomb [N m], viscous [N m s/rad], stribeck [N m], stribeck_speed [rad/s] (0 where not fitted)."""
+    """Every friction parameter (:func:`hound_id.mor.friction.parameters`): coulomb [N m], gear_friction [N m/A],
+    stribeck [N m], stribeck_speed [rad/s], viscous [N m s/rad] (0 where not fitted)."""
     compensation: Mapping[str, Any] | None
     """bundle/2: the exact current compensation, the inverse of ``current_curve`` (method, torque_range, max_error);
     bundle/1: the fit's polynomial (powers, coefficients, ...), if any."""
@@ -139,11 +143,11 @@ _OPTIONAL = (
 
 @dataclass(frozen=True)
 class Bundle:
-    """A ``hound-id/bundle/4`` bundle (or a /1, /2 or /3 one read back; see the module docstring); :meth:`to_dict` is
+    """A ``hound-id/bundle/5`` bundle (or a /1 to /4 one read back; see the module docstring); :meth:`to_dict` is
     the file's content."""
 
     schema: str
-    """``hound-id/bundle/4`` (or /1, /2, /3)."""
+    """``hound-id/bundle/5`` (or /1 to /4)."""
     robot: str
     """Robot name."""
     units: str
@@ -223,9 +227,9 @@ def _effects(spec: MotorSpec) -> tuple[dict[str, Any], dict[str, float], dict[st
     """Fitted parameters (as the fit record writes them), friction terms and compensation polynomial of a spec's
     fit (empty without a fit), the polynomial with its largest current error against the curve's exact inverse."""
     if spec.fit is None:
-        return {}, {k: 0.0 for k in (*FRICTION, "stribeck_speed")}, None
+        return {}, {k: 0.0 for k in FRICTION}, None
     written = spec.fit.to_dict()
-    friction = {k: spec.fit.value(k) for k in (*FRICTION, "stribeck_speed")}
+    friction = {k: spec.fit.value(k) for k in FRICTION}
     comp = spec.fit.compensation
     polynomial = None
     if comp is not None:  # fit/3 keeps the polynomial's own block apart; fit/2 had it as compensation

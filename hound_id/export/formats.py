@@ -160,6 +160,7 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
             "Coulomb) are in N m, joint side, as Isaac Sim >= 5.0 takes them (Isaac Sim 4.5 took unitless "
             "coefficients); viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's actuator 'damping' "
             "is a PD gain: do not put viscous friction there",
+            *ex.friction_not_held("isaaclab"),
         ],
     }
 
@@ -212,7 +213,7 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
             f"to {g['dropped_off_diagonal']:.4g} kg m^2 ({g['dropped_relative']:.1%} of sqrt(M_ii M_jj)), the rotors' "
             f"kinetic energy then errs by up to {g['kinetic_energy_error']:.1%} (reflected_inertia_group)",
         )
-    return Written((str(path),), notes)
+    return Written((str(path),), (*notes, *ex.friction_not_held("isaaclab")))
 
 
 #: Every format, by name (sorted).

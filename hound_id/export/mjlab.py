@@ -41,8 +41,8 @@ def coupled_motors(ex: Export) -> list[bool]:
     return [coupled[m.name] for m in ex.bundle.motors]
 
 
-def not_held(ex: Export, uncoupled: str) -> list[str]:
-    """What a trainer's dcmotor/DcMotor actuators cannot hold of this robot, each with its size."""
+def not_held(ex: Export, uncoupled: str, fmt: str) -> list[str]:
+    """What format ``fmt``'s dcmotor/DcMotor actuators and tendons cannot hold of this robot, each with its size."""
     lines = []
     both = {m.name: ex.straight_gap(m.name) for m in ex.bundle.motors if not m.envelope}
     gaps = {k: v[0] for k, v in both.items() if v[0] > 0}
@@ -76,13 +76,7 @@ def not_held(ex: Export, uncoupled: str) -> list[str]:
             f"measured envelope: motors {', '.join(envelope)} have polyline edges (mor --compare --out); the "
             "actuators hold the spec sheet's straight lines: apply hound_id.runtime.saturate for the measured edge"
         )
-    stribeck = {m.name: m.friction.get("stribeck", 0.0) for m in ex.bundle.motors}
-    stribeck = {k: v for k, v in stribeck.items() if v > 0}
-    if stribeck:
-        lines.append(
-            f"Stribeck friction: up to {max(stribeck.values()):.4g} N m extra static friction (motors "
-            f"{', '.join(stribeck)}) has no static-friction home here (frictionloss is Coulomb only)"
-        )
+    lines.extend(ex.friction_not_held(fmt))
     cogging = _cogging(ex)
     if cogging:
         lines.append(
@@ -202,7 +196,7 @@ def mjlab_module(ex: Export, xml_name: str, bundle_name: str, stand: tuple[dict[
         f"JOINTS = {list(b.joints)!r}",
         f"MOTORS = {[m.name for m in b.motors]!r}",
         f"COUPLED = {[m.name for k, m in enumerate(b.motors) if coupled[k]]!r}",
-        f"NOT_HELD = {not_held(ex, 'dcmotor')!r}",
+        f"NOT_HELD = {not_held(ex, 'dcmotor', 'mjlab')!r}",
         "#: A standing start: every joint at 0 clamped into its range, the base just above the ground [rad, m].",
         f"STAND_JOINTS = {stand[0]!r}",
         f"STAND_HEIGHT = {stand[1]!r}",
@@ -317,6 +311,6 @@ def write_mjlab(ex: Export, out: Path) -> Written:
         f"{n_coupled} coupled motors are voltage-input dcmotors on tendons: send hound_id.runtime's voltage(tau, qd) "
         "for them (voltage_motors); uncoupled joints are DcMotorActuatorCfg (uncoupled='voltage' for the exact "
         "clip)",
-        *not_held(ex, "dcmotor"),
+        *not_held(ex, "dcmotor", "mjlab"),
     )
     return Written((str(xml_path), str(module), str(bundle)), notes)

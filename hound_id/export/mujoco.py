@@ -213,15 +213,16 @@ def write_mujoco(ex: Export, out: Path) -> Written:
             "hound_id.runtime.load(bundle).voltage(tau, qd) for the saturated torques",
             *notes,
         )
+    lost = ex.friction_not_held("mujoco")
     if notes:
-        return Written((str(path),), (*DIFFERENCES, *notes))
+        return Written((str(path),), (*DIFFERENCES, *notes, *lost))
     if ex.mujoco_actuator == "motor":
         notes = (
             "plain <motor> actuators on the tendons, force-limited to the torque limit only: call "
             "hound_id.runtime.load(bundle).saturate(tau, qd) every step and send sat.motor_torque(tau) as ctrl",
         )
-        return Written((str(path),), notes)
-    return Written((str(path),), DIFFERENCES)
+        return Written((str(path),), (*notes, *lost))
+    return Written((str(path),), (*DIFFERENCES, *lost))
 
 
 def _repr(values: Any) -> str:

@@ -85,7 +85,7 @@ def newton_module(ex: Export, urdf_name: str, bundle_name: str) -> str:
             f"BUNDLE = Path(__file__).with_name({bundle_name!r})",
             f"JOINTS = {list(b.joints)!r}",
             f"MOTORS = {[m.name for m in b.motors]!r}",
-            f"NOT_HELD = {not_held(ex, 'voltage')!r}",
+            f"NOT_HELD = {not_held(ex, 'voltage', 'newton')!r}",
             "#: Per motor: its tendon (joint, coefficient = row of A^-1), rotor inertia [kg m^2], Coulomb friction",
             "#: [N m], viscous friction [N m s/rad], and its dcmotor (K = 1/Kv twice, R' = R Ke/Kt [ohm], torque",
             "#: limit [N m], bus voltage [V]).",
@@ -156,6 +156,6 @@ def write_newton(ex: Export, out: Path) -> Written:
         "hound_id.runtime's voltage(tau, qd) as control.mujoco.ctrl",
         "the URDF's limits are open (never binding on the runtime's output) and its joints carry no friction: the "
         "tendons do",
-        *not_held(ex, "voltage"),
+        *not_held(ex, "voltage", "newton"),
     )
     return Written((str(urdf), str(module), str(bundle)), notes)

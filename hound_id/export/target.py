@@ -37,7 +37,7 @@ class Export:
     robot: Robot
     """The robot, with fitted motor specs in place."""
     bundle: Bundle
-    """Its ``hound-id/bundle/4`` bundle."""
+    """Its ``hound-id/bundle/5`` bundle."""
     mujoco_actuator: str = "dcmotor"
     """``dcmotor`` (voltage input), ``dcmotor-ff`` (torque input, MuJoCo >= 4.0) or ``motor`` (plain torque, saturate
     with the runtime)."""
@@ -92,6 +92,32 @@ class Export:
         w = np.linspace(region.overspeed, top, PAST_POINTS)
         braking = np.abs(torque_interval(w, region)[1])
         return max(float(np.max(braking)) - region.torque_limit, 0.0), top
+
+    def friction_not_held(self, fmt: str) -> tuple[str, ...]:
+        """One line per fitted friction term (:data:`hound_id.mor.friction.TERMS`) that format ``fmt`` has no home
+        for, with the largest torque it loses (motor side: at the current of the torque limit, up to the no-load
+        speed) and the motors that have it."""
+        from hound_id.mor.friction import TERMS
+
+        lines = []
+        for term in TERMS.values():
+            if fmt in term.homes:
+                continue
+            lost, share = {}, 0.0
+            for m in self.bundle.motors:
+                p = {name: float(m.friction.get(name) or default) for name, _, default in term.parameters}
+                current = m.limit_current or m.max_current or m.torque_limit / m.kt
+                size = term.largest(p, current, m.no_load_speed)
+                if size > 0:
+                    lost[m.name], share = size, max(share, size / m.torque_limit)
+            if lost:
+                which = "every motor" if len(lost) == len(self.bundle.motors) else f"motors {', '.join(lost)}"
+                lines.append(
+                    f"{term.label} ({term.name}): up to {max(lost.values()):.4g} N m at the motor ({share:.1%} of "
+                    f"its torque limit; {which}) has no home in this format: {term.physics}; hound_id.runtime's "
+                    "friction_torque(qd, tau) applies it"
+                )
+        return tuple(lines)
 
     @property
     def stem(self) -> str:

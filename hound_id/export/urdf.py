@@ -110,7 +110,8 @@ def write_urdf(ex: Export, out: Path) -> Written:
     notes = [
         "effort/velocity limits are the inner boxes, feasible at every point at the battery's lowest bus voltage where "
         "the specs state a range (else the nominal) and at 20 degC (a warm winding: apply hound_id.runtime with its "
-        "temperature); coupled joints get the group's box"
+        "temperature); coupled joints get the group's box",
+        *ex.friction_not_held("urdf"),
     ]
     return Written((str(path),), tuple(notes))
 
@@ -157,5 +158,6 @@ def write_urdf_open(ex: Export, out: Path) -> Written:
         f"effort/velocity limits are open (what the runtime returns up to {OPEN_REACH:g} x overspeed): apply "
         "hound_id.runtime's saturation each step",
         "armature (reflected rotor inertia) in the sidecar; URDF has no field for it",
+        *ex.friction_not_held("urdf-open"),
     )
     return Written((str(urdf), str(side)), notes)

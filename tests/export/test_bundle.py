@@ -31,7 +31,13 @@ def test_bundle_carries_the_robot(robot):
     assert A.shape == (12, 12) and np.allclose(A, robot.velocity_map())
     m = b["motors"][2]  # FL_KFE's motor on the sample spec sheet, no fit
     assert (m["joint"], m["kt"], m["bus_voltage"], m["fitted"]) == ("FL_KFE", 0.138, 81.0, False)
-    assert m["friction"] == {"coulomb": 0.0, "viscous": 0.0, "stribeck": 0.0, "stribeck_speed": 0.0}
+    assert m["friction"] == {
+        "coulomb": 0.0,
+        "gear_friction": 0.0,
+        "stribeck": 0.0,
+        "stribeck_speed": 0.0,
+        "viscous": 0.0,
+    }
     # the drive's dq model (35 uH per phase): torque and speed rows, then one under each segment of the curved edges
     assert m["halfspaces"]["labels"][:4] == ["torque+", "torque-", "speed+", "speed-"]
     assert all(label.startswith("drive") for label in m["halfspaces"]["labels"][4:])

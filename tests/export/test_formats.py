@@ -350,7 +350,7 @@ def test_isaaclab_friction_split_static_kinetic_viscous_and_mjlab_names_what_it_
     assert haa["dcmotor"]["dynamic_friction"] == pytest.approx(9 * 0.08)
     assert haa["dcmotor"]["viscous_friction"] == pytest.approx(81 * 2.0e-4)
     module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
-    assert "Stribeck friction: up to 0.03 N m extra static friction" in module
+    assert "static (Stribeck) friction (stribeck): up to 0.03 N m at the motor" in module
 
 
 def test_a_rated_speed_is_named_as_a_cause_of_the_straight_line_gap(tmp_path):
@@ -407,6 +407,6 @@ def test_the_exports_state_the_braking_past_overspeed_they_cannot_hold(tmp_path)
     most = float(np.max(np.abs(torque_interval(w, region)[1]))) - region.torque_limit
     assert most == pytest.approx(5.32, abs=0.01)  # 13.74 N m of diode braking against the 8.416 N m limit
     stated = f"up to {most:.4g} N m more than"
-    assert stated in not_held(ex, "voltage")[-1]
+    assert stated in not_held(ex, "voltage", "newton")[-1]
     report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
     assert any(f"up to {most:.4g} N m more than dcmotor" in n for n in report["formats"]["mujoco"]["notes"])

@@ -180,6 +180,12 @@ class Effect:
     """True for terms of the current-torque curve itself (used for the peak torque and compensation)."""
     evidence: Callable[[Mapping[str, float], Signals], str] | None = None
     """Sentence describing what the fitted term shows in the data, from its fitted values."""
+    friction: str | None = None
+    """The friction term of :data:`hound_id.mor.friction.TERMS` that carries the fitted values to the bundle, the
+    runtime and the exports (each export holds it or states what it loses); None for an effect that is not motor
+    friction."""
+    trainer: str = ""
+    """For an effect without a friction term: how a trainer feels it, or why it does not (one sentence)."""
 
     def columns(self, signals: Signals, hypers: Mapping[str, float]) -> Array:
         """Regressor matrix (n, k) of this effect."""
@@ -491,6 +497,11 @@ def _evidence_delay(p: Mapping[str, float], s: Signals) -> str:
 
 
 _SAT_BOUND = "saturation bends the curve below the straight line"
+_CURVE_TRAINER = "the current-torque curve: the runtime's clip and current compensation, every export's torque limit"
+_ANGLE = (
+    "not carried: the fit's position channel is the dyno's rotor angle, whose zero the robot's joint angle does not "
+    "share"
+)
 _FRICTION_BOUND = "friction dissipates energy, it opposes motion"
 
 
@@ -506,6 +517,7 @@ def _builtin() -> None:
             regressors=lambda s, h: s.current,
             shape=True,
             evidence=_evidence_linear,
+            trainer=_CURVE_TRAINER,
         )
     )
     register(
@@ -518,6 +530,7 @@ def _builtin() -> None:
             regressors=lambda s, h: -s.current * np.abs(s.current),
             shape=True,
             evidence=_evidence_saturation("saturation"),
+            trainer=_CURVE_TRAINER,
         )
     )
     register(
@@ -528,6 +541,7 @@ def _builtin() -> None:
             regressors=lambda s, h: -(s.current**3),
             shape=True,
             evidence=_evidence_saturation("saturation_cubic"),
+            trainer=_CURVE_TRAINER,
         )
     )
     register(
@@ -544,6 +558,7 @@ def _builtin() -> None:
             hypers=(Hyper("knee_current", "A", _knee_grid),),
             shape=True,
             evidence=_evidence_saturation("saturation_knee"),
+            trainer=_CURVE_TRAINER,
         )
     )
     register(
@@ -553,6 +568,7 @@ def _builtin() -> None:
             parameters=(Parameter("offset", "N m", "sensor offset"),),
             regressors=lambda s, h: np.ones_like(s.current),
             evidence=_evidence_offset,
+            trainer="a bias of the rig's torque sensor, not the motor's: trainers do not feel it",
         )
     )
     register(
@@ -563,6 +579,7 @@ def _builtin() -> None:
             regressors=lambda s, h: -s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_coulomb,
+            friction="coulomb",
         )
     )
     register(
@@ -575,6 +592,7 @@ def _builtin() -> None:
             regressors=lambda s, h: -s.channel("velocity"),
             requires=("velocity",),
             evidence=_evidence_viscous,
+            friction="viscous",
         )
     )
     register(
@@ -588,6 +606,7 @@ def _builtin() -> None:
             requires=("velocity",),
             hypers=(Hyper("stribeck_speed", "rad/s", _speed_grid),),
             evidence=_evidence_stribeck,
+            friction="stribeck",
         )
     )
     register(
@@ -602,6 +621,7 @@ def _builtin() -> None:
             regressors=lambda s, h: -np.abs(s.current) * s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_gear,
+            friction="gear_friction",
         )
     )
     register(
@@ -617,6 +637,7 @@ def _builtin() -> None:
             requires=("position",),
             hypers=(Hyper("cogging_order", "1/rev", _order_candidates(False), integer=True, refine=False),),
             evidence=_evidence_cogging,
+            trainer=f"{_ANGLE}; its amplitude is in the bundle's effects and the export notes",
         )
     )
     register(
@@ -639,6 +660,7 @@ def _builtin() -> None:
             requires=("position",),
             hypers=(Hyper("ripple_order", "1/rev", _order_candidates(True), integer=True, refine=False),),
             evidence=_evidence_ripple,
+            trainer=f"{_ANGLE}; its amplitude is in the bundle's effects",
         )
     )
     register(
@@ -657,6 +679,7 @@ def _builtin() -> None:
             regressors=lambda s, h: s.current * (s.channel("temperature") - T_REF),
             requires=("temperature",),
             evidence=_evidence_thermal,
+            trainer="Kt's temperature coefficient, in the thermal model the runtime steps (the clip at a temperature)",
         )
     )
     register(
@@ -678,6 +701,10 @@ def _builtin() -> None:
             regressors=lambda s, h: -s.acceleration,
             requires=("velocity", "time"),
             evidence=_evidence_inertia,
+            trainer=(
+                "the rig's inertia between the air gap and the torque sensor, not a joint's: the robot's rotor inertia "
+                "comes from the spec sheet"
+            ),
         )
     )
     register(
@@ -692,6 +719,7 @@ def _builtin() -> None:
             requires=("time",),
             hypers=(Hyper("lag_tau", "s", lambda s, r: 1.0 / (2 * math.pi * _filter_grid(16)(s, r))[::-1]),),
             evidence=_evidence_lag,
+            trainer="the torque sensor's filter, not the motor's: trainers do not feel it",
         )
     )
     register(
@@ -710,6 +738,7 @@ def _builtin() -> None:
                 Hyper("resonance_zeta", "1", lambda s, r: np.geomspace(*DAMPING_RANGE, 6)),
             ),
             evidence=_evidence_resonance,
+            trainer="the coupling and sensor between the motor and the reading: trainers do not feel it",
         )
     )
     register(
@@ -724,6 +753,7 @@ def _builtin() -> None:
             requires=("time",),
             hypers=(Hyper("delay", "s", lambda s, r: np.array([0.0])),),
             evidence=_evidence_delay,
+            trainer="a lag between the log's channels, not the drive's command-to-torque latency: none is set",
         )
     )
 

@@ -20,6 +20,24 @@ def test_every_builtin_effect_is_simulated_and_described():
 
 
 @pytest.mark.parametrize("name", fx.BUILTIN)
+def test_every_builtin_effect_says_how_a_trainer_feels_it(name):
+    """An effect names the friction term that carries it to the bundle, the runtime and the exports, with the fit's
+    parameters and units; or it says in one sentence how a trainer feels it or why it does not. Every friction term
+    is some effect's."""
+    from hound_id.mor.friction import TERMS
+
+    effect = get(name)
+    assert (effect.friction is None) != (not effect.trainer), "a friction term or a trainer sentence, not both"
+    if effect.friction is not None:
+        term = TERMS[effect.friction]
+        fitted = [(p.name, p.unit) for p in (*effect.parameters, *effect.hypers)]
+        assert [(n, u) for n, u, _ in term.parameters] == fitted
+    else:
+        assert "\n" not in effect.trainer and effect.trainer.strip() == effect.trainer
+    assert {e.friction for e in REGISTRY.values()} - {None} == set(TERMS)
+
+
+@pytest.mark.parametrize("name", fx.BUILTIN)
 def test_columns_have_one_finite_column_per_parameter(name):
     signals, torque, sim = simulated(("linear", "saturation"))
     effect = get(name)
