@@ -99,3 +99,37 @@ def test_each_threshold_names_its_reason_and_its_calibrating_test(module, name, 
         assert test in tests.get(file, set()), f"{module}: {name} names {file}::{test}, which does not exist"
     for script in benches:
         assert (ROOT / "benchmarks" / script).is_file(), f"{module}: {name} names benchmarks/{script}: missing"
+
+
+#: Modules whose numbers are design choices, not calibrated thresholds: each is a named module constant with a
+#: ``#:`` reason, and the functions hold no other number than these small exact ones.
+DESIGNED = ("hound_id/foot/optimise.py",)
+PLAIN = (0, 1, 2, -1, 0.5)
+
+
+def _inline_numbers(path: Path) -> list[tuple[int, object]]:
+    """(line, value) of every number written inside a function, other than :data:`PLAIN`."""
+    found: list[tuple[int, object]] = []
+    for node in ast.walk(ast.parse(path.read_text())):
+        if isinstance(node, (ast.FunctionDef, ast.AsyncFunctionDef)):
+            for inner in ast.walk(node):
+                if isinstance(inner, ast.Constant) and type(inner.value) in (int, float) and inner.value not in PLAIN:
+                    found.append((inner.lineno, inner.value))
+    return sorted(set(found))
+
+
+@pytest.mark.parametrize("module", DESIGNED)
+def test_the_designed_modules_name_every_number_with_its_reason(module):
+    path = ROOT / module
+    assert _inline_numbers(path) == [], f"{module}: numbers written inline (line, value); name them with a reason"
+    named = thresholds(path)
+    assert len(named) >= 20  # the walk finds them
+    for name, block in named:
+        assert len(block.split()) >= 5, f"{module}: {name} has no '#:' comment saying why it has its value"
+
+
+def test_an_inline_number_is_found(tmp_path):
+    """The walk sees a number inside a function (a broken walk would pass the designed modules vacuously)."""
+    path = tmp_path / "m.py"
+    path.write_text("X = 3\n\n\ndef f(a):\n    return a * 1e3 + 2\n")
+    assert _inline_numbers(path) == [(5, 1e3)]

@@ -72,6 +72,54 @@ from hound_id.foot.urdf import FootMount
 
 #: A constraint counts as satisfied within this relative tolerance of its limit (IPOPT's tol is 1e-10).
 TOLERANCE = 1e-7
+#: ... of the larger of |limit|, |value| and this floor (in the row's unit), so a limit of zero is not held exactly.
+TOLERANCE_FLOOR = 1e-3
+
+#: Unit factors: IPOPT's variables and rows are in millimetres, megapascals and radians, all of order one where
+#: the foot lives (its tolerances are absolute), and the messages print the same units.
+MM_PER_M = 1e3
+M_PER_MM = 1e-3
+MPA_PER_PA = 1e-6
+
+#: IPOPT's convergence tolerance (scaled rows); the report's :data:`TOLERANCE` is 1,000 times looser.
+IPOPT_TOL = 1e-10
+#: IPOPT's iterations per start: the samples converge in well under a hundred; a start still wandering after this
+#: many is dropped and the other starts decide.
+IPOPT_MAX_ITER = 500
+#: Starting radii as multiples of max(the Hertz minimum, the original contact radius / START_SHRINK), each from a
+#: narrow and a wide cap: the stress constraints make the problem multimodal (a thick narrow band and a thin wide
+#: one both carry the load), and these spread from just above the minimum to four times it.
+STARTS = (1.3, 2.0, 1.02, 4.0)
+START_SHRINK = 1.3
+#: Objectives (relative to the original foot's knee inertia) closer than this are a tie: the earlier start keeps it.
+TIE = 1e-9
+#: Floor under the square root of the boss length [m^2]: keeps it real where IPOPT steps outside the constraints.
+SQRT_FLOOR = 1e-12
+#: Bounds of IPOPT's variables (see :func:`optimise_foot`): radius [mm] from 1 mm to 1 m; wall thickness as a
+#: share of the radius, 0.1 % to half (a solid sphere has no wall); the lateral half-angle kept off 0 and 90 deg
+#: by ANGLE_GUARD [rad], where its arcsine's derivative is infinite; the sphere centre within 1 m of the mount and
+#: the boss radius up to 1 m [mm]. Wide enough never to bind on a leg-sized foot (the report would say so).
+RADIUS_BOUNDS_MM = (1.0, 1e3)
+THICKNESS_SHARE_BOUNDS = (1e-3, 0.5)
+ANGLE_GUARD = 1e-3
+CENTRE_BOUND_MM = 1e3
+BOSS_MAX_MM = 1e3
+#: Smallest boss radius without a fastener [m]: a bore-free 1 mm peg.
+MIN_BOSS_RADIUS = 1e-3
+#: The starting design (:func:`_guess`): a wall of twice the process minimum (at least GUESS_MIN_WALL [m]) and at
+#: most GUESS_WALL_SHARE of the radius; a boss of GUESS_BOSS x its smallest radius, or GUESS_BOSS_SHARE of the
+#: radius; a width GUESS_WIDTH x what the boss and the roll need, below GUESS_WIDTH_SHARE of the diameter (or, for
+#: the wide start, WIDE_START x the radius); cap angles GUESS_ANGLE_MARGIN [rad] past what the stance and the boss
+#: need, within +-GUESS_ANGLE_LIMIT [rad]. A start only: IPOPT moves every one of them.
+GUESS_MIN_WALL = 1e-3
+GUESS_WALL_SHARE = 0.3
+GUESS_BOSS = 1.5
+GUESS_BOSS_SHARE = 0.25
+GUESS_WIDTH = 1.3
+GUESS_WIDTH_SHARE = 0.95
+WIDE_START = 1.5
+GUESS_ANGLE_MARGIN = 0.05
+GUESS_ANGLE_LIMIT = 1.5
 
 
 @dataclass(frozen=True)
@@ -181,10 +229,7 @@ _X = ("radius", "thickness", "width", "low", "high", "centre_z", "boss_radius")
 
 
 def _geometry(x: Any, req: FootRequirements) -> FootGeometry:
-    return FootGeometry(
-        radius=x[0], thickness=x[1], width=x[2], low=x[3], high=x[4], boss_radius=x[6], centre_z=x[5],
-        bore_radius=req.bore_radius,
-    )  # fmt: skip
+    return FootGeometry(**{name: x[i] for i, name in enumerate(_X)}, bore_radius=req.bore_radius)
 
 
 def _knee_ground(mount: FootMount, req: FootRequirements) -> float:
@@ -212,7 +257,7 @@ def _constraints(
     arcsines (whose derivative is infinite at 1) and the stance leg length as one two-sided
     (``within``) row per angle instead of a maximum; the numeric rows are what the report shows.
     """
-    R, t, W, lo, hi, zc, rb = (x[i] for i in range(7))
+    R, t, W, lo, hi, zc, rb = (x[i] for i in range(len(_X)))
     e_star = effective_modulus(req.material, req.ground)
     F, mu, nu, allowed = req.peak_force, req.friction, req.material.poisson, req.allowed_stress
     a = contact_radius(F, R, e_star)
@@ -220,7 +265,7 @@ def _constraints(
     cos_n, L = math.cos(req.nominal_angle), mount.mount_length
     # knee-to-ground height, new minus original, with the calf at contact angle theta
     dh = [R - mount.contact_radius - zc * math.cos(theta) for theta in _stance_angles(req)]
-    boss_len = ops.sqrt(ops.fmax((R - t) ** 2 - rb**2, 1e-12)) - zc
+    boss_len = ops.sqrt(ops.fmax((R - t) ** 2 - rb**2, SQRT_FLOOR)) - zc
     if symbolic:
         seats = [
             ("boss_seat_front", ops.sin(-lo), rim, ">=", "-", ""),
@@ -280,7 +325,7 @@ def _constraints(
         f = req.fastener
         out += [
             ("boss_wall", rb, f.min_boss_radius, ">=", "m",
-             f"boss radius >= {f.name} major radius + {f.wall * 1e3:.2f} mm wall"),
+             f"boss radius >= {f.name} major radius + {f.wall * MM_PER_M:.2f} mm wall"),
             ("thread_engagement", boss_len, f.engagement, ">=", "m",
              f"boss (at its rim) at least the {f.name} thread engagement long"),
         ]  # fmt: skip
@@ -326,15 +371,16 @@ def _precheck(mount: FootMount, req: FootRequirements) -> float:
         raise SpecError(
             f"foot: need --grf > 0, --safety > 0, 0 <= --roll < 90 deg and --boss-radius > 0; found "
             f"{req.peak_force:g} N, {req.safety:g}, {math.degrees(req.roll):g} deg, "
-            + (f"{rb * 1e3:g} mm" if rb is not None else "boss radius optimised")
+            + (f"{rb * MM_PER_M:g} mm" if rb is not None else "boss radius optimised")
         )
     if not (math.isfinite(req.friction) and 0 <= req.friction <= 2):
         raise SpecError(f"--friction: found {req.friction:g}, expected a friction coefficient from 0 to 2")
     if rb is not None and req.fastener is not None and rb < req.fastener.min_boss_radius * (1 - TOLERANCE):
         f = req.fastener
         raise SpecError(
-            f"--boss-radius: {rb * 1e3:.2f} mm is too thin for the {f.name} bolt: it needs at least "
-            f"{f.min_boss_radius * 1e3:.2f} mm (major radius {f.diameter / 2 * 1e3:.2f} mm + {f.wall * 1e3:.2f} mm "
+            f"--boss-radius: {rb * MM_PER_M:.2f} mm is too thin for the {f.name} bolt: it needs at least "
+            f"{f.min_boss_radius * MM_PER_M:.2f} mm (major radius {f.diameter / 2 * MM_PER_M:.2f} mm + "
+            f"{f.wall * MM_PER_M:.2f} mm "
             "wall); give a larger --boss-radius, a smaller --bolt or --boss-wall, or --bolt none",
             found=rb,
             expected=f.min_boss_radius,
@@ -346,10 +392,11 @@ def _precheck(mount: FootMount, req: FootRequirements) -> float:
         if limit is not None and limit < r_min * (1 - TOLERANCE):
             p0 = peak_pressure(req.peak_force, limit, e_star)
             raise SpecError(
-                f"foot: {option} {limit * 1e3:.1f} mm is too small for the load: a {req.peak_force:g} N peak ground "
-                f"force on {req.material.name} against {req.ground.name} gives a Hertz pressure of {p0 / 1e6:.0f} MPa "
-                f"(allowed {p_allow / 1e6:.0f} MPa = 1.6 x yield / safety {req.safety:g}); the radius must be at least "
-                f"{r_min * 1e3:.1f} mm: raise it, lower --grf, or choose a stronger --material",
+                f"foot: {option} {limit * MM_PER_M:.1f} mm is too small for the load: a {req.peak_force:g} N peak "
+                f"ground force on {req.material.name} against {req.ground.name} gives a Hertz pressure of "
+                f"{p0 * MPA_PER_PA:.0f} MPa (allowed {p_allow * MPA_PER_PA:.0f} MPa = 1.6 x yield / safety "
+                f"{req.safety:g}); the radius must be at least {r_min * MM_PER_M:.1f} mm: raise it, lower --grf, or "
+                "choose a stronger --material",
                 found=limit,
                 expected=r_min,
             )
@@ -360,9 +407,10 @@ def _precheck(mount: FootMount, req: FootRequirements) -> float:
     if change > req.length_tolerance * (1 + TOLERANCE):
         which = "--radius" if req.radius is not None else "the Hertz minimum radius"
         raise SpecError(
-            f"foot: {which} {radius * 1e3:.1f} mm differs from the original contact radius "
-            f"{mount.contact_radius * 1e3:.1f} mm, so over the contact arc the knee-to-ground height would change by "
-            f"{change * 1e3:.1f} mm, more than --length-tolerance {req.length_tolerance * 1e3:.1f} mm: raise the "
+            f"foot: {which} {radius * MM_PER_M:.1f} mm differs from the original contact radius "
+            f"{mount.contact_radius * MM_PER_M:.1f} mm, so over the contact arc the knee-to-ground height would change "
+            f"by {change * MM_PER_M:.1f} mm, more than --length-tolerance {req.length_tolerance * MM_PER_M:.1f} mm: "
+            "raise the "
             "tolerance, narrow the arc (--margin), or lower --grf / choose a stronger --material",
             found=change,
             expected=req.length_tolerance,
@@ -376,7 +424,7 @@ def evaluate(geometry: FootGeometry, mount: FootMount, req: FootRequirements) ->
     out = []
     for name, value, limit, kind, unit, meaning in _constraints(x, mount, req, FLOAT_OPS):
         value, limit = float(value), float(limit)
-        tol = TOLERANCE * max(abs(limit), abs(value), 1e-3 if unit == "m" else 1e-3)
+        tol = TOLERANCE * max(abs(limit), abs(value), TOLERANCE_FLOOR)
         ok = {">=": value >= limit - tol, "<=": value <= limit + tol, "==": abs(value - limit) <= tol}[kind]
         out.append(Constraint(name, value, limit, kind, unit, ok, meaning))
     return tuple(out)
@@ -390,20 +438,21 @@ def _guess(R0: float, mount: FootMount, req: FootRequirements, wide: bool = Fals
         R0 = req.radius
     if req.max_radius is not None:
         R0 = min(R0, req.max_radius)
-    t0 = min(max(req.material.min_wall, 1e-3) * 2, 0.3 * R0)
-    rb0 = req.boss_radius if req.boss_radius is not None else max(_min_boss(req) * 1.5, 0.25 * R0)
+    t0 = min(max(req.material.min_wall, GUESS_MIN_WALL) * 2, GUESS_WALL_SHARE * R0)
+    rb0 = req.boss_radius if req.boss_radius is not None else max(_min_boss(req) * GUESS_BOSS, GUESS_BOSS_SHARE * R0)
     seat = math.asin(min(1.0, (rb0 + t0) / (R0 - t0)))
-    W0 = min(2 * R0 * 0.95, max(2 * (rb0 + t0), 2 * R0 * math.sin(req.roll)) * 1.3)
+    W0 = min(2 * R0 * GUESS_WIDTH_SHARE, max(2 * (rb0 + t0), 2 * R0 * math.sin(req.roll)) * GUESS_WIDTH)
     if wide:
-        W0 = max(W0, min(1.5 * R0, 2 * (R0 - t0) * 0.95))
-    lo0, hi0 = max(min(req.low, -seat) - 0.05, -1.5), min(max(req.high, seat) + 0.05, 1.5)
+        W0 = max(W0, min(WIDE_START * R0, 2 * (R0 - t0) * GUESS_WIDTH_SHARE))
+    lo0 = max(min(req.low, -seat) - GUESS_ANGLE_MARGIN, -GUESS_ANGLE_LIMIT)
+    hi0 = min(max(req.high, seat) + GUESS_ANGLE_MARGIN, GUESS_ANGLE_LIMIT)
     zc0 = (R0 - mount.contact_radius) / math.cos(req.nominal_angle)
-    return [R0 * 1e3, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * 1e3, rb0 * 1e3]
+    return [R0 * MM_PER_M, t0 / R0, math.asin(W0 / (2 * R0)), lo0, hi0, zc0 * MM_PER_M, rb0 * MM_PER_M]
 
 
 def _min_boss(req: FootRequirements) -> float:
     """Smallest boss radius the bounds allow [m]: the fastener's, or a bore-free 1 mm."""
-    return req.fastener.min_boss_radius if req.fastener is not None else 1e-3
+    return req.fastener.min_boss_radius if req.fastener is not None else MIN_BOSS_RADIUS
 
 
 def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
@@ -414,16 +463,17 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     # IPOPT's variables y: R [mm], t / R, the lateral half-angle beta (W = 2 R sin beta), low, high
     # [rad], z_c [mm], r_b [mm]. Their bounds keep every square root and arcsine of the formulas real, since
     # IPOPT may step outside the constraints (never outside the bounds) while it searches.
-    y = ca.SX.sym("y", 7)
-    R = y[0] * 1e-3
-    x = ca.vertcat(R, y[1] * R, 2 * R * ca.sin(y[2]), y[3], y[4], y[5] * 1e-3, y[6] * 1e-3)
+    y = ca.SX.sym("y", len(_X))
+    r_mm, share, beta, lo, hi, zc_mm, rb_mm = (y[i] for i in range(len(_X)))
+    R = r_mm * M_PER_MM
+    x = ca.vertcat(R, share * R, 2 * R * ca.sin(beta), lo, hi, zc_mm * M_PER_MM, rb_mm * M_PER_MM)  # in _X's order
     ops = casadi_ops()
     m = volume_moments(_geometry(x, req), ops=ops)
     inertia, objective = _objective(m, mount, req)
     rows = _constraints(x, mount, req, ops, symbolic=True)
     g, lbg, ubg = [], [], []
     for _, value, limit, kind, unit, _ in rows:
-        scale = 1e-6 if unit == "Pa" else (1e3 if unit == "m" else 1.0)  # MPa, mm, rad
+        scale = MPA_PER_PA if unit == "Pa" else (MM_PER_M if unit == "m" else 1.0)  # MPa, mm, rad
         if kind == "within":  # -limit <= value <= limit
             g.append(value * scale)
             lbg.append(-limit * scale)
@@ -434,20 +484,23 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
     i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))  # objective scale
     nlp = {"x": y, "f": objective / i_ref, "g": ca.vertcat(*g)}
-    opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": 1e-10, "ipopt.max_iter": 500,
-            "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0, "show_eval_warnings": False}  # fmt: skip
+    opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": IPOPT_TOL,
+            "ipopt.max_iter": IPOPT_MAX_ITER, "ipopt.sb": "yes", "ipopt.bound_relax_factor": 0.0,
+            "show_eval_warnings": False}  # fmt: skip
     solver = ca.nlpsol("foot", "ipopt", nlp, opts)
     to_x = ca.Function("x", [y], [x])
-    lbx = [1.0, 1e-3, 1e-3, -math.pi / 2, 0.0, -1e3, _min_boss(req) * 1e3]
-    ubx = [1e3, 0.5, math.pi / 2 - 1e-3, 0.0, math.pi / 2, 1e3, 1e3]
+    lbx = [RADIUS_BOUNDS_MM[0], THICKNESS_SHARE_BOUNDS[0], ANGLE_GUARD, -math.pi / 2, 0.0, -CENTRE_BOUND_MM]
+    ubx = [RADIUS_BOUNDS_MM[1], THICKNESS_SHARE_BOUNDS[1], math.pi / 2 - ANGLE_GUARD, 0.0, math.pi / 2, CENTRE_BOUND_MM]
+    lbx, ubx = [*lbx, _min_boss(req) * MM_PER_M], [*ubx, BOSS_MAX_MM]
     if req.radius is not None:
-        lbx[0] = ubx[0] = req.radius * 1e3
+        lbx[0] = ubx[0] = req.radius * MM_PER_M
+    boss = _X.index("boss_radius")
     if req.boss_radius is not None:
-        lbx[6] = ubx[6] = req.boss_radius * 1e3
+        lbx[boss] = ubx[boss] = req.boss_radius * MM_PER_M
     best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
     last: tuple[list[float], dict[str, Any]] | None = None
-    for start, wide in itertools.product((1.3, 2.0, 1.02, 4.0), (False, True)):  # the best of a few starts
-        guess = _guess(start * max(r_min, mount.contact_radius / 1.3), mount, req, wide)
+    for start, wide in itertools.product(STARTS, (False, True)):  # the best of a few starts
+        guess = _guess(start * max(r_min, mount.contact_radius / START_SHRINK), mount, req, wide)
         sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
         stats = solver.stats()
         y_opt = [float(v) for v in sol["x"].full().ravel()]
@@ -455,7 +508,7 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
         last = (x_try, stats)
         if stats.get("success", False) and all(c.satisfied for c in evaluate(_geometry(x_try, req), mount, req)):
             f = float(sol["f"])
-            if best is None or f < best[0] - 1e-9:
+            if best is None or f < best[0] - TIE:
                 best = (f, x_try, stats, y_opt)
     if best is None:
         assert last is not None
