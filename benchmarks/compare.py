@@ -13,7 +13,7 @@ In this process:
    the current one (everything else as now: the before/after of the root search in one process);
 3. ``--scaling``: compare --auto against the rows of the uniform log (10^4, 3x10^4, 10^5, 3x10^5), with the peak
    of the memory numpy and Python allocate during one comparison (tracemalloc);
-4. the scoreboard of issue 13 on the independent dyno simulator of ``tests/dyno/envelope/holdrig.py`` (speed
+4. the scoreboard on the independent dyno simulator of ``tests/dyno/envelope/holdrig.py`` (speed
    holds in random order, trapezoidal pulses to 1.2-2.2x the torque limit, a 300 Hz second-order
    transducer, one-loop-late command and current reply, AR(1) noise with mains hum, a winding that
    heats): each effect hidden in turn (and none), with and without ``torque_cmd``, over
@@ -21,7 +21,7 @@ In this process:
    first, within 15 %, the envelope error ends within 3x the noise level, nothing else is added and
    the verdict is "explained"; the matching motor passes when nothing is added.
 
-Times are medians of ``--repeat`` runs (another process may share the CPU). Issue 7 names no target; the earlier
+Times are medians of ``--repeat`` runs (another process may share the CPU). No target was set; the earlier
 session measured 24-53 s for 100,000 rows, the cmp18 branch 4.0-7.4 s before its speed-up.
 
 Run: .venv/bin/python benchmarks/compare.py [--repeat 5] [--seeds 3] [--scaling] [--json]
@@ -138,7 +138,7 @@ def earlier_edge(omega, side, params, inputs):
 
 
 def scoreboard(spec, seeds: int) -> list[dict]:
-    """Issue 13's runs on the hold-protocol dyno (module docstring, 3)."""
+    """The runs on the hold-protocol dyno (module docstring, 3)."""
     from rich.progress import Progress
 
     from hound_id.dyno.envelope.compare import compare

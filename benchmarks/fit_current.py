@@ -14,7 +14,7 @@ worker process then times, in order:
    cross-validation and cluster-robust errors) and its bare least-squares solve.
 
 It prints the seconds, the ratios against lmfit, and checks that both fits agree.
-Targets (issue 18): cold whole run <= 1.0 s, warm <= 0.4 s; 5,000,000 rows <= 3 s and
+Targets: cold whole run <= 1.0 s, warm <= 0.4 s; 5,000,000 rows <= 3 s and
 <= 0.5 GB.
 
 ``--scaling`` runs one fresh process per size from 10^4 to ``--max-rows`` (default 10^7)

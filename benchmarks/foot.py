@@ -10,7 +10,7 @@ In this process, on the sample leg and its running log:
    evaluation: the whole optimisation costs this many mesh evaluations;
 3. the accuracy that buys: closed form against a fine (0.5 deg) mesh.
 
-No target is set by issue 5; the figures show the closed form is what makes an
+No target is set; the figures show the closed form is what makes an
 interactive (sub-second) optimisation possible.
 
 Run: .venv/bin/python benchmarks/foot.py [--repeat 20] [--json]

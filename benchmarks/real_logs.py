@@ -17,7 +17,7 @@ do not copy its files into this repository)::
         --columns time=loop_time,current=motor_measured_current,torque=adc_measured_torque,\\
 velocity=motor_measured_speed,torque_cmd=motor_torque_command
 
-Add ``--markdown`` for a table to paste into the README, ``--json`` for every report. The last line (``summary`` in
+Add ``--markdown`` for a table for docs/fit-current.md, ``--json`` for every report. The last line (``summary`` in
 the JSON) gives the figures over the fitted logs: the median cross-validated RMSE / noise floor, with and without the
 stretches each log flags, how the floors were found, on how many logs a drift is named, and for the logs above 2x
 their floor what the report names as the cause (a flagged stretch, a slow wander, fast noise, a drift) and which

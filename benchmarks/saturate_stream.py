@@ -1,4 +1,4 @@
-"""Benchmark: ``hound-id saturate`` on long logs, streamed (issue 14: 45 s and 2.4 GB for 1,000,000 CSV rows).
+"""Benchmark: ``hound-id saturate`` on long logs, streamed (before streaming: 45 s and 2.4 GB for 1,000,000 CSV rows).
 
 Writes logs of the sample Hound-like robot (12 joints: time + 24 columns, the sample gait with noise)
 into a temporary folder: 1,000,000 rows of CSV and of Parquet by default (``--rows``, ``--parquet-rows``,

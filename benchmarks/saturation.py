@@ -268,7 +268,7 @@ def feasibility(args: argparse.Namespace) -> None:
 
 #: ``--scaling``: the batch sizes, 256 to 65,536 environments.
 SCALING = (256, 1024, 4096, 16384, 65536)
-#: The issue's target for the ratio to the per-joint clip.
+#: The target for the ratio to the per-joint clip.
 TARGET_RATIO = 1.0
 
 

@@ -16,7 +16,7 @@ from hound_id.export.bundle import apply_fits, build_bundle
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
 from hound_id.mor.spec import load_motor_spec
-from tests.conftest import ROBOT, ROOT
+from tests.conftest import ROBOT
 from tests.export.conftest import fitted_motor
 
 
@@ -153,11 +153,13 @@ def test_runtime_imports_numpy_and_its_own_modules_only(fitted, tmp_path):
     loaded = run("0")
     assert loaded["libraries"] == ["hound_id", "numpy"]
     assert set(loaded["hound_id"]) == RUNTIME_LOADS
-    # with numba installed (hound-id[fast]) the clip's fused loop adds numba and what numba itself imports
+    # with numba installed (hound-id[fast]) the clip's fused loop adds numba and what numba itself imports to compile
+    # (numpy.f2py, and what f2py finds installed, e.g. charset_normalizer)
     fused = run("1")
+    compile_alone = "import numba\nnumba.njit(lambda x: x + 1)(1.0)\n"
     numba_alone = run(
         "1",
-        code.replace("import hound_id.runtime\n", "import numba\n").split("sat = ")[0] + code[code.index("new = ") :],
+        code.replace("import hound_id.runtime\n", compile_alone).split("sat = ")[0] + code[code.index("new = ") :],
     )
     assert set(fused["libraries"]) == {"hound_id", "numpy"} | set(numba_alone["libraries"])
     assert "numba" in fused["libraries"]
@@ -165,10 +167,10 @@ def test_runtime_imports_numpy_and_its_own_modules_only(fitted, tmp_path):
 
 
 def readme_example(tag: str) -> str:
-    text = (ROOT / "README.md").read_text()
-    blocks = re.findall(r"```python\n(# example: " + tag + r"\n.*?)```", text, flags=re.S)
-    assert len(blocks) == 1, tag
-    return blocks[0]
+    """The manual's Python block tagged ``# example: TAG`` (README.md or docs/)."""
+    from tests.test_docs import example
+
+    return example(tag)
 
 
 @pytest.fixture
@@ -219,6 +221,24 @@ def test_readme_legged_gym_example(bundle_dir):
     torques = ns["_compute_torques"](env, torch.full((n, 12), 8.0))
     sat = hound_id.runtime.load("out/hound_like_bundle.yaml")
     assert torch.allclose(torques, sat.saturate(80.0 * 2.0 - 2.0 * env.dof_vel, env.dof_vel))
+
+
+def test_readme_runtime_example(bundle_dir):
+    """The runtime snippet, in a simulator whose joints are ordered breadth-first."""
+    n = 16
+    breadth_first = [f"{leg}_{j}" for j in ("HAA", "HFE", "KFE") for leg in ("FL", "FR", "RL", "RR")]
+    rng = np.random.default_rng(5)
+    ns: dict = {
+        "sim_joint_names": breadth_first,
+        "tau_cmd": rng.uniform(-150, 150, (n, 12)),
+        "qd": rng.uniform(-40, 40, (n, 12)),
+    }
+    exec(readme_example("runtime"), ns)
+    sat = ns["sat"]
+    assert sat.joints == tuple(breadth_first)
+    assert np.array_equal(ns["tau_sim"], ns["tau"] + sat.friction_torque(ns["qd"], ns["tau"]))
+    assert ns["current"].shape == ns["volts"].shape == (n, 12) and np.all(np.isfinite(ns["current"]))
+    assert np.all(np.abs(ns["volts"]) <= sat.bus_voltage + 1e-9)  # motor order: within each motor's bus
 
 
 def test_readme_heat_example(bundle_dir):

@@ -74,7 +74,7 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                     f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
                     "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
                     "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle, joint_names)"
-                    ".saturate(tau, qd) to the group (see the README); armature is the diagonal of the reflected "
+                    ".saturate(tau, qd) to the group (see docs/export.md); armature is the diagonal of the reflected "
                     "inertia (the off-diagonal terms are in reflected_inertia_group), friction the worst case "
                     "sum |A^-T| f_c"
                 )

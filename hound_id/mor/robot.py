@@ -133,7 +133,7 @@ def robot_from_mapping(data: Any, source: str, base: Path) -> Robot:
         raise _err(source, "field 'schema'", f"found {data.get('schema')!r}, expected {SCHEMA!r}")
     for key in ("name", "motor_specs", "joints", "transmissions"):
         if key not in data:
-            raise _err(source, f"field '{key}'", "missing; see the robot section of the README")
+            raise _err(source, f"field '{key}'", "missing; see docs/robots.md")
 
     spec_files = data["motor_specs"]
     if not isinstance(spec_files, Mapping) or not spec_files:

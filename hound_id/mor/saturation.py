@@ -16,7 +16,7 @@ mapped correction, whose rounding grows with the command), and inputs are capped
 where a product could overflow. See :meth:`Saturation.__call__`.
 
 Past a motor's overspeed the result is its full braking torque; past its rated
-``max_speed`` only braking (or zero) torque passes. See the README.
+``max_speed`` only braking (or zero) torque passes. See docs/saturate.md.
 
 :func:`dc_motor_clip` is the per-joint DC-motor clip of Isaac Lab's ``DCMotor`` and
 mjlab's ``DcMotorActuator``, kept as the reference the coupled clip must reduce to

@@ -570,7 +570,7 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         if key not in data or data[key] is None:
             if required:
                 raise SpecError(
-                    f"{where(source, key)}: missing; add it (see the spec-sheet section of the README)",
+                    f"{where(source, key)}: missing; add it (see docs/mor.md)",
                     field=key,
                 )
             continue

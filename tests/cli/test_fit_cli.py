@@ -201,7 +201,7 @@ def test_effects_table_keeps_units():
     assert "delay [s]" in proc.stdout.replace("\n", " ") or "[s]" in proc.stdout
 
 
-# --- real-rig checks from the command line (issue 12) ----------------------------------------------------------
+# --- real-rig checks from the command line --------------------------------------------------------------------
 
 
 def _polled(tmp_path, name="rig.csv", **rig):

@@ -73,7 +73,7 @@ def test_text_in_a_numeric_column_names_row_and_value(tmp_path):
     )
 
 
-# --- issue 14: extreme numbers, streaming, messages ----------------------------------------------------------------
+# --- extreme numbers, streaming, messages -------------------------------------------------------------------------
 
 ROBOT_JOINTS = load_robot(ROBOT).joints
 
@@ -307,7 +307,7 @@ def test_a_passed_through_column_that_changes_type_late_is_read_again_wider(tmp_
     assert strict_json(proc.stdout)["rows"] == 30_000
 
 
-# --- issue 16, item 4: the direction change of the coupled clip ------------------------------------------------------
+# --- the direction change of the coupled clip -------------------------------------------------------------------
 
 
 def polar_turn(a, b):

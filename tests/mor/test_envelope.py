@@ -1,4 +1,4 @@
-"""Envelope models (issue 7 groundwork): the spec boundary, and each effect moving it the way physics says."""
+"""Envelope models (the groundwork of mor --compare): the spec boundary, and each effect moving it as physics says."""
 
 import numpy as np
 import pytest

@@ -303,7 +303,7 @@ def test_torque_bounds_are_the_motor_intervals():
         assert np.allclose(lo[:, m], want_lo) and np.allclose(hi[:, m], want_hi)
 
 
-# --- feasibility for every finite input (issue 14) ---------------------------------------------------------------
+# --- feasibility for every finite input ------------------------------------------------------------------------
 
 DTYPES = [np.float32, np.float64]
 #: "torch-gpu": CPU tensors through the path GPU tensors take (torch operations only, always exact).
@@ -404,8 +404,8 @@ def test_largest_finite_commands_and_speeds(dtype, backend):
 
 @pytest.mark.parametrize("backend", BACKENDS)
 @pytest.mark.parametrize("dtype", DTYPES)
-def test_the_issue_examples(dtype, backend):
-    """Issue 14: a 1e7 N m command gave 86 N m instead of 86.94 in float32; 1e8 broke the limit; 1e12 gave 0."""
+def test_the_reported_extreme_commands(dtype, backend):
+    """Before the exact float32 path a 1e7 N m command gave 86 N m, not 86.94; 1e8 broke the limit; 1e12 gave 0."""
     expected = ROBOT_SAT(np.full((1, N), 100.0), np.zeros((1, N)))  # 86.94, 82.11, 72.45 N m ...
     for magnitude in (1e7, 1e8, 1e12, 1e16, 1e30):
         tau = np.full((1, N), magnitude)

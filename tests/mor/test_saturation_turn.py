@@ -1,4 +1,4 @@
-"""hound_id.mor.clip_turn: how far the coupled clip turns a coupled group's joint-torque vector (issue 16, item 4).
+"""hound_id.mor.clip_turn: how far the coupled clip turns a coupled group's joint-torque vector.
 
 The statistics are checked against closed forms built by hand, not against the module's own formula: for the
 hollow-shaft hip/knee, A = [[1/G_h, 0], [-1/(G_h G_k), 1/G_k]], the knee motor torque is tau_k / G_k and

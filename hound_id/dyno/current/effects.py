@@ -15,7 +15,7 @@ Conventions shared with :mod:`hound_id.dyno.simulate.current` (same names, same 
 eps = 0.01 rad/s and sgn(w) = tanh(w / eps); temperatures in degC relative to
 :data:`T_REF`; friction terms oppose the velocity.
 
-Users add their own effect with :func:`register` (see the README for a worked
+Users add their own effect with :func:`register` (see docs/fit-current.md for a worked
 example) and load it with ``hound-id fit-current --effects-file my_effects.py``.
 """
 
