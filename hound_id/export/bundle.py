@@ -58,13 +58,11 @@ from hound_id.mor.spec import MotorSpec, plain, read_only
 from hound_id.runtime import READABLE, read_bundle
 
 __all__ = [
-    "FRICTION", "READABLE", "SCHEMA", "Bundle", "BundleMotor", "apply_fits", "build_bundle", "foot_from_json",
+    "READABLE", "SCHEMA", "Bundle", "BundleMotor", "apply_fits", "build_bundle", "foot_from_json",
     "load_bundle",
 ]  # fmt: skip
 
 SCHEMA = "hound-id/bundle/5"
-#: Friction parameters of the fit that the runtime applies (motor side), :mod:`hound_id.mor.friction`'s.
-FRICTION = tuple(name for name, _, _ in friction_parameters())
 
 
 @dataclass(frozen=True)
@@ -227,9 +225,9 @@ def _effects(spec: MotorSpec) -> tuple[dict[str, Any], dict[str, float], dict[st
     """Fitted parameters (as the fit record writes them), friction terms and compensation polynomial of a spec's
     fit (empty without a fit), the polynomial with its largest current error against the curve's exact inverse."""
     if spec.fit is None:
-        return {}, {k: 0.0 for k in FRICTION}, None
+        return {}, {k: 0.0 for k, _, _ in friction_parameters()}, None
     written = spec.fit.to_dict()
-    friction = {k: spec.fit.value(k) for k in FRICTION}
+    friction = {k: spec.fit.value(k) for k, _, _ in friction_parameters()}
     comp = spec.fit.compensation
     polynomial = None
     if comp is not None:  # fit/3 keeps the polynomial's own block apart; fit/2 had it as compensation

@@ -19,8 +19,10 @@ Each term is a :class:`FrictionTerm` in :data:`TERMS` (sorted by name): its para
 value a motor without a fit takes, its torque (numpy or torch: only arithmetic, with ``sgn`` and ``exp`` given),
 and ``homes``, the export formats that hold it and where. A format not in ``homes`` cannot hold the term; the
 export states the largest torque it loses (:meth:`FrictionTerm.largest`). A fit effect that trainers should feel
-names its term (``Effect.trainer`` in :mod:`hound_id.dyno.current.effects`); a new term is one entry here.
-Numpy only, no other import: the runtime loads this module.
+names its term (``Effect.friction`` in :mod:`hound_id.dyno.current.effects`); a new term is one entry here, or, from
+your own effects file, one :func:`register` call beside the effect's (a trainer that loads the bundle registers the
+same term before :func:`hound_id.runtime.load`).
+No import but the standard library and :mod:`hound_id.errors`: the runtime loads this module.
 """
 
 from __future__ import annotations
@@ -29,7 +31,9 @@ from collections.abc import Callable, Mapping
 from dataclasses import dataclass
 from typing import Any
 
-__all__ = ["EPS_SPEED", "TERMS", "FrictionTerm", "parameters"]
+from hound_id.errors import SpecError
+
+__all__ = ["EPS_SPEED", "TERMS", "FrictionTerm", "parameters", "register"]
 
 #: Smoothing speed of the friction sign, tanh(omega / EPS_SPEED) [rad/s], as in the fit.
 EPS_SPEED = 0.01
@@ -131,3 +135,17 @@ TERMS: dict[str, FrictionTerm] = {
         key=lambda t: t.name,
     )
 }
+
+
+def register(term: FrictionTerm, *, replace: bool = False) -> FrictionTerm:
+    """Add a friction term (kept sorted by name); its parameter names must be new. SpecError otherwise."""
+    if term.name in TERMS and not replace:
+        raise SpecError(f"friction term '{term.name}' is already registered; pick another name or pass replace=True")
+    taken = {p: t.name for t in TERMS.values() if t.name != term.name for p, _, _ in t.parameters}
+    for p, _, _ in term.parameters:
+        if p in taken:
+            raise SpecError(f"friction term '{term.name}': parameter '{p}' is already term '{taken[p]}''s")
+    TERMS[term.name] = term
+    for key in sorted(TERMS):
+        TERMS[key] = TERMS.pop(key)
+    return term

@@ -410,3 +410,40 @@ def test_the_exports_state_the_braking_past_overspeed_they_cannot_hold(tmp_path)
     assert stated in not_held(ex, "voltage", "newton")[-1]
     report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
     assert any(f"up to {most:.4g} N m more than dcmotor" in n for n in report["formats"]["mujoco"]["notes"])
+
+
+#: A toy export format in one module, as ARCHITECTURE.md's recipe has it: a writer taking ``Export``, returning
+#: ``Written`` with the friction it cannot hold.
+TOY_FORMAT = """
+from hound_id import io
+from hound_id.export.target import Export, Written
+
+
+def write_toy(ex: Export, out):
+    path = out / f"{ex.stem}_toy.json"
+    io.write_json(path, {"joints": list(ex.bundle.joints), "torque_limit": [m.torque_limit for m in ex.bundle.motors]})
+    return Written((str(path),), ex.friction_not_held("toy"))
+"""
+
+
+def test_a_new_format_is_one_module_and_one_registry_line(tmp_path, monkeypatch):
+    """The toy format's module plus its line in FORMATS: --format toy and all write it, atomically with the others,
+    and it states the fitted friction it has no home for."""
+    import importlib.util
+    import json
+
+    from hound_id.export.formats import FORMATS
+
+    (tmp_path / "toy_format.py").write_text(TOY_FORMAT)
+    spec = importlib.util.spec_from_file_location("toy_format", tmp_path / "toy_format.py")
+    module = importlib.util.module_from_spec(spec)
+    spec.loader.exec_module(module)
+    monkeypatch.setitem(FORMATS, "toy", module.write_toy)  # the one registry line
+    ex = prepare(ROBOT, [fitted_motor(tmp_path)])
+    report = export_robot(ex, formats_from("bundle,toy"), tmp_path / "out")
+    written = json.loads((tmp_path / "out" / "hound_like_toy.json").read_text())
+    assert written["joints"] == list(ex.bundle.joints)
+    notes = report["formats"]["toy"]["notes"]
+    assert [n.split(" (")[0] for n in notes] == ["Coulomb friction", "viscous friction"]  # the fit's 0.08 N m, 2e-4
+    assert notes[0].startswith("Coulomb friction (coulomb): up to 0.08 N m at the motor")
+    assert "toy" in formats_from("all")
