@@ -56,7 +56,8 @@ def step_motor_regions(out: Path) -> StepResult:
 def step_robot_regions(out: Path) -> StepResult:
     """Joint-space regions, URDF boxes and the saturation study of every sample robot."""
     from hound_id.mor.run import robot_regions_of
-    from hound_id.mor.saturation import box_study, saturation_for
+    from hound_id.mor.saturate_log import box_study
+    from hound_id.mor.saturation import saturation_for
 
     files, parts, figures = [], [], {}
     for robot_file in sorted((samples_dir() / "robots").glob("*.yaml")):

@@ -10,7 +10,8 @@ of a hound-id bundle, for numpy arrays or torch tensors on any device.
 Arrays are shaped (..., n_joints) in the bundle's joint order, or in the order of
 ``joint_names``; torch stays torch (same dtype and device, autograd intact). Only numpy (and
 torch, when given tensors) are imported, besides the standard library: of hound-id, only
-:mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation`
+:mod:`hound_id.errors`, :mod:`hound_id.arrays` and the clip, :class:`hound_id.mor.saturation.Saturation` (with its
+elementwise bounds, :mod:`hound_id.mor.clip_bounds`)
 (with :mod:`hound_id.mor.region` for its speed tolerance), the same code ``hound-id saturate`` runs,
 :mod:`hound_id.mor.drive`, the drive's dq window the clip takes for a motor with a winding reactance or
 field weakening, :mod:`hound_id.mor.current_curve`, the current-torque curves whose exact inverse
@@ -39,17 +40,11 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError, SpecError
+from hound_id.mor.clip_bounds import interp, polyline_of
 from hound_id.mor.clip_turn import ANGLE_FLOOR, ClipTurn, clip_turn
 from hound_id.mor.current_curve import CurrentCurve, polynomial
 from hound_id.mor.friction import EPS_SPEED, TERMS, parameters
-from hound_id.mor.saturation import (
-    PER_JOINT_REFERENCE,
-    Saturation,
-    coupled_groups,
-    interp,
-    per_joint_clip,
-    polyline_of,
-)
+from hound_id.mor.saturation import PER_JOINT_REFERENCE, Saturation, coupled_groups, per_joint_clip
 
 #: Bundle schemas :func:`read_bundle` (and so :func:`load` and :func:`hound_id.export.bundle.load_bundle`)
 #: reads, oldest first.

@@ -332,7 +332,7 @@ def test_clip_turn_of_a_batch_is_what_saturate_reports(fitted):
     import pandas as pd
 
     from hound_id.errors import SaturationError
-    from hound_id.mor.saturation import saturate_log
+    from hound_id.mor.saturate_log import saturate_log
     from tests.conftest import SAMPLES
 
     robot, sat = fitted

@@ -28,7 +28,9 @@ TUNED = (
     "hound_id/dyno/identify/engine.py",
     "hound_id/dyno/current/fit.py",
     "hound_id/dyno/current/curve.py",
-    "hound_id/dyno/logs.py",
+    "hound_id/dyno/logs/clean.py",
+    "hound_id/dyno/logs/sensor.py",
+    "hound_id/dyno/logs/envelope.py",
     "hound_id/dyno/artefacts.py",
 )
 #: Constants that are facts or formats, not tuning (a unit factor, a schema).

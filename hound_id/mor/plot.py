@@ -8,7 +8,7 @@ import numpy as np
 
 from hound_id.mor.joint_space import RobotRegions
 from hound_id.mor.region import OperatingRegion, torque_interval
-from hound_id.mor.saturation import LogSaturation
+from hound_id.mor.saturate_log import LogSaturation
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure

@@ -21,7 +21,7 @@ if TYPE_CHECKING:
     from hound_id.mor.joint_space import RobotRegions
     from hound_id.mor.region import AtSpeed, Binding, OperatingRegion, Overpromise
     from hound_id.mor.robot import Robot
-    from hound_id.mor.saturation import LogSummary
+    from hound_id.mor.saturate_log import LogSummary
     from hound_id.mor.spec import MotorSpec
 
 
@@ -217,7 +217,7 @@ def saturate_commands(
         plot: Keep up to :data:`hound_id.mor.saturation.PLOT_ROWS` rows for :meth:`SaturateRun.figure`.
     """
     from hound_id.mor.robot import load_robot
-    from hound_id.mor.saturation import PLOT_ROWS, saturate_file
+    from hound_id.mor.saturate_log import PLOT_ROWS, saturate_file
 
     rob = load_robot(robot)
     return SaturateRun(rob, saturate_file(rob, commands, out=out, plot_rows=PLOT_ROWS if plot else 0))

@@ -21,14 +21,15 @@ Past a motor's overspeed the result is its full braking torque; past its rated
 :func:`dc_motor_clip` is the per-joint DC-motor clip of Isaac Lab's ``DCMotor`` and
 mjlab's ``DcMotorActuator``, kept as the reference the coupled clip must reduce to
 for an uncoupled joint, and as the benchmark's baseline.
+
+The elementwise bounds it takes are in :mod:`hound_id.mor.clip_bounds`; ``hound-id saturate`` on a log is
+:mod:`hound_id.mor.saturate_log`.
 """
 
 from __future__ import annotations
 
 import math
-import os
 import threading
-from collections.abc import Mapping
 from dataclasses import dataclass, field
 from typing import TYPE_CHECKING, Any, NamedTuple
 
@@ -37,16 +38,32 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import SaturationError
-from hound_id.mor.clip_turn import CLIP_TOLERANCE, ClipTurn, TurnTally
-from hound_id.mor.drive import dq_window
-from hound_id.mor.fused import available as fused_available
+from hound_id.mor.clip_bounds import (
+    capped,
+    drive_arrays,
+    fusable,
+    is_torch,
+    largest,
+    np_bounds,
+    np_clip,
+    numpy_views,
+    polyline_bounds,
+    polyline_of,
+    quadratic_q,
+    scaled_matmul,
+    table_polyline,
+    table_top,
+    thermal_rows,
+    torch_bounds,
+    within_interval,
+)
 from hound_id.mor.fused import clip_correction
 from hound_id.mor.fused import within as fused_within
 from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_region
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
     from hound_id.mor.robot import Robot
-    from hound_id.mor.spec import MeasuredEnvelope, MotorSpec
+
 
 #: Cached operator sets (dtype, device, batch shape) kept per Saturation.
 _CACHE_SIZE = 16
@@ -57,149 +74,6 @@ HEADROOM = 4.0
 #: (or torque limit) take the short path: the mapped correction added to the command, whose rounding is
 #: then a few tens of roundings of the limits at most (see :meth:`Saturation.__call__`).
 ORDINARY = 4.0
-
-
-def _is_torch(x: Any) -> bool:
-    return type(x).__module__.startswith("torch")
-
-
-def _np_clip(x: Any, lo: Any, hi: Any, out: Any) -> Any:
-    np.maximum(x, lo, out=out)
-    return np.minimum(out, hi, out=out)
-
-
-def _np_bounds(c: Any, u: Any, lo: Any, hi: Any, volts: Any = None) -> tuple[Any, Any]:
-    """The motors' torque intervals from u = back-EMF damping x motor speed
-    (:func:`hound_id.mor.region.torque_interval`): the linear-equivalent window [-S - u, S - u] cut to [-X, X]
-    (past overspeed, collapsed onto the end nearest it), then the current-torque curve. Returns (lower, upper) in
-    two of the buffers ``u``, ``lo`` and ``hi`` (all three are overwritten).
-
-    With a curve, the line ends that can pass the curve's top are held there first (the upper line only falls past
-    -top, the lower only rises past +top; their other ends are cut to +-X <= top by the window), so the curve needs
-    no clip of its own.
-
-    ``volts`` (the bus voltage per element, shaped like ``u``: :meth:`Saturation._volts`) scales the stall torque,
-    S = (S / V_bus) V; a drive's
-    motors (:mod:`hound_id.mor.drive`) take its dq window instead of the voltage lines."""
-    if c.has_drive:
-        return _np_drive_bounds(c, u, lo, hi, volts)
-    if volts is None:
-        np.subtract(c.stall, u, out=hi)  # x_hi, upper voltage line
-        np.subtract(c.neg_stall, u, out=lo)  # x_lo
-    else:  # the stall torque at each element's bus voltage
-        np.maximum(volts, 0.0, out=lo)
-        np.multiply(lo, c.stall_per_volt, out=lo)
-        np.subtract(lo, u, out=hi)
-        np.negative(lo, out=lo)
-        np.subtract(lo, u, out=lo)
-    if c.has_curve:
-        np.maximum(hi, c.neg_curve_top, out=hi)
-        np.minimum(lo, c.curve_top, out=lo)
-    np.minimum(hi, c.limit_x, out=u)
-    np.maximum(u, lo, out=u)  # upper end of the window
-    np.maximum(lo, c.neg_limit_x, out=lo)
-    np.minimum(lo, hi, out=lo)  # lower end
-    if c.has_curve:
-        _np_curve(u, c, hi)
-        _np_curve(lo, c, hi)
-    if c.has_cap:  # table curves past their polylines: held at the curve's top
-        _np_clip(u, c.neg_top_torque, c.top_torque, out=u)
-        _np_clip(lo, c.neg_top_torque, c.top_torque, out=lo)
-    return lo, u
-
-
-def _np_drive_bounds(c: Any, u: Any, lo: Any, hi: Any, volts: Any = None) -> tuple[Any, Any]:
-    """:func:`_np_bounds` for robots with a drive model: the dq window (:func:`hound_id.mor.drive.dq_window`; a motor
-    without reactance or field weakening gets the DC law's window from it, to rounding), then the curve. Returns
-    (lower, upper) in ``lo`` and ``u``."""
-    stall = c.stall if volts is None else np.maximum(volts, 0.0) * c.stall_per_volt
-    x_lo, x_hi = dq_window(u, stall, c.k_rho, c.limit_x, c.circle_x, c.fw)
-    if c.has_curve:  # the diode bridge's current may pass the curve's top: held there
-        np.clip(x_lo, c.neg_curve_top, c.curve_top, out=lo)
-        np.clip(x_hi, c.neg_curve_top, c.curve_top, out=u)
-        _np_curve(u, c, hi)
-        _np_curve(lo, c, hi)
-    else:
-        np.copyto(lo, x_lo)
-        np.copyto(u, x_hi)
-    if c.has_cap:
-        _np_clip(u, c.neg_top_torque, c.top_torque, out=u)
-        _np_clip(lo, c.neg_top_torque, c.top_torque, out=lo)
-    return lo, u
-
-
-def _np_curve(x: Any, c: Any, tmp: Any) -> None:
-    """x -> x - q x|x| in place, for |x| within the curve's top (``tmp`` is scratch)."""
-    np.absolute(x, out=tmp)
-    tmp *= c.curve_q
-    tmp *= x
-    x -= tmp
-
-
-def _torch_bounds(c: Any, u: Any, volts: Any = None) -> tuple[Any, Any]:
-    """:func:`_np_bounds` in torch, as fresh tensors (autograd may flow through ``u``): (lower, upper)."""
-    import torch
-
-    stall = c.stall if volts is None else torch.clamp(volts, min=0.0) * c.stall_per_volt
-    if c.has_drive:
-        lo, hi = dq_window(u, stall, c.k_rho, c.limit_x, c.circle_x, c.fw)
-        if c.has_curve:
-            hi = torch.minimum(torch.maximum(hi, c.neg_curve_top), c.curve_top)
-            lo = torch.minimum(torch.maximum(lo, c.neg_curve_top), c.curve_top)
-    else:
-        hi_x, lo_x = stall - u, -stall - u
-        if c.has_curve:
-            hi_x, lo_x = torch.maximum(hi_x, c.neg_curve_top), torch.minimum(lo_x, c.curve_top)
-        hi = torch.maximum(torch.minimum(hi_x, c.limit_x), lo_x)  # past overspeed both collapse onto one end
-        lo = torch.minimum(torch.maximum(lo_x, c.neg_limit_x), hi_x)
-    if c.has_curve:
-        hi, lo = hi - c.curve_q * hi * torch.abs(hi), lo - c.curve_q * lo * torch.abs(lo)
-    if c.has_cap:
-        hi = torch.minimum(torch.maximum(hi, c.neg_top_torque), c.top_torque)
-        lo = torch.minimum(torch.maximum(lo, c.neg_top_torque), c.top_torque)
-    return lo, hi
-
-
-def _numpy_views(tau: Any, qd: Any) -> tuple[Any, Any] | None:
-    """numpy views of CPU float tensors (no copy), or None (GPU, other dtypes, tensors numpy cannot view).
-
-    On the CPU numpy does the same arithmetic as torch in fewer microseconds per call for these small
-    matrices, and the result is handed back as a tensor sharing its memory.
-    """
-    import torch
-
-    if tau.device.type != "cpu" or tau.dtype not in (torch.float32, torch.float64):
-        return None
-    try:
-        return tau.numpy(), qd.numpy()
-    except (RuntimeError, TypeError):  # e.g. a tensor with its negative or conjugate bit set
-        return None
-
-
-def _fusable(tau: NDArray[Any], qd: NDArray[Any]) -> bool:
-    """Whether the fused loops take this call: numba present and both inputs C-contiguous float arrays of one
-    dtype (the workspace and constants are then too)."""
-    return (
-        tau.dtype == qd.dtype
-        and tau.dtype in (np.float32, np.float64)
-        and tau.flags.c_contiguous
-        and qd.flags.c_contiguous
-        and fused_available()
-    )
-
-
-def _within(x: NDArray[Any], bound: float) -> bool:
-    """Every element in [-bound, bound] (False with a NaN)."""
-    return x.size == 0 or bool(x.max() <= bound and x.min() >= -bound)
-
-
-def _largest(dtype: Any) -> float:
-    """The largest finite value of a numpy or torch floating dtype."""
-    if type(dtype).__module__.startswith("torch"):
-        import torch
-
-        return float(torch.finfo(dtype).max)
-    return float(np.finfo(dtype).max)
 
 
 def coupled_groups(A: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -337,7 +211,7 @@ class Saturation:
         regions = [by_spec[id(robot.motor_specs[m])] for m in robot.motors]
         A = robot.velocity_map()
         polylines = tuple(
-            polyline_of(robot.motor_specs[m].envelope) or _table_polyline(r)
+            polyline_of(robot.motor_specs[m].envelope) or table_polyline(r)
             for m, r in zip(robot.motors, regions, strict=True)
         )
         held = tuple(  # a table curve's polyline under a drive model (a measured envelope's keeps its line bounds)
@@ -353,13 +227,13 @@ class Saturation:
             torque_limit=frozen([r.torque_limit for r in regions]),
             max_speed=frozen([np.inf if r.max_speed is None else r.max_speed for r in regions]),
             limit_x=frozen([r.limit_x for r in regions]),
-            curve_q=frozen([_quadratic_q(r) for r in regions]),
-            top_torque=frozen([_table_top(r) for r in regions]),
+            curve_q=frozen([quadratic_q(r) for r in regions]),
+            top_torque=frozen([table_top(r) for r in regions]),
             polylines=polylines if any(p is not None for p in polylines) else (),
             held=held if any(held) else (),
             bus_voltage=frozen([robot.motor_specs[m].bus_voltage for m in robot.motors]),
-            thermal=_thermal_rows([robot.motor_specs[m] for m in robot.motors], regions),
-            **_drive_arrays(regions),
+            thermal=thermal_rows([robot.motor_specs[m] for m in robot.motors], regions),
+            **drive_arrays(regions),
         )
 
     @property
@@ -376,7 +250,7 @@ class Saturation:
         clipped to an edge; where coupled commands that large nearly cancel, the edge may differ from
         the one exact arithmetic would pick. Such a speed is far past overspeed.
         """
-        big = _largest(dtype) / HEADROOM
+        big = largest(dtype) / HEADROOM
 
         def cap(*maps: NDArray[np.float64]) -> float:
             return big / max(1.0, *(float(np.abs(m).sum(axis=0).max()) for m in maps))
@@ -391,7 +265,7 @@ class Saturation:
         operations on equal shapes run several times faster than broadcasting a
         (n,) vector, in numpy and torch alike (and Isaac Lab stores its limits so).
         """
-        torch_like = _is_torch(like)
+        torch_like = is_torch(like)
         shape = tuple(like.shape)
         key: Any = ("torch", like.dtype, like.device, shape) if torch_like else ("numpy", like.dtype, shape)
         hit = self._cache.get(key)
@@ -478,12 +352,12 @@ class Saturation:
         """
         tau, qd = self._check(tau, qd)
         consts = self._constants(tau)
-        return _scaled_matmul(tau, consts.A, consts.tau_cap), _scaled_matmul(qd, consts.A_inv.T, consts.qd_cap)
+        return scaled_matmul(tau, consts.A, consts.tau_cap), scaled_matmul(qd, consts.A_inv.T, consts.qd_cap)
 
     def _check(self, tau: Any, qd: Any) -> tuple[Any, Any]:
-        if _is_torch(tau) != _is_torch(qd):
+        if is_torch(tau) != is_torch(qd):
             raise SaturationError("tau and qd must both be numpy arrays or both torch tensors")
-        if not _is_torch(tau):
+        if not is_torch(tau):
             tau = np.asarray(tau)
             qd = np.asarray(qd)
             if tau.dtype.kind != "f":
@@ -519,7 +393,7 @@ class Saturation:
         if self.bus_voltage is None:
             raise SaturationError("saturation: this clip has no nominal bus voltage, so it cannot take another one")
         shape = tuple(like.shape)
-        if _is_torch(like):
+        if is_torch(like):
             import torch
 
             v = torch.as_tensor(bus_voltage, dtype=like.dtype, device=like.device)
@@ -567,7 +441,7 @@ class Saturation:
         window at speed s_K omega / s_R and bus V / s_R, the reactance's k_rho / s_K and the derated current limit."""
         from hound_id.mor.thermal import REFERENCE, derating
 
-        torch_like = _is_torch(qd)
+        torch_like = is_torch(qd)
         rows = self._thermal_like(qd)
         a_r, a_k, start, limit, current_x, nominal = rows
         s_r = 1.0 + a_r * (temperature - REFERENCE)
@@ -583,12 +457,12 @@ class Saturation:
         else:
             lim = np.minimum(c.limit_x, d * current_x)
         c = c._replace(limit_x=lim, neg_limit_x=-lim, circle_x=c.circle_x * d, k_rho=c.k_rho / s_k)
-        qd = _capped(qd, consts.qd_cap)
+        qd = capped(qd, consts.qd_cap)
         u = (qd @ c.speed_map) * (s_k / s_r)
         if torch_like:
-            lo, hi = _torch_bounds(c, u, volts / s_r)
+            lo, hi = torch_bounds(c, u, volts / s_r)
         else:
-            lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts / s_r)
+            lo, hi = np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts / s_r)
         lo, hi = lo * s_k, hi * s_k
         if c.has_max_speed:
             omega = qd @ c.A_inv.T
@@ -607,7 +481,7 @@ class Saturation:
         if hit is None:
             assert self.thermal is not None and self.bus_voltage is not None
             rows = [*self.thermal, self.bus_voltage]
-            if _is_torch(like):
+            if is_torch(like):
                 import torch
 
                 hit = tuple(torch.tensor(np.array(r), dtype=like.dtype, device=like.device) for r in rows)
@@ -625,11 +499,11 @@ class Saturation:
         )
 
     def _bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
-        qd = _capped(qd, consts.qd_cap)
+        qd = capped(qd, consts.qd_cap)
         lo, hi = self._line_bounds(qd, consts, volts)
         if self.polylines:
             omega = qd @ consts.A_inv.T
-            lo, hi = _polyline_bounds(self._polylines_like(qd), omega, lo, hi)
+            lo, hi = polyline_bounds(self._polylines_like(qd), omega, lo, hi)
         return lo, hi
 
     def _polylines_like(self, like: Any) -> tuple[Any, ...]:
@@ -639,7 +513,7 @@ class Saturation:
         hit = self._cache.get(key)
         if hit is None:
             convert: Any = np.asarray
-            if _is_torch(like):
+            if is_torch(like):
                 import torch
 
                 def convert(a: Any) -> Any:
@@ -663,16 +537,16 @@ class Saturation:
         capped), as fresh arrays."""
         c = consts
         u = qd @ c.speed_map  # back-EMF damping * motor speed
-        if _is_torch(qd):
+        if is_torch(qd):
             import torch
 
-            lo, hi = _torch_bounds(c, u, volts)
+            lo, hi = torch_bounds(c, u, volts)
             if c.has_max_speed:
                 omega = qd @ c.A_inv.T
                 hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
                 lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
             return lo, hi
-        lo, hi = _np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts)
+        lo, hi = np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts)
         if c.has_max_speed:
             omega = qd @ c.A_inv.T
             hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
@@ -718,12 +592,12 @@ class Saturation:
         volts = self._volts(bus_voltage, tau)
         if temperature is not None:
             temps = self._temperatures(temperature, tau)
-            if not (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
+            if not (is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
                 fast = self._saturate_heated_fused(tau, qd, volts, temps)
                 if fast is not None:
                     return fast
             return self._saturate(tau, qd, consts, volts, temps)
-        if self.polylines or (_is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
+        if self.polylines or (is_torch(tau) and (tau.requires_grad or qd.requires_grad)):
             return self._saturate(tau, qd, consts, volts)  # measured envelopes or autograd: the general path
         return self._saturate_in_place(tau, qd, consts, volts)
 
@@ -732,15 +606,15 @@ class Saturation:
         (:func:`hound_id.mor.fused.clip_correction`) for ordinary commands in C-contiguous numpy arrays or CPU
         tensors; None where it does not apply (then the general path runs). Same result as :meth:`_saturate` with
         the temperatures, to the correction's rounding."""
-        if _is_torch(tau):
-            views = _numpy_views(tau, qd)
+        if is_torch(tau):
+            views = numpy_views(tau, qd)
             if views is None or not (temps.is_contiguous() and (volts is None or volts.is_contiguous())):
                 return None
             import torch
 
             out = self._saturate_heated_fused(*views, None if volts is None else volts.numpy(), temps.detach().numpy())
             return None if out is None else torch.from_numpy(out)
-        if not _fusable(tau, qd):
+        if not fusable(tau, qd):
             return None
         c = self._constants(tau)
         if not fused_within(tau, c.ordinary, qd, c.qd_cap):
@@ -770,8 +644,8 @@ class Saturation:
             lo, hi = self._heated_bounds(qd, consts, volts, temperature)
         else:
             lo, hi = self._bounds(qd, consts, volts)
-        tau_m = _capped(tau, consts.tau_cap) @ consts.A
-        if _is_torch(tau):
+        tau_m = capped(tau, consts.tau_cap) @ consts.A
+        if is_torch(tau):
             import torch
 
             clipped = torch.clamp(tau_m, lo, hi)
@@ -790,20 +664,20 @@ class Saturation:
         Ordinary commands (motor torques within :data:`ORDINARY` stall torques, speeds below
         the cap: checked on the CPU, where a check costs no device sync) take the short path of
         :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one. CPU
-        tensors go through numpy views (:func:`_numpy_views`).
+        tensors go through numpy views (:func:`numpy_views`).
         """
         c = consts
-        if _is_torch(tau):
-            views = _numpy_views(tau, qd)
+        if is_torch(tau):
+            views = numpy_views(tau, qd)
             if views is None:
                 return self._saturate_torch(tau, qd, consts, volts)
             import torch
 
             v = None if volts is None else volts.numpy()
             return torch.from_numpy(self._saturate_in_place(*views, self._constants(views[0]), v))
-        fused = _fusable(tau, qd)
-        ordinary = fused_within(tau, c.ordinary, qd, c.qd_cap) if fused else _within(tau, c.ordinary)
-        if not (ordinary and (fused or _within(qd, c.qd_cap))):
+        fused = fusable(tau, qd)
+        ordinary = fused_within(tau, c.ordinary, qd, c.qd_cap) if fused else within_interval(tau, c.ordinary)
+        if not (ordinary and (fused or within_interval(qd, c.qd_cap))):
             return self._saturate_numpy(tau, qd, consts, volts)
         return self._saturate_ordinary(tau, qd, consts, fused, volts)
 
@@ -827,8 +701,8 @@ class Saturation:
             out = np.matmul(v, c.A_inv)
             out += tau
             return out
-        lo, hi = _np_bounds(c, u, v, w, volts)  # lo is v
-        _np_clip(tau_m, lo, hi, out=v)
+        lo, hi = np_bounds(c, u, v, w, volts)  # lo is v
+        np_clip(tau_m, lo, hi, out=v)
         if c.has_max_speed:  # past the rated speed only braking torque passes
             omega = qd @ c.A_inv.T
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
@@ -844,12 +718,12 @@ class Saturation:
         motors clipped. The joints are picked without branches."""
         c = consts
         u, v, tau_m, pick, untouched, w = self._workspace(tau)
-        qd, tau = _capped(qd, c.qd_cap), _capped(tau, c.tau_cap)
+        qd, tau = capped(qd, c.qd_cap), capped(tau, c.tau_cap)
         np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
         np.matmul(tau, c.A, out=tau_m)
         omega = qd @ c.A_inv.T if c.has_max_speed else None
-        lo, hi = _np_bounds(c, u, v, w, volts)  # lo is v
-        _np_clip(tau_m, lo, hi, out=v)
+        lo, hi = np_bounds(c, u, v, w, volts)  # lo is v
+        np_clip(tau_m, lo, hi, out=v)
         if omega is not None:  # past the rated speed only braking torque passes
             np.minimum(v, 0.0, out=v, where=omega > c.wmax)
             np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
@@ -875,7 +749,7 @@ class Saturation:
         torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
         torch.matmul(qd_in, c.speed_map, out=u)
         torch.matmul(tau_in, c.A, out=tau_m)
-        lo, hi = _torch_bounds(c, u, volts)
+        lo, hi = torch_bounds(c, u, volts)
         torch.clamp(tau_m, lo, hi, out=v)
         if c.has_max_speed:
             omega = qd_in @ c.A_inv.T
@@ -895,7 +769,7 @@ class Saturation:
         key = ("ws", threading.get_ident(), type(like), like.dtype, getattr(like, "device", None), tuple(like.shape))
         hit = self._cache.get(key)
         if hit is None:
-            if _is_torch(like):
+            if is_torch(like):
                 import torch
 
                 hit = tuple(torch.empty_like(like) for _ in range(5))
@@ -915,158 +789,12 @@ class Saturation:
             lo, hi = self._heated_bounds(qd, consts, volts, self._temperatures(temperature, tau))
         else:
             lo, hi = self._bounds(qd, consts, volts)
-        tau_m = _scaled_matmul(tau, consts.A, consts.tau_cap)
-        if _is_torch(tau):
+        tau_m = scaled_matmul(tau, consts.A, consts.tau_cap)
+        if is_torch(tau):
             import torch
 
             return torch.clamp(tau_m - hi, min=0.0) + torch.clamp(lo - tau_m, min=0.0)
         return np.maximum(tau_m - hi, 0.0) + np.maximum(lo - tau_m, 0.0)
-
-
-def _capped(x: Any, cap: float, out: Any = None) -> Any:
-    """``x`` clamped to [-cap, cap] (NaN stays NaN); numpy skips the copy when nothing is that large.
-
-    Torch always clamps: a check would cost a device sync.
-    """
-    if _is_torch(x):
-        import torch
-
-        return torch.clamp(x, -cap, cap, out=out)
-    if x.size == 0 or (x.max() <= cap and x.min() >= -cap):
-        return x
-    return np.clip(x, -cap, cap, out=out)
-
-
-def _scaled_matmul(x: Any, M: Any, cap: float) -> Any:
-    """x @ M without intermediate overflow for finite x: scaled by a power of two when |x| > cap."""
-    if x.numel() == 0 if _is_torch(x) else x.size == 0:
-        return x @ M
-    if x.max() <= cap and x.min() >= -cap:  # the usual case (False with a NaN)
-        return x @ M
-    if _is_torch(x):
-        import torch
-
-        finite = x[torch.isfinite(x)]
-        big = float(finite.abs().max()) if finite.numel() else 0.0
-    else:
-        finite = x[np.isfinite(x)]
-        big = float(np.abs(finite).max()) if finite.size else 0.0
-    if big <= cap:
-        return x @ M
-    scale = 2.0 ** math.ceil(math.log2(big / cap))
-    with np.errstate(over="ignore"):
-        return ((x / scale) @ M) * scale
-
-
-def polyline_of(
-    envelope: MeasuredEnvelope | Mapping[str, Any] | None,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
-    """(speeds, lower, upper) read-only arrays of a spec's measured envelope, or of a bundle's polyline
-    (``{speeds, lower, upper}`` with None where no torque is feasible), or None."""
-    if envelope is None:
-        return None
-    if not isinstance(envelope, Mapping):
-        return envelope.polyline
-    if not envelope:
-        return None
-    return (
-        frozen(envelope["speeds"]),
-        frozen([np.nan if v is None else v for v in envelope["lower"]]),
-        frozen([np.nan if v is None else v for v in envelope["upper"]]),
-    )
-
-
-def interp(x: Any, xp: Any, fp: Any) -> Any:
-    """Piecewise-linear interpolation of (xp, fp) at x, numpy or torch (x outside xp: the end values);
-    xp and fp are already in x's array type."""
-    if not _is_torch(x):
-        return np.interp(x, xp, fp)
-    import torch
-
-    k = torch.clamp(torch.searchsorted(xp, x.contiguous()), 1, xp.numel() - 1)
-    x0, x1, f0, f1 = xp[k - 1], xp[k], fp[k - 1], fp[k]
-    t = torch.clamp((x - x0) / (x1 - x0), 0.0, 1.0)
-    return f0 + t * (f1 - f0)
-
-
-def _polyline_bounds(lines: Any, omega: Any, lo: Any, hi: Any) -> tuple[Any, Any]:
-    """Replace the straight-line bounds of motors with a polyline, at speeds inside its range.
-
-    ``lines`` per motor: None, or (first speed, last speed, speeds, lower, upper) with the finite
-    points only, in omega's array type (see :meth:`Saturation._polylines_like`).
-    """
-    where: Any
-    if _is_torch(omega):
-        import torch
-
-        lo, hi = lo.clone(), hi.clone()
-        where = torch.where
-    else:
-        lo, hi = lo.copy(), hi.copy()
-        where = np.where
-    for m, line in enumerate(lines):
-        if line is None:
-            continue
-        first, last, speeds, lower, upper = line
-        w = omega[..., m]
-        inside = (w >= first) & (w <= last)
-        lo[..., m] = where(inside, interp(w, speeds, lower), lo[..., m])
-        hi[..., m] = where(inside, interp(w, speeds, upper), hi[..., m])
-    return lo, hi
-
-
-def _quadratic_q(region: OperatingRegion) -> float:
-    """q of a region's quadratic current-torque curve (0 for a linear or a table one)."""
-    return 0.0 if region.curve is None else region.curve.q
-
-
-def _table_polyline(
-    region: OperatingRegion,
-) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]] | None:
-    """A table curve's region as a polyline (the clip interpolates it; its points are within the region's
-    :data:`hound_id.mor.region.EDGE_TOLERANCE`), or None for a linear or quadratic curve."""
-    from hound_id.mor.region import curved_edges
-
-    if region.curve is None or region.curve.form != "table":
-        return None
-    if region.drive is not None:  # the diode braking fades before the curve's top: out to where the window is held
-        from hound_id.mor.drive import SPEED_CAP
-
-        return curved_edges(region, reach=SPEED_CAP * region.stall_torque / region.back_emf_damping)
-    # out to where the forced braking current reaches the curve's top (beyond, the interval is the top: top_torque)
-    reach = (region.stall_torque + region.curve.kt * region.curve.top_current) / region.back_emf_damping
-    return curved_edges(region, reach=max(reach, region.overspeed) * (1 + 1e-6))
-
-
-def _table_top(region: OperatingRegion) -> float:
-    """The most a table curve makes [N m]; inf for a linear or quadratic one."""
-    return region.curve.top_torque if region.curve is not None and region.curve.form == "table" else math.inf
-
-
-def _drive_arrays(regions: list[OperatingRegion]) -> dict[str, Any]:
-    """The Saturation fields of the motors' drive models (empty when none has one: the DC law throughout)."""
-    if all(r.drive is None for r in regions):
-        return {}
-    return {
-        "drive_k_rho": frozen([0.0 if r.drive is None else r.drive.k_rho for r in regions]),
-        "drive_circle_x": frozen([r.limit_x if r.drive is None else r.drive.circle_x for r in regions]),
-        "drive_fw": frozen(np.array([r.drive is not None and r.drive.field_weakening for r in regions])),
-    }
-
-
-def _thermal_rows(specs: list[MotorSpec], regions: list[OperatingRegion]) -> NDArray[np.float64] | None:
-    """:attr:`Saturation.thermal` of the motors (None when none has a thermal model)."""
-    if all(s.thermal is None for s in specs):
-        return None
-    rows = np.empty((5, len(specs)))
-    for m, (spec, region) in enumerate(zip(specs, regions, strict=True)):
-        th = spec.thermal
-        if th is None:
-            rows[:, m] = (0.0, 0.0, math.inf, math.inf, region.limit_x)
-        else:
-            current_x = spec.current_curve.kt * spec.drive_current
-            rows[:, m] = (th.alpha_resistance, th.alpha_kt, th.derate_start, th.winding_limit, current_x)
-    return frozen(rows)
 
 
 def saturation_for(robot: Robot) -> Saturation:
@@ -1087,7 +815,7 @@ def dc_motor_clip(
     """
     if vel_at_limit is None:
         vel_at_limit = velocity_limit * (1.0 + effort_limit / saturation_effort)
-    if _is_torch(effort):
+    if is_torch(effort):
         import torch
 
         v = torch.clamp(vel, -vel_at_limit, vel_at_limit)
@@ -1100,60 +828,6 @@ def dc_motor_clip(
     return np.minimum(np.maximum(effort, bottom), top)
 
 
-@dataclass(frozen=True)
-class BoxStudy:
-    """What a rectangular joint limit lets through that the motors cannot make."""
-
-    samples: int
-    """Number of random (tau, qd) commands drawn per box."""
-    outer_infeasible: float
-    """Fraction of commands inside the outer (URDF-style) box that the MOR clips."""
-    outer_mean_clip: float
-    """Mean |tau_cmd - tau_sat| over joints and those commands [N m]."""
-    inner_infeasible: float
-    """Fraction of commands inside the inner box that the MOR clips (0 by construction)."""
-    max_violation_after: float
-    """Largest motor-torque violation left after saturation [N m] (0 up to round-off)."""
-
-    def to_dict(self) -> dict[str, float | int]:
-        return {k: getattr(self, k) for k in self.__dataclass_fields__}
-
-
-def box_study(
-    sat: Saturation, inner: NDArray[np.float64], outer: NDArray[np.float64], samples: int = 100_000, seed: int = 0
-) -> BoxStudy:
-    """Draw commands uniformly in the inner and outer boxes and saturate them.
-
-    Args:
-        sat: The robot's saturation.
-        inner: Inner box per joint, shape (n, 2): (effort [N m], velocity [rad/s]).
-        outer: Outer box per joint, same shape.
-        samples: Number of commands per box.
-        seed: Random seed.
-    """
-    rng = np.random.default_rng(seed)
-    results = []
-    for box in (outer, inner):
-        u = rng.uniform(-1.0, 1.0, size=(2, samples, sat.n))
-        tau, qd = u[0] * box[:, 0], u[1] * box[:, 1]
-        clipped = sat(tau, qd)
-        changed = np.any(np.abs(clipped - tau) > 1e-9 * np.maximum(1.0, np.abs(tau)), axis=-1)
-        results.append(
-            (float(changed.mean()), float(np.abs(clipped - tau).mean()), float(sat.violation(clipped, qd).max()))
-        )
-    return BoxStudy(
-        samples=samples,
-        outer_infeasible=results[0][0],
-        outer_mean_clip=results[0][1],
-        inner_infeasible=results[1][0],
-        max_violation_after=max(results[0][2], results[1][2]),
-    )
-
-
-#: Schema of the ``hound-id saturate --json`` summary (2: ``clip_turn`` added).
-SATURATE_SCHEMA = "hound-id/saturate/2"
-#: Rows a log's plot draws at most: longer logs are thinned to every k-th row (k a power of two).
-PLOT_ROWS = 20_000
 #: What :func:`per_joint_clip` is, for the reports.
 PER_JOINT_REFERENCE = (
     "per-joint DC-motor clip (Isaac Lab DCMotor, mjlab DcMotorActuator) of each joint alone, with its own motor "
@@ -1180,469 +854,8 @@ def per_joint_clip(sat: Saturation, tau: Any, qd: Any, own_motor: Any = None) ->
     stall, limit = sat.stall_torque[own], sat.torque_limit[own]
     no_load = stall / sat.back_emf_damping[own]
     params: tuple[Any, ...] = (stall * gear, no_load / gear, limit * gear)
-    if _is_torch(tau):
+    if is_torch(tau):
         import torch
 
         params = tuple(torch.tensor(p, dtype=tau.dtype, device=tau.device) for p in params)
     return dc_motor_clip(tau, qd, *params)
-
-
-def motor_clipped(motor_torque_cmd: NDArray[np.float64], motor_torque_sat: NDArray[np.float64]) -> NDArray[np.bool_]:
-    """Whether each motor torque command was outside the region: it moved by more than
-    :data:`CLIP_TOLERANCE` relative, or it is beyond float range (±inf, from a finite command)."""
-    with np.errstate(invalid="ignore"):
-        tol = CLIP_TOLERANCE * np.maximum(1.0, np.abs(motor_torque_cmd))
-        return (np.abs(motor_torque_sat - motor_torque_cmd) > tol) | np.isinf(motor_torque_cmd)
-
-
-@dataclass(frozen=True)
-class LogSaturation:
-    """A log of joint torque commands saturated by the MOR, with what was clipped."""
-
-    joints: tuple[str, ...]
-    """Joint order of the arrays."""
-    motors: tuple[str, ...]
-    """Motor order of the motor-space arrays."""
-    tau_cmd: NDArray[np.float64]
-    """Commanded joint torques [N m], shape (rows, n)."""
-    qd: NDArray[np.float64]
-    """Joint velocities [rad/s], shape (rows, n)."""
-    tau_sat: NDArray[np.float64]
-    """Saturated joint torques [N m], shape (rows, n)."""
-    motor_torque_cmd: NDArray[np.float64]
-    """Commanded motor torques [N m], shape (rows, n) (±inf where beyond float range)."""
-    motor_torque_sat: NDArray[np.float64]
-    """Saturated motor torques [N m], shape (rows, n)."""
-    motor_speed: NDArray[np.float64]
-    """Motor speeds [rad/s], shape (rows, n)."""
-    turn: ClipTurn | None = None
-    """How far the clip turned each coupled group's joint-torque vector over these rows (None: not measured)."""
-
-    @property
-    def motor_clipped(self) -> NDArray[np.bool_]:
-        """Whether each motor torque command was outside the region, shape (rows, n)."""
-        return motor_clipped(self.motor_torque_cmd, self.motor_torque_sat)
-
-    def to_dict(self) -> dict[str, Any]:
-        """Summary, schema ``hound-id/saturate/2``."""
-        tally = _Tally(self.joints, self.motors)
-        tally.add(self.tau_cmd, self.tau_sat, self.motor_clipped)
-        return tally.summary(turn=self.turn).to_dict()
-
-
-@dataclass(frozen=True)
-class LogSummary:
-    """What ``hound-id saturate`` reports on a log, gathered batch by batch (:func:`saturate_file`)."""
-
-    joints: tuple[str, ...]
-    """Joint order."""
-    motors: tuple[str, ...]
-    """Motor order."""
-    rows: int
-    """Number of commands (data rows)."""
-    violating_rows: int
-    """Commands with at least one motor outside its region."""
-    max_clip: tuple[float, ...]
-    """Per joint the largest |tau_sat - tau_cmd| [N m] (joint side)."""
-    mean_clip: tuple[float, ...]
-    """Per joint the mean |tau_sat - tau_cmd| [N m]."""
-    clipped_rows: tuple[int, ...]
-    """Per motor the number of commands it clipped."""
-    sample: LogSaturation | None = None
-    """Evenly spaced rows (every k-th, at most :data:`PLOT_ROWS`) for the plot; None when not asked for."""
-    sample_step: int = 1
-    """The k of :attr:`sample`: it holds rows 0, k, 2k, ..."""
-    notes: tuple[str, ...] = ()
-    """What the reader found in the file's layout (units row, title lines, separator)."""
-    turn: ClipTurn | None = None
-    """How far the coupled clip turned each coupled group's joint-torque vector, against the per-joint clip
-    (:mod:`hound_id.mor.clip_turn`); None: not measured."""
-
-    def to_dict(self) -> dict[str, Any]:
-        """Summary, schema ``hound-id/saturate/2`` (``/1`` plus ``clip_turn``): finite numbers only (valid JSON)."""
-        return {
-            "schema": SATURATE_SCHEMA,
-            "rows": self.rows,
-            "violating_fraction": self.violating_rows / self.rows,
-            "joints": [
-                {"joint": j, "max_clip": self.max_clip[i], "mean_clip": self.mean_clip[i]}
-                for i, j in enumerate(self.joints)
-            ],
-            "motors": [
-                {"motor": m, "clipped_fraction": self.clipped_rows[i] / self.rows} for i, m in enumerate(self.motors)
-            ],
-            "units": {"clip": "N m (joint side)"},
-            "clip_turn": self.turn.to_dict() if self.turn is not None else None,
-        }
-
-
-#: Chunk sums that overflow are kept scaled by this power of two (exact: a power-of-two scale).
-_SUM_SCALE = 2.0**-64
-
-
-class _Tally:
-    """The summary statistics of a log, added up batch by batch.
-
-    A single batch gives bit for bit what numpy gives on the whole arrays (``clip.mean()`` is
-    ``clip.sum() / n``); several batches differ from it only by rounding (the batch sums are
-    added exactly, with :func:`math.fsum`). Sums past the float range (commands near 1e308) are
-    kept scaled by a power of two, so the means stay finite.
-    """
-
-    def __init__(self, joints: tuple[str, ...], motors: tuple[str, ...]) -> None:
-        self.joints, self.motors = joints, motors
-        n = len(joints)
-        self.rows = 0
-        self.violating = 0
-        self.max_clip = [0.0] * n
-        self.sums: list[list[float]] = [[] for _ in range(n)]
-        self.scaled: list[list[float]] = [[] for _ in range(n)]
-        self.clipped = [0] * n
-
-    def add(self, tau_cmd: NDArray[np.float64], tau_sat: NDArray[np.float64], clipped: NDArray[np.bool_]) -> None:
-        if not len(tau_cmd):
-            return
-        clip = np.abs(tau_sat - tau_cmd)
-        self.rows += int(tau_cmd.shape[0])
-        self.violating += int(np.any(clipped, axis=1).sum())
-        for i in range(len(self.joints)):
-            self.max_clip[i] = max(self.max_clip[i], float(clip[:, i].max()))
-            with np.errstate(over="ignore"):  # past the float range: kept scaled below
-                total = float(clip[:, i].sum())
-            if math.isfinite(total):
-                self.sums[i].append(total)
-            else:
-                self.scaled[i].append(float((clip[:, i] * _SUM_SCALE).sum()))
-            self.clipped[i] += int(clipped[:, i].sum())
-
-    def _mean(self, i: int) -> float:
-        if not self.scaled[i]:
-            try:
-                return math.fsum(self.sums[i]) / self.rows
-            except OverflowError:
-                pass
-        scaled = math.fsum([s * _SUM_SCALE for s in self.sums[i]] + self.scaled[i])
-        return min((scaled / self.rows) / _SUM_SCALE, self.max_clip[i])
-
-    def summary(
-        self,
-        sample: LogSaturation | None = None,
-        notes: tuple[str, ...] = (),
-        step: int = 1,
-        turn: ClipTurn | None = None,
-    ) -> LogSummary:
-        return LogSummary(
-            joints=self.joints,
-            motors=self.motors,
-            rows=self.rows,
-            violating_rows=self.violating,
-            max_clip=tuple(self.max_clip),
-            mean_clip=tuple(self._mean(i) for i in range(len(self.joints))),
-            clipped_rows=tuple(self.clipped),
-            sample=sample,
-            sample_step=step,
-            notes=notes,
-            turn=turn,
-        )
-
-
-class _Sample:
-    """Every k-th row of a log, k doubling whenever more than ``limit`` rows are kept."""
-
-    def __init__(self, limit: int) -> None:
-        self.limit, self.step, self.seen = limit, 1, 0
-        self.parts: list[tuple[NDArray[np.float64], ...]] = []
-
-    def add(self, *arrays: NDArray[np.float64]) -> None:
-        rows = len(arrays[0])
-        first = (-self.seen) % self.step  # the first row of this batch whose global index is a multiple of step
-        self.parts.append(tuple(a[first :: self.step] for a in arrays))
-        self.seen += rows
-        while sum(len(p[0]) for p in self.parts) > self.limit:
-            merged = tuple(np.concatenate(cols) for cols in zip(*self.parts, strict=True))
-            self.parts = [tuple(a[::2] for a in merged)]
-            self.step *= 2
-
-    def arrays(self) -> tuple[NDArray[np.float64], ...]:
-        return tuple(np.concatenate(cols) for cols in zip(*self.parts, strict=True))
-
-
-def _joint_arrays(
-    columns: Any, joints: tuple[str, ...], source: str, first_row: int = 0
-) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
-    """(tau, qd) arrays (rows, n) from columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s].
-
-    ``columns`` maps names to 1-D arrays (a DataFrame, a dict, or a pyarrow RecordBatch);
-    ``first_row`` is the number of data rows before these, for messages.
-
-    Raises:
-        TableError: A column is missing, holds text, booleans or a non-finite value.
-    """
-    from hound_id.errors import TableError
-
-    names = columns.schema.names if hasattr(columns, "schema") else columns
-    arrays = {}
-    for prefix in ("tau", "qd"):
-        stacked = []
-        for joint in joints:
-            name = f"{prefix}_{joint}"
-            if name not in names:
-                raise TableError(
-                    f"{source}: column '{name}' missing; expected tau_<joint> [N m] and qd_<joint> [rad/s] "
-                    f"for every joint ({', '.join(joints)})",
-                    column=name,
-                )
-            values = _numbers(columns[name], name, source, first_row)
-            bad = np.flatnonzero(~np.isfinite(values))
-            if bad.size:
-                row = first_row + int(bad[0]) + 1
-                raise TableError(
-                    f"{source}: column '{name}' data row {row} holds {values[bad[0]]}; "
-                    "expected a finite number (drop or fill such rows first)",
-                    column=name,
-                    row=row,
-                )
-            stacked.append(values)
-        arrays[prefix] = np.column_stack(stacked) if stacked else np.zeros((0, 0))
-    return arrays["tau"], arrays["qd"]
-
-
-def _numbers(column: Any, name: str, source: str, first_row: int) -> NDArray[np.float64]:
-    """A column as float64 (missing values NaN), or TableError naming the first cell that is not a number."""
-    from hound_id.errors import TableError
-
-    kind = "n"
-    if type(column).__module__.startswith("pyarrow"):
-        import pyarrow as pa
-
-        if pa.types.is_dictionary(column.type):
-            column = column.dictionary_decode()
-        kinds = (pa.types.is_floating, pa.types.is_integer, pa.types.is_null, pa.types.is_decimal)
-        if any(is_kind(column.type) for is_kind in kinds):
-            return _float64(column)
-        kind = "b" if pa.types.is_boolean(column.type) else "O"
-        if not (pa.types.is_string(column.type) or pa.types.is_large_string(column.type) or kind == "b"):
-            raise TableError(f"{source}: column '{name}' holds {column.type} values; expected numbers", column=name)
-        if kind == "O":
-            parsed = _parse_text(column)
-            if parsed is not None:
-                return parsed
-        column = column.to_pandas()
-    raw = np.asarray(column)
-    if raw.dtype.kind == "b" or kind == "b":
-        raise TableError(
-            f"{source}: column '{name}' holds booleans (true/false); expected numbers "
-            f"({'N m' if name.startswith('tau_') else 'rad/s'}); convert the column first",
-            column=name,
-        )
-    if raw.dtype.kind in "fiu":
-        return raw.astype(np.float64, copy=False)
-    import pandas as pd
-
-    series = pd.Series(raw)
-    numeric = pd.to_numeric(series, errors="coerce")
-    text = np.flatnonzero(numeric.isna().to_numpy() & series.notna().to_numpy())
-    if text.size:
-        row = first_row + int(text[0]) + 1
-        raise TableError(
-            f"{source}: column '{name}' data row {row} holds {series.iloc[text[0]]!r}; expected a number",
-            column=name,
-            row=row,
-        )
-    return numeric.to_numpy(dtype=float)
-
-
-#: Cells read as missing (NaN), as pandas reads them; compared lower case, spaces stripped.
-_MISSING = ("", "nan", "-nan", "na", "n/a", "<na>", "#na", "#n/a", "#n/a n/a", "null", "none", "1.#ind", "-1.#ind",
-            "1.#qnan", "-1.#qnan")  # fmt: skip
-
-
-def _parse_text(column: Any) -> NDArray[np.float64] | None:
-    """Numbers from a pyarrow text column (missing cells NaN), or None when a cell is not a number."""
-    import pyarrow as pa
-    import pyarrow.compute as pc
-
-    try:
-        return _float64(column)
-    except pa.ArrowInvalid:
-        pass
-    cells = pc.utf8_trim_whitespace(column)
-    missing = pc.fill_null(pc.is_in(pc.utf8_lower(cells), value_set=pa.array(_MISSING)), True)
-    try:
-        return _float64(pc.if_else(missing, pa.scalar(None, pa.string()), cells))
-    except pa.ArrowInvalid:
-        return None
-
-
-def _float64(column: Any) -> NDArray[np.float64]:
-    """A pyarrow array as float64 numbers, nulls as NaN (read from its buffers: to_numpy would load pandas)."""
-    import pyarrow as pa
-
-    values = column.cast(pa.float64())
-    validity, data = values.buffers()[:2]
-    start, end = values.offset, values.offset + len(values)
-    numbers = np.frombuffer(data, dtype=np.float64, count=end)[start:] if data is not None else np.zeros(len(values))
-    if values.null_count:
-        valid = np.unpackbits(np.frombuffer(validity, dtype=np.uint8), bitorder="little")[start:end].astype(bool)
-        numbers = np.where(valid, numbers, np.nan)
-    return numbers
-
-
-#: Rows :func:`saturate_file` hands the clip at a time: one batch shape (the last block padded with zeros),
-#: so the clip's per-shape constants and scratch arrays (about 1 MB) are made once, whatever the batches;
-#: and few enough that OpenBLAS multiplies them in one thread (it splits m x 12 x 12 products from about
-#: 1800 rows on): its waiting threads and pyarrow's reader threads made a 4096-row clip 25x slower on 2 cores.
-BLOCK_ROWS = 1024
-
-
-def _saturate_rows(
-    sat: Saturation, tau: NDArray[np.float64], qd: NDArray[np.float64], block: int = 0
-) -> tuple[NDArray[np.float64], ...]:
-    """(tau_sat, motor torque cmd, motor torque sat, motor speed) of rows, ``block`` rows at a time (0: all)."""
-    if block <= 0 or len(tau) == block:
-        tau_sat = sat(tau, qd)
-        tau_m, omega = sat.motor_state(tau, qd)
-        return tau_sat, tau_m, tau_sat @ sat.A, omega  # tau_sat is finite and within the limits: no overflow
-    results = [np.empty_like(tau) for _ in range(4)]
-    pad_tau, pad_qd = np.zeros((block, tau.shape[1])), np.zeros((block, tau.shape[1]))
-    for start in range(0, len(tau), block):
-        stop = min(len(tau), start + block)
-        t, q = tau[start:stop], qd[start:stop]
-        if stop - start < block:  # zeros are inside every region
-            pad_tau[: stop - start], pad_qd[: stop - start] = t, q
-            t, q = pad_tau, pad_qd
-        for out, part in zip(results, _saturate_rows(sat, t, q, block), strict=True):
-            out[start:stop] = part[: stop - start]
-    return tuple(results)
-
-
-def saturate_log(robot: Robot, columns: Any, source: str = "commands") -> LogSaturation:
-    """Saturate a log with columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] for every joint.
-
-    The whole log in memory; :func:`saturate_file` streams a file of any length.
-
-    Args:
-        robot: The robot whose motors and transmissions apply.
-        columns: A mapping (or DataFrame) of column name -> 1-D numeric array.
-        source: File name, for messages.
-
-    Raises:
-        TableError: A column is missing or holds a non-finite value.
-    """
-    tau, qd = _joint_arrays(columns, robot.joints, source)
-    sat = saturation_for(robot)
-    return _log_saturation(robot, sat, tau, qd, *_saturate_rows(sat, tau, qd))
-
-
-def turn_tally(sat: Saturation, motors: tuple[str, ...]) -> TurnTally:
-    """A :class:`hound_id.mor.clip_turn.TurnTally` for the robot of ``sat``, against :func:`per_joint_clip`
-    (when every joint has a motor of its own); feed it with :func:`add_turn`."""
-    reference = PER_JOINT_REFERENCE if np.all(np.diag(sat.A) != 0) else None  # each joint has a motor of its own
-    return TurnTally(sat.A, coupled_groups(sat.A), sat.joints, motors, reference=reference)
-
-
-def add_turn(
-    tally: TurnTally,
-    sat: Saturation,
-    tau: NDArray[np.float64],
-    qd: NDArray[np.float64],
-    *saturated: NDArray[np.float64],
-) -> None:
-    """Add rows to a :func:`turn_tally`: commands, speeds, and (tau_sat, motor torque cmd, motor torque sat)."""
-    tau_sat, tau_m, tau_m_sat = saturated[:3]
-    ref = per_joint_clip(sat, tau, qd) if tally.reference is not None else None
-    violation = sat.violation(ref, qd) if ref is not None else None
-    tally.add(tau, tau_sat, tau_m, tau_m_sat, ref, violation)
-
-
-def _log_saturation(robot: Robot, sat: Saturation, *arrays: NDArray[np.float64]) -> LogSaturation:
-    """A :class:`LogSaturation` of read-only copies: tau, qd, tau_sat, tau_m, tau_m_sat, omega; with the turn."""
-    tau, qd, tau_sat, tau_m, tau_m_sat, omega = (frozen(a) for a in arrays)
-    turn = turn_tally(sat, robot.motors)
-    add_turn(turn, sat, tau, qd, tau_sat, tau_m, tau_m_sat)
-    return LogSaturation(
-        joints=robot.joints,
-        motors=robot.motors,
-        tau_cmd=tau,
-        qd=qd,
-        tau_sat=tau_sat,
-        motor_torque_cmd=tau_m,
-        motor_torque_sat=tau_m_sat,
-        motor_speed=omega,
-        turn=turn.result(),
-    )
-
-
-def saturate_file(
-    robot: Robot, path: str | os.PathLike[str], out: str | os.PathLike[str] | None = None, plot_rows: int = 0
-) -> LogSummary:
-    """Saturate a CSV or Parquet log of any length, batch by batch (``hound-id saturate``).
-
-    Memory is bounded by a batch (:data:`hound_id.tables.BATCH_ROWS` rows of Parquet or
-    :data:`hound_id.tables.CSV_BLOCK_BYTES` of CSV), not by the length of the log. The summary
-    equals :meth:`LogSaturation.to_dict` of the whole log (bit for bit within one batch, to
-    rounding beyond). Bad rows are named by their data row, counted over the whole file.
-
-    Args:
-        robot: The robot whose motors and transmissions apply.
-        path: The log: columns ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] for every joint.
-        out: If given, the log with ``tau_sat_<joint>`` [N m] columns added is written there (CSV or
-            Parquet by suffix), through a temporary file renamed at the end: an error part-way
-            leaves nothing behind.
-        plot_rows: Keep up to this many evenly spaced rows in :attr:`LogSummary.sample` (0: none).
-
-    Raises:
-        TableError: The file cannot be read, a column is missing, a cell is not a finite number,
-            a row has the wrong number of fields, or the table has no rows.
-        OutputError: ``out`` cannot be written.
-    """
-    from pathlib import Path
-
-    from hound_id.tables import TableBatches, TableRetype
-
-    numeric = tuple(f"{p}_{j}" for p in ("tau", "qd") for j in robot.joints)
-    copy_text = out is not None and Path(out).suffix.lower() == ".csv"  # CSV to CSV: cells copied as they are
-    table = TableBatches(Path(path), numeric=numeric, text=copy_text, only=None if out is not None else numeric)
-    sat = saturation_for(robot)
-    while True:
-        try:
-            return _saturate_batches(robot, sat, table, out, plot_rows)
-        except TableRetype:
-            continue  # a column's type was widened: read the file again with it
-
-
-def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_rows: int) -> LogSummary:
-    from contextlib import nullcontext
-
-    import pyarrow as pa
-
-    from hound_id.errors import TableError
-    from hound_id.tables import TableSink
-
-    source = str(table.path)
-    _joint_arrays({name: [] for name in table.names}, robot.joints, source)  # missing columns, before any work
-    tally = _Tally(robot.joints, robot.motors)
-    turn = turn_tally(sat, robot.motors)
-    sample = _Sample(plot_rows) if plot_rows > 0 else None
-    sat_names = [f"tau_sat_{j}" for j in robot.joints]
-    with TableSink(out) if out is not None else nullcontext() as sink:
-        for batch in table:
-            tau, qd = _joint_arrays(batch, robot.joints, source, first_row=tally.rows)
-            tau_sat, tau_m, tau_m_sat, omega = _saturate_rows(sat, tau, qd, BLOCK_ROWS)
-            clipped = motor_clipped(tau_m, tau_m_sat)
-            if sample is not None:
-                sample.add(tau, qd, tau_sat, tau_m, tau_m_sat, omega)
-            if sink is not None:
-                for i, name in enumerate(sat_names):
-                    column = pa.array(tau_sat[:, i], type=pa.float64())
-                    k = batch.schema.get_field_index(name)
-                    batch = batch.set_column(k, name, column) if k >= 0 else batch.append_column(name, column)
-                sink.write(batch)
-            tally.add(tau, tau_sat, clipped)
-            add_turn(turn, sat, tau, qd, tau_sat, tau_m, tau_m_sat)
-        if tally.rows == 0:
-            raise TableError(f"{source}: the table has no rows", path=source)
-    log = None
-    if sample is not None:
-        log = _log_saturation(robot, sat, *sample.arrays())
-    return tally.summary(log, table.notes, sample.step if sample is not None else 1, turn.result())

@@ -114,7 +114,7 @@ def test_commands_of_1e308_give_finite_feasible_torques_and_valid_json(tmp_path)
 
 
 def test_summary_is_the_in_memory_summary_and_the_table_round_trips(tmp_path):
-    from hound_id.mor.saturation import saturate_log
+    from hound_id.mor.saturate_log import saturate_log
 
     out = tmp_path / "sat.parquet"
     proc = run_cli("saturate", str(LOG), "--robot", str(ROBOT), "--out", str(out), "--json")
@@ -242,7 +242,7 @@ def test_long_log_streams_with_rows_counted_over_the_whole_file(tmp_path):
     assert results[0]["rows"] == results[1]["rows"] == 30_000
     assert results[0]["motors"] == results[1]["motors"]
     # the summary of a file streamed in batches: the in-memory one, to rounding
-    from hound_id.mor.saturation import saturate_log
+    from hound_id.mor.saturate_log import saturate_log
 
     whole = saturate_log(load_robot(ROBOT), big).to_dict()
     for got in results:

@@ -163,8 +163,8 @@ def write_envelope_spec(path, effects, motor=MOTOR):
     "effects", [{}, {"bus_sag": 0.15}, {"bus_sag": 0.15, "inductance": 1e-4}, {"current_limit": 50.0}]
 )
 def test_measured_region_traces_the_polyline_and_cuts_inside_it(tmp_path, effects):
+    from hound_id.mor.clip_bounds import polyline_of
     from hound_id.mor.region import _slice, measured_region
-    from hound_id.mor.saturation import polyline_of
 
     spec = load_motor_spec(write_envelope_spec(tmp_path / "env.yaml", effects))
     region, sheet = measured_region(spec), linear_region(spec)  # the envelope model starts from linear Kt

@@ -3,7 +3,7 @@
 from hound_id.mor.region import operating_region
 from hound_id.mor.robot import load_robot
 from hound_id.mor.run import motor_regions, robot_regions_of, saturate_commands
-from hound_id.mor.saturation import saturate_log
+from hound_id.mor.saturate_log import saturate_log
 from hound_id.tables import read_table
 from tests.conftest import MOTOR, ROBOT, SAMPLES
 

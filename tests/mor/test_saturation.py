@@ -326,8 +326,8 @@ def saturate(sat, tau, qd, backend, dtype, **kw):
 
     import hound_id.mor.saturation as saturation
 
-    views = (lambda *a: None) if backend == "torch-gpu" else saturation._numpy_views
-    with mock.patch.object(saturation, "_numpy_views", views):
+    views = (lambda *a: None) if backend == "torch-gpu" else saturation.numpy_views
+    with mock.patch.object(saturation, "numpy_views", views):
         return sat(to_backend(tau, backend, dtype, **kw), to_backend(qd, backend, dtype))
 
 
