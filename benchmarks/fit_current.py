@@ -132,7 +132,7 @@ def worker(path: Path, lmfit_too: bool = True) -> dict[str, float]:
     lm_warm, result = lmfit_once()
     # the same model in hound-id: its whole fit (blocked cross-validation, robust errors) and its bare solve
     from hound_id.dyno.current.effects import Signals as _Signals
-    from hound_id.dyno.current.fit import solve
+    from hound_id.dyno.current.stats import solve
 
     signals = _Signals.from_log(log)
     t0 = time.perf_counter()

@@ -23,7 +23,8 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from hound_id.dyno.current.effects import Signals, get
-from hound_id.dyno.current.fit import Array, FitResult
+from hound_id.dyno.current.fit import FitResult
+from hound_id.dyno.current.stats import Array
 from hound_id.mor.current_curve import PEAK_DEVIATION, CurrentCurve, polynomial, table_of
 
 __all__ = [

@@ -3,7 +3,7 @@
 For the current fit, every registered effect not yet in the model (whose channels the
 log has) is added in turn; its nonlinear parameter is searched on the log. Each
 candidate is first checked: the log must be able to tell its parameters from the
-model's (:func:`hound_id.dyno.current.fit.identifiability`), and it must fit with physically
+model's (:func:`hound_id.dyno.current.identifiable.identifiability`), and it must fit with physically
 possible values (a candidate that explains the residual only with, say, Coulomb
 friction below zero is reported as such and never added). It is then scored by
 blocked cross-validation (every fold of time blocks held out once) and tested with a
@@ -40,25 +40,12 @@ from numpy.typing import NDArray
 
 from hound_id.dyno.current import transducer
 from hound_id.dyno.current.effects import REGISTRY, Signals, get, requirements_missing
-from hound_id.dyno.current.fit import (
-    FILTERS,
-    SPECIAL,
-    Array,
-    Design,
-    FitResult,
-    Stats,
-    agreeing_half,
-    bounds_of,
-    cross_validate,
-    fit_model,
-    identifiability,
-    parameters_of,
-    robust_cov,
-    search_hyper,
-    solve_bounded,
-    solve_normal,
-)
+from hound_id.dyno.current.fit import FitResult, fit_model
+from hound_id.dyno.current.identifiable import identifiability
 from hound_id.dyno.current.noise import NoiseFloor, estimate, white_floor
+from hound_id.dyno.current.search import FILTERS, SPECIAL, Design, bounds_of, parameters_of, search_hyper
+from hound_id.dyno.current.slope import agreeing_half
+from hound_id.dyno.current.stats import Array, Stats, cross_validate, robust_cov, solve_bounded, solve_normal
 from hound_id.dyno.current.stretch import Stretch, read, runs
 from hound_id.dyno.current.wander import Wander, wander
 from hound_id.dyno.identify.engine import (

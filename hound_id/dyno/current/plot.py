@@ -9,7 +9,8 @@ import numpy as np
 
 from hound_id.dyno.current.curve import PeakTorque, curve_torque
 from hound_id.dyno.current.effects import Signals
-from hound_id.dyno.current.fit import Array, FitResult
+from hound_id.dyno.current.fit import FitResult
+from hound_id.dyno.current.stats import Array
 
 if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.axes import Axes

@@ -40,7 +40,7 @@ BEYOND: dict[str, float] = {
 
 
 #: Fewest rows a cleaned log may have: ten operating points of a steady-state table, or a burst of ten samples, each a
-#: block of their own (hound_id.dyno.current.fit.Blocks), the least that blocked cross-validation over ten folds can
+#: block of their own (hound_id.dyno.current.stats.Blocks), the least that blocked cross-validation over ten folds can
 #: hold out. Calibrated on test_logs::test_too_few_rows_are_refused and
 #: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read.
 MIN_ROWS = 10

@@ -19,7 +19,8 @@ from hound_id.dyno.artefacts import PLATEAU_SIGMAS, flipped_at_boundary, noise_s
 from hound_id.dyno.current.curve import peak_torque
 from hound_id.dyno.current.diagnose import auto, diagnose
 from hound_id.dyno.current.effects import Signals
-from hound_id.dyno.current.fit import bounds_of, fit_model, parameters_of
+from hound_id.dyno.current.fit import fit_model
+from hound_id.dyno.current.search import bounds_of, parameters_of
 from hound_id.dyno.logs import DynoLog, load_log, parse_mapping
 from hound_id.errors import DynoDataError, FitError
 from tests.dyno.acquire.polledrig import COLUMNS, Rig, Truth, run, write

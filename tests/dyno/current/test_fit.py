@@ -2,7 +2,8 @@ import numpy as np
 import pytest
 
 from hound_id.dyno.current.effects import Signals
-from hound_id.dyno.current.fit import FOLDS, MAX_BLOCKS, Blocks, fit_model
+from hound_id.dyno.current.fit import fit_model
+from hound_id.dyno.current.stats import FOLDS, MAX_BLOCKS, Blocks
 from hound_id.errors import FitError
 from tests.dyno.conftest import simulated
 
