@@ -282,7 +282,8 @@ def step_export(out: Path) -> StepResult:
 
 def _straight_line_gap(fit: Path | None) -> float:
     """The most a straight-line dcmotor passes the exported motor's curved region [N m, motor side]."""
-    from hound_id.mor.region import operating_region, straight_gap
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.region_report import straight_gap
     from hound_id.mor.spec import load_motor_spec
 
     spec = load_motor_spec(fit if fit is not None else samples_dir() / "motors" / "hound_ilm85.yaml")

@@ -343,7 +343,7 @@ def _print_heat(spec: Any, h: Any) -> None:
 
 
 def _print_at_speed(spec: Any, speed: Any) -> None:
-    """The drive model's and the battery's lines of ``mor --spec`` (:class:`hound_id.mor.region.AtSpeed`)."""
+    """The drive model's and the battery's lines of ``mor --spec`` (:class:`hound_id.mor.region_report.AtSpeed`)."""
     d, dc = speed.drive, speed.dc_law
     drive = spec.drive
     if drive is not None:

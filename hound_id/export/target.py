@@ -61,8 +61,8 @@ class Export:
     def straight_gap(self, motor: str) -> tuple[float, float]:
         """(over, under) [N m, motor side]: how far a straight-line DC-motor clip (Isaac Lab's DCMotor, MuJoCo's
         dcmotor) passes or falls short of the motor's region within +-overspeed
-        (:func:`hound_id.mor.region.straight_gap`; 0 for a linear curve)."""
-        from hound_id.mor.region import straight_gap
+        (:func:`hound_id.mor.region_report.straight_gap`; 0 for a linear curve)."""
+        from hound_id.mor.region_report import straight_gap
 
         spec = self.robot.motor_specs[motor]
         if id(spec) not in self._gaps:  # motors sharing a spec share its gap

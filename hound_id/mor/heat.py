@@ -21,7 +21,8 @@ from typing import Any
 from scipy.optimize import brentq
 
 from hound_id.errors import SpecError
-from hound_id.mor.region import OperatingRegion, Speeds, operating_region
+from hound_id.mor.region import OperatingRegion, operating_region
+from hound_id.mor.region_report import Speeds
 from hound_id.mor.spec import MotorSpec
 from hound_id.mor.thermal import Thermal
 

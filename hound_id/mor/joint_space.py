@@ -31,14 +31,8 @@ from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
 from hound_id.errors import RobotError
-from hound_id.mor.region import (
-    OperatingRegion,
-    halfspace_polygon,
-    largest_box,
-    measured_region,
-    motor_report,
-    operating_region,
-)
+from hound_id.mor.region import OperatingRegion, halfspace_polygon, largest_box, measured_region, operating_region
+from hound_id.mor.region_report import motor_report
 from hound_id.mor.robot import Robot
 from hound_id.mor.spec import MotorSpec
 from hound_id.mor.transmission import Transmission

@@ -19,7 +19,8 @@ if TYPE_CHECKING:
 
     from hound_id.mor.heat import Heat
     from hound_id.mor.joint_space import RobotRegions
-    from hound_id.mor.region import AtSpeed, Binding, OperatingRegion, Overpromise
+    from hound_id.mor.region import OperatingRegion
+    from hound_id.mor.region_report import AtSpeed, Binding, Overpromise
     from hound_id.mor.robot import Robot
     from hound_id.mor.saturate_log import LogSummary
     from hound_id.mor.spec import MotorSpec
@@ -41,21 +42,22 @@ class MotorRegions:
     @property
     def bindings(self) -> tuple[Binding, ...]:
         """Which limit bounds the spec sheet's region where."""
-        from hound_id.mor.region import bindings
+        from hound_id.mor.region_report import bindings
 
         return bindings(self.sheet, self.spec)
 
     @property
     def linear_kt(self) -> Overpromise:
         """What the linear-Kt region promises beyond the spec sheet's curve-limited one."""
-        from hound_id.mor.region import linear_region, overpromise
+        from hound_id.mor.region import linear_region
+        from hound_id.mor.region_report import overpromise
 
         return overpromise(linear_region(self.spec), self.sheet)
 
     @cached_property
     def at_speed(self) -> AtSpeed | None:
         """The drive model's and the battery's effect on the spec sheet's region (None under the DC law at one bus)."""
-        from hound_id.mor.region import at_speed
+        from hound_id.mor.region_report import at_speed
 
         if self.spec.drive is None and not self.spec.bus_voltage_range:
             return None
@@ -75,7 +77,7 @@ class MotorRegions:
 
     def report(self) -> dict[str, Any]:
         """The ``hound-id/mor/3`` JSON, with ``spec_sheet`` (None unless measured)."""
-        from hound_id.mor.region import motor_report
+        from hound_id.mor.region_report import motor_report
 
         data = motor_report(self.spec, self.region, self.sheet)
         data["heat"] = None if self.heat is None else self.heat.to_dict()

@@ -227,7 +227,8 @@ def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp
     and differ by at most the straight-line gap the export states, over random states across +-overspeed."""
     import mujoco
 
-    from hound_id.mor.region import operating_region, straight_gap
+    from hound_id.mor.region import operating_region
+    from hound_id.mor.region_report import straight_gap
 
     ex = prepare(ROBOT, [])
     export_robot(ex, formats_from("bundle,mujoco"), tmp_path)

@@ -15,7 +15,8 @@ from hypothesis import strategies as st
 
 from hound_id.errors import HoundIdError, SaturationError
 from hound_id.mor.drive import dq_window
-from hound_id.mor.region import at_speed, drive_region, operating_region, torque_interval
+from hound_id.mor.region import drive_region, operating_region, torque_interval
+from hound_id.mor.region_report import at_speed
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
 from hound_id.mor.spec import load_motor_spec, motor_spec_from_mapping

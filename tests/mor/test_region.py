@@ -5,14 +5,8 @@ import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
-from hound_id.mor.region import (
-    bindings,
-    halfspace_polygon,
-    linear_region,
-    operating_region,
-    overpromise,
-    torque_interval,
-)
+from hound_id.mor.region import halfspace_polygon, linear_region, operating_region, torque_interval
+from hound_id.mor.region_report import bindings, overpromise
 from hound_id.mor.spec import MotorSpec, load_motor_spec
 from tests.conftest import MOTOR, SMALL_MOTOR
 from tests.mor.curve_truth import brute_interval
@@ -291,7 +285,7 @@ def test_curved_vertices_lie_on_the_edges_and_the_cut_inside(spec):
 @settings(max_examples=40, deadline=None)
 @given(specs())
 def test_the_straight_line_gap_is_the_largest_over_a_dense_grid(spec):
-    from hound_id.mor.region import straight_gap
+    from hound_id.mor.region_report import straight_gap
     from hound_id.mor.saturation import dc_motor_clip
 
     region = operating_region(spec)
