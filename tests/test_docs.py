@@ -122,6 +122,12 @@ def test_the_manual_builds_strictly(tmp_path):
     for name in ("fit-current", "fleet", "mor", "saturate", "foot", "export", "demo", "simulate-rig", "record"):
         assert f"hound-id {name}" in cli or f"hound-id dyno {name}" in cli, name
     assert "--effects-file" in cli and "--mujoco-actuator" in cli
+    for page in (tmp_path / "site").glob("*/index.html"):
+        html = page.read_text()
+        # a list that follows a paragraph line without a blank line renders as one run-on paragraph
+        runs = [p[:80] for p in re.findall(r"<p>((?:(?!</p>).)*?)</p>", html, re.S) if re.search(r"\n[-*] \S", p)]
+        assert not runs, (page.parent.name, runs)
+        assert not re.search(r":(?:attr|class|data|exc|func|meth|mod|obj):<code", html), page.parent.name
 
 
 def test_the_readme_is_short_and_no_page_says_issue_n():

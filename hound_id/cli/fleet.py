@@ -61,8 +61,10 @@ def fleet(
     ),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fleet/2)."),
 ) -> None:
-    """Fit every log with the same model on Dask (local cores, or --scheduler), compare the actuators with the
-    fleet's median and flag the outliers with their physical reading. Exit 1 when a log failed."""
+    """Fit many actuators' logs at once and flag the outliers with their physical reading.
+
+    Every log is fitted with the same model on Dask (local cores, or --scheduler) and compared with the fleet's
+    median. Exit 1 when a log failed."""
     from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
 
     from hound_id.dyno.fleet.run import FleetOptions, write_outputs

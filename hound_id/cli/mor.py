@@ -46,8 +46,9 @@ def mor(
         False, "--json", help="Print JSON (schema hound-id/mor/3, mor-robot/1 or mor-compare/2)."
     ),
 ) -> None:
-    """Four-quadrant motor operating region (--spec) or joint-space regions and boxes (--robot); with
-    --compare LOG, the region against measured data and the effects that explain the difference."""
+    """Motor operating regions (--spec) and joint-space regions and boxes (--robot).
+
+    With --compare LOG, the region against measured data and the effects that explain the difference."""
     if bus_range is not None and (spec is None or compare is not None):
         raise HoundIdError("mor: --bus-range goes with --spec MOTOR.yaml (without --compare)")
     if compare is not None:
@@ -264,10 +265,11 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
         _print_heat(spec, run.heat)
     lk = run.linear_kt
     if lk.largest > 0:
+        linear, curved = (f"{t:.4g}" for t in lk.torque_limit)
+        limit = f"{linear} N m either way" if linear == curved else f"{linear} instead of {curved} N m"
         console.print(
             f"a linear-Kt region (tau = Kt i) would promise up to {lk.largest:.3g} N m ({lk.share:.1%}) more (largest "
-            f"at {lk.at_speed:.4g} rad/s): torque limit {lk.torque_limit[0]:.4g} instead of "
-            f"{lk.torque_limit[1]:.4g} N m, "
+            f"at {lk.at_speed:.4g} rad/s): torque limit {limit}, "
             f"corner speed {lk.corner_speed[0]:.4g} instead of {lk.corner_speed[1]:.4g} rad/s",
             highlight=False,
         )
@@ -457,8 +459,9 @@ def saturate(
     plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: each motor's commands against its region."),
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/saturate/2)."),
 ) -> None:
-    """Saturate a log of joint torque commands exactly as the method does in training. The log is
-    streamed: memory stays bounded whatever its length."""
+    """Saturate a log of joint torque commands exactly as the method does in training.
+
+    The log is streamed: memory stays bounded whatever its length."""
     from hound_id.mor.run import saturate_commands
     from hound_id.tables import SUFFIXES
 
