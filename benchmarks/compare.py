@@ -224,7 +224,7 @@ def main() -> None:
     from hound_id.dyno.logs import EnvelopeLog
     from hound_id.dyno.simulate.envelope import simulate_log, simulate_trajectory
     from hound_id.mor.envelope import EnvelopeInputs, edge, envelope
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     spec = load_motor_spec(ROOT / "data" / "samples" / "motors" / "hound_ilm85.yaml")
     inputs = EnvelopeInputs(spec)

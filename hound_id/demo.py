@@ -217,7 +217,7 @@ def step_compare(out: Path) -> StepResult:
     """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
     from hound_id.dyno.compare_envelope import CompareOptions, compare_envelope, write_outputs
     from hound_id.mor.region import measured_region, operating_region
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     options = CompareOptions(
         columns={"velocity": "speed", "current": "iq", "temperature": "winding_temp", "bus_voltage": "vbus"},
@@ -284,7 +284,7 @@ def _straight_line_gap(fit: Path | None) -> float:
     """The most a straight-line dcmotor passes the exported motor's curved region [N m, motor side]."""
     from hound_id.mor.region import operating_region
     from hound_id.mor.region_report import straight_gap
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     spec = load_motor_spec(fit if fit is not None else samples_dir() / "motors" / "hound_ilm85.yaml")
     return straight_gap(operating_region(spec))[0]

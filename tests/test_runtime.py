@@ -15,7 +15,7 @@ from hound_id.errors import SaturationError, SpecError
 from hound_id.export.bundle import apply_fits, build_bundle
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import ROBOT
 from tests.export.conftest import fitted_motor
 

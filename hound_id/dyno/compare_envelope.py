@@ -109,7 +109,7 @@ def compare_envelope(spec_path: Path, log_path: Path, options: CompareOptions = 
     from hound_id.dyno.envelope.report import verdict as verdict_of
     from hound_id.dyno.logs import load_envelope_log, parse_mapping
     from hound_id.mor.envelope import EnvelopeInputs, fitted_curve
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     plot, out, robot_path = options.plot, options.out, options.robot
     io.check_output(plot, (".png",), "plot", inputs=(spec_path, log_path, robot_path))

@@ -220,7 +220,7 @@ def fit_current(
     from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model, parse_start_model
     from hound_id.dyno.current.report import check_kt, fitted_motor, spec_checks, summarize
     from hound_id.dyno.logs import load_log, parse_windows
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     spec, plot, out = options.spec, options.plot, options.out
     if Path(data).is_dir():

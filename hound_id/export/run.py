@@ -69,7 +69,7 @@ def prepare(
 ) -> Export:
     """The robot with its fits, URDF and foot, and its bundle."""
     from hound_id.mor.robot import load_robot
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     if mujoco_actuator not in MUJOCO_ACTUATORS:
         raise SpecError(f"--mujoco-actuator: found {mujoco_actuator!r}, expected one of {', '.join(MUJOCO_ACTUATORS)}")

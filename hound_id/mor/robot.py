@@ -42,7 +42,8 @@ from numpy.typing import NDArray
 
 from hound_id.errors import HoundIdError, RobotError, TransmissionError
 from hound_id.io import TEXT_MAX_BYTES, check_input, file_stem, read_yaml
-from hound_id.mor.spec import MotorSpec, load_motor_spec
+from hound_id.mor.spec import MotorSpec
+from hound_id.mor.spec_sheet import load_motor_spec
 from hound_id.mor.transmission import Transmission, from_matrix, from_ratios, hollow_shaft
 from hound_id.units import as_number
 

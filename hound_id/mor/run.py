@@ -135,7 +135,8 @@ def motor_regions(path: str | Path, bus_range: str | None = None) -> MotorRegion
     its battery's range."""
     from hound_id.mor.joint_space import motor_region
     from hound_id.mor.region import operating_region
-    from hound_id.mor.spec import load_motor_spec, spec_warnings, with_bus_range
+    from hound_id.mor.spec import spec_warnings
+    from hound_id.mor.spec_sheet import load_motor_spec, with_bus_range
 
     spec = load_motor_spec(path)
     if bus_range is not None:

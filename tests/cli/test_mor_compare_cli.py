@@ -89,7 +89,7 @@ def test_out_is_refused_when_the_model_does_not_explain_the_log(tmp_path):
 
     from hound_id.dyno.simulate.envelope import simulate_log
     from hound_id.mor.envelope import EnvelopeInputs
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     spec = load_motor_spec(MOTOR)
     strong = dataclasses.replace(spec, bus_voltage=spec.bus_voltage * 1.08)

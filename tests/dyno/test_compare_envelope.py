@@ -9,7 +9,7 @@ from hound_id.dyno.compare_envelope import COVERAGE_FRACTION, CompareOptions, co
 from hound_id.dyno.simulate.envelope import simulate_log
 from hound_id.errors import SpecError
 from hound_id.mor.envelope import EnvelopeInputs
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import MOTOR
 
 

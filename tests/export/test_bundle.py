@@ -9,7 +9,7 @@ from hound_id.errors import SpecError
 from hound_id.export.bundle import SCHEMA, apply_fits, build_bundle, load_bundle
 from hound_id.mor.joint_space import robot_regions
 from hound_id.mor.robot import load_robot
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import ROBOT, ROOT
 
 V1 = ROOT / "tests" / "data" / "bundle_v1_hound_like.yaml"

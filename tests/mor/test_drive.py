@@ -19,7 +19,7 @@ from hound_id.mor.region import drive_region, operating_region, torque_interval
 from hound_id.mor.region_report import at_speed
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
-from hound_id.mor.spec import load_motor_spec, motor_spec_from_mapping
+from hound_id.mor.spec_sheet import load_motor_spec, motor_spec_from_mapping
 from tests.conftest import ROBOT, SAMPLES
 
 SHEET = SAMPLES / "motors" / "hound_ilm85.yaml"

@@ -23,7 +23,7 @@ import numpy as np
 import pytest
 
 from hound_id.mor.region import drive_region, torque_interval
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import SAMPLES
 from tests.export.conftest import trainer_python
 

@@ -10,7 +10,8 @@ from hound_id.errors import SpecError
 from hound_id.mor.current_curve import polynomial_curve
 from hound_id.mor.envelope import COPPER_ALPHA, EFFECTS, EnvelopeInputs, edge, effect_names, envelope, feasible
 from hound_id.mor.region import linear_region, torque_interval
-from hound_id.mor.spec import MotorSpec, load_motor_spec
+from hound_id.mor.spec import MotorSpec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import MOTOR, SMALL_MOTOR
 
 SPEC = load_motor_spec(MOTOR)

@@ -7,7 +7,8 @@ from hypothesis import strategies as st
 
 from hound_id.mor.region import halfspace_polygon, linear_region, operating_region, torque_interval
 from hound_id.mor.region_report import bindings, overpromise
-from hound_id.mor.spec import MotorSpec, load_motor_spec
+from hound_id.mor.spec import MotorSpec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import MOTOR, SMALL_MOTOR
 from tests.mor.curve_truth import brute_interval
 

@@ -572,7 +572,7 @@ def test_a_table_curve_brakes_like_its_region_past_overspeed(tmp_path, backend):
     current reaches the curve's top, and held at the top beyond: the clip equals the region everywhere."""
     from hound_id.export.bundle import build_bundle
     from hound_id.mor.region import torque_interval
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
     from hound_id.runtime import from_bundle
     from tests.export.conftest import cubic_fitted_motor
 

@@ -3,7 +3,8 @@ import math
 import pytest
 
 from hound_id.errors import SpecError, UnitError
-from hound_id.mor.spec import LINE_TO_LINE_FACTOR, load_motor_spec, motor_spec_from_mapping, spec_warnings
+from hound_id.mor.spec import LINE_TO_LINE_FACTOR, spec_warnings
+from hound_id.mor.spec_sheet import load_motor_spec, motor_spec_from_mapping
 from tests.conftest import MOTOR, SMALL_MOTOR
 
 BASE = {"name": "m", "kt": 0.1, "kv": 10.0, "resistance": 0.2, "bus_voltage": 48.0, "peak_torque": 3.0}

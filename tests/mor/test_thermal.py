@@ -19,7 +19,7 @@ from hound_id.mor.heat import continuous_point, heat, hot_spec
 from hound_id.mor.region import operating_region, torque_interval
 from hound_id.mor.robot import load_robot
 from hound_id.mor.saturation import saturation_for
-from hound_id.mor.spec import load_motor_spec, motor_spec_from_mapping
+from hound_id.mor.spec_sheet import load_motor_spec, motor_spec_from_mapping
 from hound_id.mor.thermal import COPPER, LOSS_FACTOR, REFERENCE, Thermal
 from hound_id.units import to_celsius
 from tests.conftest import MOTOR, ROBOT, run_cli

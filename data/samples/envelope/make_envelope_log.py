@@ -34,7 +34,7 @@ def main(out_dir: str | Path = HERE) -> list[Path]:
     """Write ilm85_sag_log.csv and ilm85_sag_truth.json into out_dir; return the files written."""
     from hound_id.dyno.simulate.envelope import simulate_log
     from hound_id.mor.envelope import EnvelopeInputs
-    from hound_id.mor.spec import load_motor_spec
+    from hound_id.mor.spec_sheet import load_motor_spec
 
     spec = load_motor_spec(HERE.parent / "motors" / "hound_ilm85.yaml")
     d = simulate_log(EnvelopeInputs(spec), TRUTH, n=12000, noise=0.02, seed=SEED, speed_fraction=0.95)

@@ -33,7 +33,7 @@ from hound_id.dyno.simulate.current import SimMotor, TestPlan
 from hound_id.errors import DynoDataError, OutputError, SpecError
 from hound_id.io import read_yaml
 
-#: Maximum currents a plan accepts [A]: a motor spec's max_current span (hound_id.mor.spec.PLAUSIBLE).
+#: Maximum currents a plan accepts [A]: a motor spec's max_current span (hound_id.mor.spec_sheet.PLAUSIBLE).
 MAX_CURRENT_SPAN = (1e-3, 1e4)
 SCHEMA = "hound-id/plan/1"
 #: Longest plan [s]. simulate-rig and the set-point schedule sample a plan at 1 kHz: an hour is 3.6 M rows.

@@ -59,7 +59,7 @@ def check_kt(source: str, kt: float, spec: Any = None, spec_path: str | None = N
     """Refuse a fitted Kt that only a wrong unit or column explains (one line, :class:`DynoDataError`).
 
     Without a sheet the fitted Kt must lie in the span of real motors
-    (:data:`hound_id.mor.spec.PLAUSIBLE`); with one, within :data:`UNIT_FACTOR` of the sheet's.
+    (:data:`hound_id.mor.spec_sheet.PLAUSIBLE`); with one, within :data:`UNIT_FACTOR` of the sheet's.
 
     Args:
         source: The log, for the message.
@@ -68,7 +68,7 @@ def check_kt(source: str, kt: float, spec: Any = None, spec_path: str | None = N
         spec_path: Its file, for the message.
     """
     from hound_id.errors import DynoDataError
-    from hound_id.mor.spec import PLAUSIBLE
+    from hound_id.mor.spec_sheet import PLAUSIBLE
 
     fix = (
         "give each column's unit in the header (torque[mN*m], iq[A]) or with --units torque=mN*m,current=A, "

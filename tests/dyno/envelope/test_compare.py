@@ -14,7 +14,7 @@ from hound_id.errors import DynoDataError, SpecError
 from hound_id.mor.current_curve import polynomial_curve
 from hound_id.mor.envelope import EnvelopeInputs, envelope, polyline
 from hound_id.mor.robot import load_robot
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import MOTOR, ROBOT
 
 SPEC = load_motor_spec(MOTOR)

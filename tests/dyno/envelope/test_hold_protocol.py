@@ -19,7 +19,7 @@ from hound_id.dyno.envelope.walls import command_limits
 from hound_id.dyno.logs import EnvelopeLog
 from hound_id.errors import SpecError
 from hound_id.mor.envelope import EnvelopeInputs
-from hound_id.mor.spec import load_motor_spec
+from hound_id.mor.spec_sheet import load_motor_spec
 from tests.conftest import MOTOR, run_cli
 from tests.dyno.envelope.holdrig import Dyno, Hidden, run
 
