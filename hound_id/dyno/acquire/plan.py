@@ -1,6 +1,6 @@
 """Dyno test plans: what the rig does so that every effect of the library is identifiable.
 
-A plan (schema ``hound-id/plan/1``) is the :class:`~hound_id.dyno.simulate.current.TestPlan`
+A plan (schema ``hound-id/plan/1``) is the :class:`~hound_id.dyno.simulate.schedule.TestPlan`
 parameters plus the application's maximum current, with the reason for each part:
 
 * speed plateaus of both signs (four quadrants: motoring and braking);
