@@ -22,6 +22,8 @@ TUNED = (
     "hound_id/dyno/current/diagnose.py",
     "hound_id/dyno/current/transducer.py",
     "hound_id/dyno/current/noise.py",
+    "hound_id/dyno/current/still.py",
+    "hound_id/dyno/current/neighbours.py",
     "hound_id/dyno/current/stretch.py",
     "hound_id/dyno/current/wander.py",
     "hound_id/dyno/fleet/scale.py",

@@ -304,7 +304,7 @@ def _predicted(
     """Variance of ``r`` that moments with the same inputs at least ``apart`` seconds away predict (the mean of up to
     eight such moments, each input within INPUT_TOLERANCE of its range), and r's mean square, over the rows that have
     three or more; None without inputs or when fewer than COVERED of the searched rows have them."""
-    from hound_id.dyno.current.noise import far_partners
+    from hound_id.dyno.current.neighbours import far_partners
 
     if not inputs:
         return None
