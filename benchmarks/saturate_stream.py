@@ -121,7 +121,7 @@ def case(name: str, log: Path, rows: int, out: Path | None) -> dict[str, object]
     ours = measure(command)
     summary = json.loads(str(ours.pop("stdout")))
     assert summary["rows"] == rows, summary["rows"]
-    from hound_id.tables import BATCH_ROWS, CSV_BLOCK_BYTES
+    from hound_id.table_stream import BATCH_ROWS, CSV_BLOCK_BYTES
 
     floor_out = log.with_name(f"floor_{log.stem}{log.suffix}") if out is not None else None
     floor = measure(

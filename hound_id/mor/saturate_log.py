@@ -467,7 +467,7 @@ def saturate_file(
 ) -> LogSummary:
     """Saturate a CSV or Parquet log of any length, batch by batch (``hound-id saturate``).
 
-    Memory is bounded by a batch (:data:`hound_id.tables.BATCH_ROWS` rows of Parquet or
+    Memory is bounded by a batch (:data:`hound_id.table_stream.BATCH_ROWS` rows of Parquet or
     :data:`hound_id.tables.CSV_BLOCK_BYTES` of CSV), not by the length of the log. The summary
     equals :meth:`LogSaturation.to_dict` of the whole log (bit for bit within one batch, to
     rounding beyond). Bad rows are named by their data row, counted over the whole file.
@@ -487,7 +487,7 @@ def saturate_file(
     """
     from pathlib import Path
 
-    from hound_id.tables import TableBatches, TableRetype
+    from hound_id.table_stream import TableBatches, TableRetype
 
     numeric = tuple(f"{p}_{j}" for p in ("tau", "qd") for j in robot.joints)
     copy_text = out is not None and Path(out).suffix.lower() == ".csv"  # CSV to CSV: cells copied as they are
@@ -506,7 +506,7 @@ def _saturate_batches(robot: Robot, sat: Saturation, table: Any, out: Any, plot_
     import pyarrow as pa
 
     from hound_id.errors import TableError
-    from hound_id.tables import TableSink
+    from hound_id.table_stream import TableSink
 
     source = str(table.path)
     _joint_arrays({name: [] for name in table.names}, robot.joints, source)  # missing columns, before any work
