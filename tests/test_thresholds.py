@@ -20,6 +20,8 @@ TUNED = (
     "hound_id/dyno/envelope/compare.py",
     "hound_id/dyno/envelope/report.py",
     "hound_id/dyno/current/diagnose.py",
+    "hound_id/dyno/current/flags.py",
+    "hound_id/dyno/current/trials.py",
     "hound_id/dyno/current/transducer.py",
     "hound_id/dyno/current/noise.py",
     "hound_id/dyno/current/still.py",
