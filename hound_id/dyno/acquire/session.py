@@ -11,7 +11,8 @@ from collections.abc import Callable, Sequence
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
-from hound_id.dyno.acquire.recorder import RecordResult, check_existing, check_free, check_settings, record
+from hound_id.dyno.acquire.log_file import check_existing, check_free
+from hound_id.dyno.acquire.recorder import RecordResult, check_settings, record
 from hound_id.errors import DynoDataError
 from hound_id.io import check_output
 

@@ -11,7 +11,8 @@ import pandas as pd
 import pytest
 import yaml
 
-from hound_id.dyno.acquire.recorder import CsvLog, ReadError, RetryPolicy, record, sidecar_path
+from hound_id.dyno.acquire.log_file import CsvLog, sidecar_path
+from hound_id.dyno.acquire.recorder import ReadError, RetryPolicy, record
 from hound_id.errors import DynoDataError, OutputError
 from tests.conftest import restore_sigint
 
