@@ -63,7 +63,7 @@ def recorder_rate(rig_mapping: dict, seconds: float, rate_hz: float, out: Path) 
     import pandas as pd
 
     from hound_id.dyno.acquire.recorder import record
-    from hound_id.dyno.acquire.rig import rig_from_mapping
+    from hound_id.dyno.acquire.rig_file import rig_from_mapping
     from hound_id.dyno.acquire.transport import RigReader
 
     rig = rig_from_mapping(rig_mapping, source="benchmark")

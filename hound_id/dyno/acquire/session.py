@@ -33,7 +33,7 @@ def record_rig(
     """Check the output and the settings, load the rig file, open its transports and record until ``duration``
     [s] (or Ctrl-C); the sidecar carries the rig file, its name and the transports' error counts. A log already
     at ``out`` is refused unless ``overwrite``, and then replaced only once the first sample is in."""
-    from hound_id.dyno.acquire.rig import load_rig
+    from hound_id.dyno.acquire.rig_file import load_rig
     from hound_id.dyno.acquire.transport import RigReader
 
     check_output(out, (".csv",), "log", inputs=(rig,))

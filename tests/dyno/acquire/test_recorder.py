@@ -336,7 +336,7 @@ class Hang:
 
 def record_rig(rig_file, out, *, timeout=None, after_samples=None, **kwargs):
     """Record the rig file's devices in this process; ``after_samples``: (n, event) set after n good reads."""
-    from hound_id.dyno.acquire.rig import rig_from_mapping
+    from hound_id.dyno.acquire.rig_file import rig_from_mapping
     from hound_id.dyno.acquire.transport import RigReader
 
     mapping = yaml.safe_load(rig_file.read_text())

@@ -26,12 +26,10 @@ from hound_id.dyno.acquire.rig import (
     decode,
     decode_block,
     encode,
-    load_rig,
     merge_reads,
     parse_line,
-    rig_from_mapping,
-    rig_to_mapping,
 )
+from hound_id.dyno.acquire.rig_file import load_rig, rig_from_mapping, rig_to_mapping
 from hound_id.errors import DynoDataError, SpecError
 
 EXAMPLE = """\

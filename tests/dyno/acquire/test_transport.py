@@ -7,7 +7,7 @@ import pandas as pd
 import pytest
 
 from hound_id.dyno.acquire.recorder import RetryPolicy, record
-from hound_id.dyno.acquire.rig import rig_from_mapping
+from hound_id.dyno.acquire.rig_file import rig_from_mapping
 from hound_id.dyno.acquire.simulated_rig import SimulatedRig
 from hound_id.dyno.acquire.transport import TRANSPORTS, RigReader
 

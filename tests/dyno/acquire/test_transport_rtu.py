@@ -9,7 +9,7 @@ import time
 
 import pytest
 
-from hound_id.dyno.acquire.rig import rig_from_mapping
+from hound_id.dyno.acquire.rig_file import rig_from_mapping
 from hound_id.dyno.acquire.transport import RigReader
 
 
