@@ -13,8 +13,8 @@ import typer
 from hound_id import __version__
 from hound_id.cli import demo as _demo
 from hound_id.cli import dyno as _dyno
-from hound_id.cli import dyno_rig as _dyno_rig
 from hound_id.cli import export as _export
+from hound_id.cli import fit_current as _fit_current
 from hound_id.cli import fleet as _fleet
 from hound_id.cli import foot as _foot
 from hound_id.cli import mor as _mor
@@ -30,10 +30,10 @@ app = typer.Typer(
 )
 app.command("mor", no_args_is_help=True)(_mor.mor)
 app.command("saturate", no_args_is_help=True)(_mor.saturate)
-app.command("fit-current", no_args_is_help=True)(_dyno.fit_current)
-app.command("effects")(_dyno.effects)
+app.command("fit-current", no_args_is_help=True)(_fit_current.fit_current)
+app.command("effects")(_fit_current.effects)
 app.command("fleet", no_args_is_help=True)(_fleet.fleet)
-app.add_typer(_dyno_rig.app, name="dyno")
+app.add_typer(_dyno.app, name="dyno")
 app.command("foot")(_foot.foot)
 app.command("export", no_args_is_help=True)(_export.export)
 app.command("demo")(_demo.demo)

@@ -1,238 +1,209 @@
-"""``hound-id fit-current`` and ``hound-id effects``: current-torque identification from dyno logs."""
+"""``hound-id dyno``: record a rig, serve a simulated rig, write a test plan."""
 
 from __future__ import annotations
 
+import time
 from pathlib import Path
-from typing import TYPE_CHECKING, Any, Optional
+from typing import Optional
 
 import typer
-from rich.markup import escape
 from rich.table import Table
 
 from hound_id.cli._render import console, err_console, print_json, warn
+from hound_id.errors import HoundIdError
+from hound_id.io import check_output
 
-if TYPE_CHECKING:
-    from hound_id.dyno.fit_current import FitCurrentOptions
+
+def _quiet_and_terminable() -> None:
+    """pymodbus logs through the logging module; its messages would break our one-line errors. SIGTERM (kill, a
+    shutdown) stops like Ctrl-C, so recordings end cleanly; background jobs of a script ignore SIGINT."""
+    import logging
+    import signal
+
+    logging.getLogger("pymodbus").setLevel(logging.CRITICAL)
+
+    def stop(signum: int, frame: object) -> None:
+        raise KeyboardInterrupt
+
+    signal.signal(signal.SIGTERM, stop)
 
 
-def fit_current(
-    data: Path = typer.Argument(
-        ..., metavar="DATA", help="Dyno log, CSV or Parquet (time, current, torque [, velocity, ...])."
+app = typer.Typer(
+    help="Dyno acquisition: record a rig, serve a simulated rig, write a test plan.", no_args_is_help=True
+)
+
+
+@app.command("record")
+def record_cmd(
+    rig: Path = typer.Option(..., "--rig", help="Rig YAML (devices and channels)."),
+    out: Path = typer.Option(
+        ..., "--out", help="CSV log to write (canonical columns, SI); locked while recording, one recorder per file."
     ),
-    model: str = typer.Option("linear+saturation", "--model", help="Starting model: effects joined by '+'."),
-    add: Optional[list[str]] = typer.Option(None, "--add", help="Add an effect to the model (repeatable)."),
-    auto: bool = typer.Option(False, "--auto", help="Add the top significant effect until none is left."),
-    columns: Optional[str] = typer.Option(None, "--columns", help="Map columns: torque=adc_torque,current=iq,..."),
-    units: Optional[str] = typer.Option(None, "--units", help="Units of columns: velocity=rpm,position=deg,..."),
-    flip_torque: bool = typer.Option(False, "--flip-torque", help="Negate torque (sensor mounted reversed)."),
-    auto_sign: bool = typer.Option(
-        False, "--auto-sign", help="Negate the torque when it falls as current rises (a note says which was done)."
+    duration: Optional[float] = typer.Option(
+        None, "--duration", help="Seconds to record, > 0 (default: until Ctrl-C)."
     ),
-    window: Optional[str] = typer.Option(
-        None,
-        "--window",
-        help="Fit only START:STOP seconds (data rows of a steady-state table); ends optional; several ranges "
-        "separated by commas.",
-    ),
-    robust: bool = typer.Option(False, "--robust", help="Huber-robust least squares (outliers left in the log)."),
-    whole_log: bool = typer.Option(
+    rate: float = typer.Option(500.0, "--rate", help="Sampling rate [Hz], 0.01 to 10000."),
+    flush: float = typer.Option(0.25, "--flush", help="Longest time between writes to disk [s], 0.05 to 60."),
+    overwrite: bool = typer.Option(
         False,
-        "--whole-log",
-        help="Keep the whole log as the headline even where part of it disagrees (by default the disagreeing "
-        "stretches are left out and the whole log's fit is reported beside).",
+        "--overwrite",
+        help="Replace a log already at --out, once the first sample is in (kept if none comes).",
     ),
-    effects_file: Optional[list[Path]] = typer.Option(
-        None,
-        "--effects-file",
-        help="Python file registering your own effects (repeatable). It is executed: use only files you trust.",
-    ),
-    spec: Optional[Path] = typer.Option(None, "--spec", help="Motor spec the fitted Kt and peak torque override."),
-    plot: Optional[Path] = typer.Option(None, "--plot", help="PNG: fit, 20 % point, residuals before and after."),
-    out: Optional[Path] = typer.Option(
-        None, "--out", help="Write a fitted-motor YAML (with --spec, one that 'hound-id mor --spec' reads)."
-    ),
-    json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/3)."),
+    json_out: bool = typer.Option(False, "--json", help="Print the run summary as JSON (schema hound-id/record/2)."),
 ) -> None:
-    """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
-    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
+    """Poll the rig at a fixed rate into a CSV that fit-current reads; Ctrl-C stops cleanly.
 
-    from hound_id.dyno.fit_current import fit_current as run
-    from hound_id.dyno.fit_current import write_outputs
+    Ticks the rig did not answer (refused, timed out, hung) are booked as gaps, ticks the loop was too late for
+    as missed. A full disk stops the run (status failed) with whole rows only in the file.
+    """
+    from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    options = fit_options(
-        model,
-        add,
-        auto,
-        columns,
-        units,
-        flip_torque,
-        window,
-        robust,
-        whole_log=whole_log,
-        auto_sign=auto_sign,
-        effects_files=tuple(effects_file or ()),
-        spec=spec,
-        plot=plot,
-        out=out,
-    )
-    with Progress(
-        SpinnerColumn(),
-        TextColumn("{task.description}"),
-        TimeElapsedColumn(),
-        console=err_console,
-        transient=True,
-        disable=not err_console.is_terminal,
-    ) as progress:
-        task: list[TaskID] = []
+    from hound_id.dyno.acquire.session import record_rig
 
-        def on_progress(description: str) -> None:
-            if task:
-                progress.update(task[0], description=description)
-            else:
-                task.append(progress.add_task(description))
+    _quiet_and_terminable()
+    columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
+    with Progress(*columns, console=err_console, disable=not err_console.is_terminal) as progress:
+        task = progress.add_task("recording", total=duration, info="")
 
-        result = run(data, options, on_progress=on_progress)
-    write_outputs(result)
-    # Notes and warnings are printed once the command has succeeded: an error is then the only line.
-    if not json_out:
-        for message in result.notes:
-            err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
-    for w in [*result.log_warnings, *result.warnings]:
-        warn(w)
-    report = result.report_json()
-    if json_out:
-        report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
-        print_json(report)
-        return
-    _print(report, result.fit, result.diagnosis, result.ladder, plot, out)
-
-
-def fit_options(
-    model: str,
-    add: list[str] | None,
-    auto: bool,
-    columns: str | None,
-    units: str | None,
-    flip_torque: bool,
-    window: str | None,
-    robust: bool,
-    **extra: Any,
-) -> FitCurrentOptions:
-    """The fit's options as ``fit-current`` and ``fleet`` take them on the command line."""
-    from hound_id.dyno.fit_current import FitCurrentOptions
-
-    return FitCurrentOptions(
-        model=model,
-        add=tuple(add or ()),
-        auto=auto,
-        columns=columns,
-        units=units,
-        flip_torque=flip_torque,
-        window=window,
-        robust=robust,
-        **extra,
-    )
-
-
-def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
-    """' >= 0', ' <= 0' or '' for a parameter's physical bound."""
-    lower, upper = p.get("lower"), p.get("upper")
-    if lower is not None and upper is not None:
-        return f" in [{lower:g}, {upper:g}]"
-    if lower is not None:
-        return f" >= {lower:g}"
-    if upper is not None:
-        return f" <= {upper:g}"
-    return ""
-
-
-def _table(report: dict) -> bool:  # type: ignore[type-arg]
-    """Whether the log is a steady-state table (no time column)."""
-    return any(c["kind"] == "steady_state" for c in report["cleaning"])
-
-
-def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
-    rows = report["rows"]
-    console.print(
-        f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, {rows['fitted']} rows in "
-        f"{rows['blocks']} {'blocks of rows' if _table(report) else 'time blocks'}; cross-validated over "
-        f"{rows['folds']} folds (each held out once)",
-        highlight=False,
-    )
-    table = Table(title="parameters", title_justify="left")
-    for col in ("parameter", "value", "std. error", "unit", "effect"):
-        table.add_column(col, justify="right" if col in ("value", "std. error") else "left")
-    for name, est in fit.parameters.items():
-        err = "" if est.stderr != est.stderr else f"{est.stderr:.2g}"
-        if est.at_bound:
-            err = "at bound"
-        table.add_row(name, f"{est.value:.5g}", err, est.unit, est.effect)
-    console.print(table)
-    console.print(
-        f"RMSE fit {fit.rmse_train:.4g} N m, cross-validated {fit.rmse_test:.4g} N m; "
-        f"noise floor {diagnosis.noise_floor:.3g} N m; AIC {fit.aic:.6g}, BIC {fit.bic:.6g}",
-        highlight=False,
-    )
-    if diagnosis.noise is not None:
-        console.print(diagnosis.noise.sentence(), highlight=False, markup=False)
-    pk = report["peak_torque"]
-    console.print(pk["note"], highlight=False)
-    exact, comp = report["compensation"], report["compensation_polynomial"]
-    if exact:
-        console.print(
-            f"current compensation: the exact inverse of the fitted curve, {exact['method']}"
-            + (f" (table error {exact['max_error']:.2g} A)" if exact["max_error"] else ""),
-            highlight=False,
-        )
-    if comp:
-        terms = " + ".join(f"{c:.4g} tau^{p}" for p, c in zip(comp["powers"], comp["coefficients"], strict=True))
-        console.print(
-            f"  or, for a driver that takes an odd polynomial: i(tau) = {terms} [A] (off the exact inverse by up "
-            f"to {comp['max_error']:.2g} A over |tau| <= {comp['torque_range']:.3g} N m, its slope at zero torque "
-            f"by {comp.get('slope_error', 0.0):+.1%})",
-            highlight=False,
-        )
-    if ladder is not None:
-        lt = Table(title="--auto ladder", title_justify="left")
-        for col in ("step", "added", "cross-validated RMSE [N m]", "fit RMSE [N m]", "BIC"):
-            lt.add_column(col, justify="left" if col in ("step", "added") else "right")
-        for k, step in enumerate(ladder):
-            lt.add_row(
-                str(k),
-                step.added or "(start)",
-                f"{step.fit.rmse_test:.4g}",
-                f"{step.fit.rmse_train:.4g}",
-                f"{step.fit.bic:.6g}",
+        def on_progress(r) -> None:  # type: ignore[no-untyped-def]
+            progress.update(
+                task,
+                completed=r.duration if duration else None,
+                info=f"{r.samples} samples, {r.achieved_rate:.0f} Hz, {r.missed} missed, {r.failed} in gaps",
             )
-        console.print(lt)
-    st = Table(title="missing effects, best first (cross-validated residual explained)", title_justify="left")
-    for col in ("effect", "explained", "significant", "evidence"):
-        st.add_column(col, justify="right" if col == "explained" else "left", overflow="fold")
-    for s in diagnosis.suggestions:
-        st.add_row(s.effect, f"{s.explained:.2%}", "yes" if s.significant else "no", escape(s.reason))
-    console.print(st)
-    if diagnosis.skipped:
-        console.print(f"not tried: {'; '.join(diagnosis.skipped)}", highlight=False)
-    # the report's summary: the diagnosis's, and that it holds for the rest of the log when the headline left out
-    # stretches that follow another law
-    console.print(f"[bold]{escape(report['summary'])}[/bold]", highlight=False)
-    for path, what in ((plot, "plot"), (out, "fitted motor")):
-        if path is not None:
-            console.print(f"{what} written to {path}", highlight=False)
 
-
-def effects(json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/effects/1).")) -> None:
-    """List the effects library: names, physics, parameters and units."""
-    from hound_id.dyno.current.effects import describe
-
-    items = describe()
+        result = record_rig(
+            rig,
+            out,
+            rate_hz=rate,
+            duration=duration,
+            flush_interval=flush,
+            overwrite=overwrite,
+            on_progress=on_progress,
+        )
+    meta = dict(result.metadata)  # what the sidecar says
     if json_out:
-        print_json({"schema": "hound-id/effects/1", "effects": items})
+        print_json(meta)
+    else:
+        table = Table(title=f"recorded {out}", title_justify="left")
+        table.add_column("quantity")
+        table.add_column("value", justify="right")
+        for key in (
+            "status",
+            "samples",
+            "rate_requested",
+            "rate_achieved",
+            "missed_ticks",
+            "failed_ticks",
+            "longest_interval",
+            "duration",
+        ):
+            value = meta[key]
+            table.add_row(key.replace("_", " "), f"{value:.4g}" if isinstance(value, float) else str(value))
+        console.print(table)
+        for gap in meta["gaps"][:10] if result.status != "failed" else ():  # a failed run: its one line (gaps in JSON)
+            warn(f"gap {gap['start']:.3f}-{gap['end']:.3f} s ({gap['ticks']} ticks): {gap['reason']}")
+        if not result.kept_existing:
+            console.print(f"metadata in {result.sidecar}", highlight=False)
+    if result.status == "failed":
+        held = "" if result.kept_existing else " (the file holds what was recorded)"
+        raise HoundIdError(f"{out}: recording stopped: {result.message}{held}")
+
+
+@app.command("simulate-rig")
+def simulate_rig_cmd(
+    effects: str = typer.Option("linear,saturation", "--effects", help="Hidden effects, comma-separated."),
+    seed: int = typer.Option(0, "--seed", help="Random seed of the simulated log."),
+    plan: Optional[Path] = typer.Option(None, "--plan", help="Test plan YAML (hound-id dyno plan)."),
+    port: int = typer.Option(5020, "--port", help="Modbus TCP port on 127.0.0.1 (0: any free port)."),
+    rig_out: Path = typer.Option(Path("sim-rig.yaml"), "--rig-out", help="Where to write the rig file."),
+    speedup: float = typer.Option(
+        1.0, "--speedup", help="Play the plan this many times faster than real time (0.001 to 1000)."
+    ),
+    serial: bool = typer.Option(True, "--serial/--no-serial", help="Also stream lines on a pseudo-terminal."),
+    duration: Optional[float] = typer.Option(
+        None, "--duration", help="Serve for this long [s], > 0 (default: until Ctrl-C)."
+    ),
+) -> None:
+    """Serve a simulated motor and torque transducer over Modbus TCP (and a serial pty) on 127.0.0.1."""
+    from hound_id.dyno.acquire.session import serve_simulated_rig
+
+    names = tuple(e.strip() for e in effects.split(",") if e.strip())
+    _quiet_and_terminable()
+    sim = serve_simulated_rig(
+        names, rig_out, seed=seed, plan=plan, port=port, speedup=speedup, serial=serial, duration=duration
+    )
+    try:
+        host, bound = sim.address
+        console.print(
+            f"simulated rig: Modbus TCP on {host}:{bound} (transducer unit 1, drive unit 2)"
+            + (f", serial lines on {sim.serial_port}" if sim.serial_port else ""),
+            highlight=False,
+        )
+        console.print(
+            f"rig file: {rig_out}; hidden effects: {', '.join(names)}; seed {seed}; "
+            f"plan {sim.period:.0f} s at speedup {speedup:g}. Ctrl-C stops.",
+            highlight=False,
+        )
+        end = None if duration is None else time.monotonic() + duration
+        while end is None or time.monotonic() < end:
+            time.sleep(0.1)
+    except KeyboardInterrupt:
+        pass
+    finally:
+        sim.stop()
+
+
+@app.command("plan")
+def plan_cmd(
+    max_current: float = typer.Option(..., "--max-current", help="The application's maximum current [A]."),
+    out: Path = typer.Option(Path("plan.yaml"), "--out", help="Plan YAML to write."),
+    speeds: Optional[str] = typer.Option(None, "--speeds", help="Plateau speeds [rad/s], comma-separated."),
+    levels: Optional[int] = typer.Option(None, "--levels", help="Current step levels per sign (>= 1)."),
+    overdrive: Optional[float] = typer.Option(None, "--overdrive", help="Top level / max current (> 1; 1.3)."),
+    plateau: Optional[float] = typer.Option(None, "--plateau", help="Current excitation per plateau [s] (> 0)."),
+    pause: Optional[float] = typer.Option(None, "--pause", help="Zero-current pause after each plateau [s] (>= 0)."),
+    hold: Optional[float] = typer.Option(None, "--hold", help="Hold at max current to heat the winding [s] (>= 0)."),
+    transition: Optional[float] = typer.Option(None, "--transition", help="Speed change between plateaus [s] (> 0)."),
+    rise: Optional[float] = typer.Option(
+        None, "--rise", help="Duration of each current edge [s] (> 0, shorter than a step; 0.001)."
+    ),
+    schedule_out: Optional[Path] = typer.Option(None, "--schedule", help="Also write the set-points as CSV."),
+    json_out: bool = typer.Option(False, "--json", help="Print the plan as JSON (schema hound-id/plan/1)."),
+) -> None:
+    """Write a test plan under which every effect of the fit-current library is identifiable.
+
+    The plan lasts at most an hour. The YAML and the --schedule table are written all or nothing.
+    """
+    from hound_id.dyno.acquire.plan import make_plan, write_plan
+
+    check_output(out, (".yaml", ".yml"), "plan")
+    check_output(schedule_out, (".csv", ".parquet"), "schedule")
+    speed_list = None
+    if speeds is not None:
+        try:
+            speed_list = [float(w) for w in speeds.split(",")]
+        except ValueError as err:
+            raise HoundIdError(f"--speeds: found {speeds!r}, expected numbers in rad/s such as -40,-2,2,40") from err
+    plan = make_plan(
+        max_current,
+        speeds=speed_list,
+        levels=levels,
+        overdrive=overdrive,
+        plateau=plateau,
+        pause=pause,
+        hold=hold,
+        transition=transition,
+        rise=rise,
+    )
+    data = write_plan(plan, max_current, out, schedule_out)
+    if json_out:
+        print_json(data)
         return
-    table = Table(title="effects (use with --model / --add)", title_justify="left")
-    for col in ("effect", "parameters", "needs", "physics"):
-        table.add_column(col, overflow="fold")
-    for e in items:
-        params = ", ".join(f"{p['name']} [{p['unit']}]{_bound_text(p)}" for p in (*e["parameters"], *e["hypers"]))
-        table.add_row(*(escape(x) for x in (e["effect"], params, ", ".join(e["requires"]) or "-", e["physics"])))
-    console.print(table)
+    console.print(
+        f"plan written to {out}: {len(plan.speeds)} plateaus, {plan.duration:.0f} s, currents up to "
+        f"{plan.overdrive * max_current:.3g} A, edges of {plan.current_rise_time:g} s",
+        highlight=False,
+    )
+    for key, why in data["why"].items():
+        console.print(f"  {key}: {why}", highlight=False)

@@ -11,7 +11,7 @@ from rich.markup import escape
 from rich.table import Table
 
 from hound_id.cli._render import console, err_console, print_json, warn
-from hound_id.cli.dyno import fit_options
+from hound_id.cli.fit_current import fit_options
 
 if TYPE_CHECKING:
     from hound_id.dyno.fleet.analyse import ActuatorFit, FleetReport
