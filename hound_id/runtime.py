@@ -32,6 +32,7 @@ import json
 import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from typing import Any
 
@@ -117,10 +118,10 @@ class Runtime:
         values = (self.clip.A_inv, self.clip.A, *(self.friction[name] for name, _, _ in parameters()))
         return self._like("constants", values, like)
 
-    @property
+    @cached_property
     def load_friction(self) -> tuple[str, ...]:
         """Motors whose friction grows with their load (a fitted ``gear_friction``): :meth:`friction_torque` needs
-        the joint torques for them."""
+        the joint torques for them. Found once (the friction arrays are read-only), not on every step."""
         loaded = [t for t in TERMS.values() if t.needs_load]
         return tuple(
             m

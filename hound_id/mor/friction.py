@@ -75,7 +75,16 @@ def parameters() -> tuple[tuple[str, str, float], ...]:
 
 
 _MOTOR_SIDE = {"bundle": "friction (hound_id.runtime.Runtime.friction_torque)"}
-_TENDON = {"mujoco": "tendon frictionloss", "mjlab": "tendon frictionloss", "newton": "tendon frictionloss"}
+
+
+def _tendons_and_urdfs(tendon: str, urdf: str) -> dict[str, str]:
+    """The homes of a term on the motor tendons (MuJoCo and the trainers built on its MJCF) and in the URDFs' joint
+    ``<dynamics>``."""
+    return {
+        **{fmt: f"tendon {tendon}" for fmt in ("mujoco", "mjlab", "newton")},
+        **{fmt: f"dynamics {urdf}" for fmt in ("urdf", "urdf-open")},
+    }
+
 
 #: The friction terms, sorted by name.
 TERMS: dict[str, FrictionTerm] = {
@@ -90,10 +99,8 @@ TERMS: dict[str, FrictionTerm] = {
                 lambda p, w, sgn, load, exp: -p["coulomb"] * sgn,
                 {
                     **_MOTOR_SIDE,
-                    **_TENDON,
+                    **_tendons_and_urdfs("frictionloss", "friction"),
                     "isaaclab": "dynamic_friction (and friction, the static)",
-                    "urdf": "dynamics friction",
-                    "urdf-open": "dynamics friction",
                 },
             ),
             FrictionTerm(
@@ -120,15 +127,7 @@ TERMS: dict[str, FrictionTerm] = {
                 (("viscous", "N m s/rad", 0.0),),
                 "drag in proportion to speed",
                 lambda p, w, sgn, load, exp: -p["viscous"] * w,
-                {
-                    **_MOTOR_SIDE,
-                    "isaaclab": "viscous_friction",
-                    "mujoco": "tendon damping",
-                    "mjlab": "tendon damping",
-                    "newton": "tendon damping",
-                    "urdf": "dynamics damping",
-                    "urdf-open": "dynamics damping",
-                },
+                {**_MOTOR_SIDE, **_tendons_and_urdfs("damping", "damping"), "isaaclab": "viscous_friction"},
                 size=lambda p, i, w: abs(p["viscous"]) * w,
             ),
         ),
