@@ -254,23 +254,22 @@ def step_compare(out: Path) -> StepResult:
 def step_export(out: Path) -> StepResult:
     """Export every format of the sample robot with the fitted motor and the new foot; run the MuJoCo model."""
     from hound_id.export.mujoco import rollout_check
-    from hound_id.export.run import ExportOptions, run_export
+    from hound_id.export.run import ExportOptions, run_export, write_outputs
 
     fit, foot = out / "hound_ilm85_fitted.yaml", out / "foot" / "foot.json"
     options = ExportOptions("all", (fit,) if fit.is_file() else (), foot if foot.is_file() else None)
-    report = run_export(samples_dir() / "robots" / "hound_like.yaml", out / "export", options)
+    result = run_export(samples_dir() / "robots" / "hound_like.yaml", out / "export", options)
+    write_outputs(result)
     stats = rollout_check(out / "export" / "hound_like.xml", out / "export" / "hound_like_bundle.yaml", seconds=1.0)
     stats["straight_line_gap"] = _straight_line_gap(fit if fit.is_file() else None)
     # formats share files (Isaac Lab, Genesis and Newton read the bundle JSON): each file once
-    files = tuple(
-        dict.fromkeys(str(Path(f).relative_to(out)) for part in report["formats"].values() for f in part["files"])
-    )
-    io.write_json(out / "export" / "export.json", report | {"mujoco_check": stats})
+    files = tuple(dict.fromkeys(str(Path(f).relative_to(out)) for name in result.formats for f in result.files(name)))
+    io.write_json(out / "export" / "export.json", result.to_json() | {"mujoco_check": stats})
     return StepResult(
         "export to trainers",
-        f"{', '.join(report['formats'])} for {report['robot']} "
-        f"(fitted: {', '.join(report['fitted_motors']) or 'none'}, "
-        f"foot: {'optimised' if report['foot'] else 'original'}); MuJoCo ran {stats['steps']} steps with "
+        f"{', '.join(result.formats)} for {result.robot} "
+        f"(fitted: {', '.join(result.fitted_motors) or 'none'}, "
+        f"foot: {'optimised' if result.foot else 'original'}); MuJoCo ran {stats['steps']} steps with "
         f"{stats['clipped_fraction']:.0%} of the commands past the region: realised motor torques within "
         f"{stats['max_difference']:.2g} N m of hound_id.runtime, {stats['max_outside']:.2g} N m outside the region "
         f"(dcmotor's straight voltage lines against the curved edges: up to {stats['straight_line_gap']:.2g} N m; "

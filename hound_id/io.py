@@ -401,9 +401,14 @@ def write_png(fig: Any, path: str | os.PathLike[str], dpi: int = 120) -> None:
     write_with(path, lambda handle: fig.savefig(handle, format="png", dpi=dpi))
 
 
+def json_text(data: Any) -> str:
+    """``data`` as the indented JSON every hound-id file holds."""
+    return json.dumps(data, indent=2) + "\n"
+
+
 def write_json(path: str | os.PathLike[str], data: Any) -> None:
     """Write ``data`` as indented JSON atomically."""
-    write_text(path, json.dumps(data, indent=2) + "\n")
+    write_text(path, json_text(data))
 
 
 class DuplicateKeyError(yaml.YAMLError):

@@ -32,16 +32,17 @@ def export(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/export/1)."),
 ) -> None:
     """Export what hound-id identified to the formats trainers read."""
-    from hound_id.export.run import ExportOptions, run_export
+    from hound_id.export.run import ExportOptions, run_export, write_outputs
 
-    report = run_export(robot, out, ExportOptions(fmt, tuple(fit or ()), foot, urdf, mujoco_actuator))
+    result = run_export(robot, out, ExportOptions(fmt, tuple(fit or ()), foot, urdf, mujoco_actuator))
+    write_outputs(result)
     if json_out:
-        print_json(report)
+        print_json(result.to_json())
         return
-    console.print(f"[bold]hound-id export[/bold] {report['robot']}: {len(report['joints'])} joints", highlight=False)
-    if report["fitted_motors"]:
-        console.print(f"fitted motors: {', '.join(report['fitted_motors'])}", highlight=False)
-    for name, part in report["formats"].items():
-        console.print(f"[bold]{name}[/bold]: {', '.join(part['files'])}", highlight=False)
-        for note in part["notes"]:
+    console.print(f"[bold]hound-id export[/bold] {result.robot}: {len(result.joints)} joints", highlight=False)
+    if result.fitted_motors:
+        console.print(f"fitted motors: {', '.join(result.fitted_motors)}", highlight=False)
+    for name, part in result.formats.items():
+        console.print(f"[bold]{name}[/bold]: {', '.join(result.files(name))}", highlight=False)
+        for note in part.notes:
             console.print(f"  - {note}", highlight=False, soft_wrap=False)

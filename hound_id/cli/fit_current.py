@@ -12,6 +12,7 @@ from rich.table import Table
 from hound_id.cli._render import console, err_console, print_json, warn
 
 if TYPE_CHECKING:
+    from hound_id.dyno.current.fit_report import FitReport
     from hound_id.dyno.fit_current import FitCurrentOptions
 
 
@@ -99,12 +100,10 @@ def fit_current(
             err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
     for w in [*result.log_warnings, *result.warnings]:
         warn(w)
-    report = result.report_json()
     if json_out:
-        report.update(plot=str(plot) if plot else None, out=str(out) if out else None)
-        print_json(report)
+        print_json(result.report_json() | {"plot": str(plot) if plot else None, "out": str(out) if out else None})
         return
-    _print(report, result.fit, result.diagnosis, result.ladder, plot, out)
+    _print(result.report, result.fit, result.diagnosis, result.ladder, plot, out)
 
 
 def fit_options(
@@ -146,17 +145,17 @@ def _bound_text(p: dict) -> str:  # type: ignore[type-arg]
     return ""
 
 
-def _table(report: dict) -> bool:  # type: ignore[type-arg]
+def _table(report: FitReport) -> bool:
     """Whether the log is a steady-state table (no time column)."""
-    return any(c["kind"] == "steady_state" for c in report["cleaning"])
+    return any(c.kind == "steady_state" for c in report.cleaning)
 
 
-def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
-    rows = report["rows"]
+def _print(report: FitReport, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[no-untyped-def]
+    rows = report.rows
     console.print(
-        f"[bold]{report['source']}[/bold]: model {'+'.join(fit.model)}, {rows['fitted']} rows in "
-        f"{rows['blocks']} {'blocks of rows' if _table(report) else 'time blocks'}; cross-validated over "
-        f"{rows['folds']} folds (each held out once)",
+        f"[bold]{report.source}[/bold]: model {'+'.join(fit.model)}, {rows.fitted} rows in "
+        f"{rows.blocks} {'blocks of rows' if _table(report) else 'time blocks'}; cross-validated over "
+        f"{rows.folds} folds (each held out once)",
         highlight=False,
     )
     table = Table(title="parameters", title_justify="left")
@@ -175,21 +174,20 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
     )
     if diagnosis.noise is not None:
         console.print(diagnosis.noise.sentence(), highlight=False, markup=False)
-    pk = report["peak_torque"]
-    console.print(pk["note"], highlight=False)
-    exact, comp = report["compensation"], report["compensation_polynomial"]
-    if exact:
+    console.print(report.peak.note, highlight=False)
+    if report.curve is not None:
+        exact = report.curve.compensation()
         console.print(
             f"current compensation: the exact inverse of the fitted curve, {exact['method']}"
             + (f" (table error {exact['max_error']:.2g} A)" if exact["max_error"] else ""),
             highlight=False,
         )
-    if comp:
-        terms = " + ".join(f"{c:.4g} tau^{p}" for p, c in zip(comp["powers"], comp["coefficients"], strict=True))
+    if (comp := report.polynomial) is not None:
+        terms = " + ".join(f"{c:.4g} tau^{p}" for p, c in zip(comp.powers, comp.coefficients, strict=True))
         console.print(
             f"  or, for a driver that takes an odd polynomial: i(tau) = {terms} [A] (off the exact inverse by up "
-            f"to {comp['max_error']:.2g} A over |tau| <= {comp['torque_range']:.3g} N m, its slope at zero torque "
-            f"by {comp.get('slope_error', 0.0):+.1%})",
+            f"to {comp.max_error:.2g} A over |tau| <= {comp.torque_range:.3g} N m, its slope at zero torque "
+            f"by {comp.slope_error:+.1%})",
             highlight=False,
         )
     if ladder is not None:
@@ -215,7 +213,7 @@ def _print(report, fit, diagnosis, ladder, plot, out) -> None:  # type: ignore[n
         console.print(f"not tried: {'; '.join(diagnosis.skipped)}", highlight=False)
     # the report's summary: the diagnosis's, and that it holds for the rest of the log when the headline left out
     # stretches that follow another law
-    console.print(f"[bold]{escape(report['summary'])}[/bold]", highlight=False)
+    console.print(f"[bold]{escape(report.summary)}[/bold]", highlight=False)
     for path, what in ((plot, "plot"), (out, "fitted motor")):
         if path is not None:
             console.print(f"{what} written to {path}", highlight=False)

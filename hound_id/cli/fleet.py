@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 from typing import TYPE_CHECKING, Any, Optional
 
@@ -127,25 +128,12 @@ def _log_line(fit: ActuatorFit) -> str:
         first = (fit.error or "").splitlines()[0] if fit.error else "failed"
         return f"FAILED {fit.name}: {first}"
     r = fit.report
-    kt = r["parameters"]["kt"]
-    err = f" +- {kt['stderr']:.2g}" if kt.get("stderr") is not None else ""
-    verdict = "at the noise floor" if r["at_noise_floor"] else "not at the noise floor"
-    sign = ", torque negated" if any(c["kind"] == "flipped_torque" for c in r["cleaning"]) else ""
-    left = f", {len(r['left_out'])} stretch(es) left out" if r.get("left_out") else ""
-    return f"ok     {fit.name}: Kt {kt['value']:.5g}{err} N m/A{sign}{left}, {verdict} ({fit.seconds:.2f} s)"
-
-
-#: Short column names of the table (the CSV and JSON use the metric keys).
-SHORT = {
-    "kt": "Kt",
-    "peak_torque": "peak",
-    "coulomb": "Coul.",
-    "viscous": "visc.",
-    "stribeck": "static",
-    "gear_friction": "gear",
-    "cogging_amplitude": "cog.",
-    "noise_floor": "noise",
-}
+    kt = r.parameters["kt"]
+    err = "" if math.isnan(kt.stderr) else f" +- {kt.stderr:.2g}"
+    verdict = "at the noise floor" if r.at_noise_floor else "not at the noise floor"
+    sign = ", torque negated" if any(c.kind == "flipped_torque" for c in r.cleaning) else ""
+    left = f", {len(r.headline.left_out)} stretch(es) left out" if r.headline is not None else ""
+    return f"ok     {fit.name}: Kt {kt.value:.5g}{err} N m/A{sign}{left}, {verdict} ({fit.seconds:.2f} s)"
 
 
 def _deviation(value: float | None, median: float | None) -> str:
@@ -171,7 +159,7 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
     )
     table.add_column("actuator", overflow="fold", min_width=8, max_width=28)
     for s in stats:
-        table.add_column(SHORT.get(s.metric.key, s.metric.key), justify="right")
+        table.add_column(s.metric.short, justify="right")
     orders = any(o is not None for o in report.cogging_order.values())
     if orders:
         table.add_column("order", justify="right")
@@ -190,7 +178,7 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         order_text = "-" if order is None else f"{order:g}"
         if orders:
             cells.append(f"[bold red]{order_text}[/bold red]" if "cogging_order" in mine else order_text)
-        verdict = "floor" if a.report["at_noise_floor"] else "missing"
+        verdict = "floor" if a.report.at_noise_floor else "missing"
         table.add_row(escape(a.name), *cells, f"[bold red]{verdict}[/bold red]" if "verdict" in mine else verdict)
     console.print(table)
     fleet = Table(title=f"the fleet (model {'+'.join(report.model)})", title_justify="left", box=box.SIMPLE_HEAD)

@@ -11,7 +11,7 @@ and ``hound-id demo`` call these two and only render.
 from __future__ import annotations
 
 from collections.abc import Callable, Mapping
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
 
@@ -25,6 +25,7 @@ if TYPE_CHECKING:
     from hound_id.dyno.current.diagnose import Diagnosis, Step
     from hound_id.dyno.current.effects import Signals
     from hound_id.dyno.current.fit import FitResult
+    from hound_id.dyno.current.fit_report import FitReport, Headline
     from hound_id.dyno.current.stretch import Stretch
     from hound_id.dyno.logs import DynoLog
 
@@ -140,8 +141,8 @@ class FitCurrentResult:
     """Peak torque of the final fit."""
     compensation: Compensation
     """Current compensation of the final fit."""
-    report: dict[str, Any]
-    """The versioned report (schema ``hound-id/fit/2``), without the warnings (see :meth:`report_json`)."""
+    report: FitReport
+    """What the fit found, typed; its ``warnings`` are :attr:`warnings` (JSON: :meth:`report_json`)."""
     notes: tuple[str, ...]
     """Cleaning notes that are information (units, format, window)."""
     log_warnings: tuple[str, ...]
@@ -158,8 +159,8 @@ class FitCurrentResult:
     """The stretches of the whole log the headline leaves out, each read from its channels (rows of the whole log)."""
 
     def report_json(self) -> dict[str, Any]:
-        """The report with its ``warnings`` (what ``--json`` prints before ``plot`` and ``out``)."""
-        return {**self.report, "warnings": list(self.warnings)}
+        """The ``hound-id/fit/3`` report with its ``warnings`` (what ``--json`` prints before ``plot`` and ``out``)."""
+        return self.report.to_json()
 
     def draw(self) -> Figure:
         """The plot: the fit, its 20 % point and the residual panels of :attr:`figure`."""
@@ -186,17 +187,17 @@ def _mapping(value: str | Mapping[str, str] | None, option: str) -> dict[str, st
     return dict(value)
 
 
-def fit_warnings(report: Mapping[str, Any]) -> list[str]:
+def fit_warnings(report: FitReport) -> list[str]:
     """Warnings every user must see: parameters held at a physical bound, disagreeing blocks."""
     out = []
-    for name, wanted in report["unphysical"].items():
-        est = report["parameters"][name]
+    for name, wanted in report.unphysical.items():
+        est = report.parameters[name]
         out.append(
-            f"{name} is held at its physical bound {est['value']:.4g} {est['unit']}: the unconstrained fit wants "
-            f"{wanted:.4g} {est['unit']}, which is not physical; the model lacks what the log shows there, or the "
+            f"{name} is held at its physical bound {est.value:.4g} {est.unit}: the unconstrained fit wants "
+            f"{wanted:.4g} {est.unit}, which is not physical; the model lacks what the log shows there, or the "
             f"log cannot separate {name} from another term"
         )
-    out += report["flags"]
+    out += report.flags
     return out
 
 
@@ -281,15 +282,14 @@ def fit_current(
         time=signals.time if signals.timed else None,
         reply_range=log.current_range if any(_cuts_reply(n) for n in log.notes) else None,
     )
-    report["current_range"] = log.current_range
+    report = replace(report, current_range=log.current_range)
     if left_out:
-        report["headline"], report["whole_log"] = _headline_report(whole, left_out, option)
-        report["left_out"] = [s.to_dict(whole.signals) for s in left_out]
-        report["summary"] = _headline_summary(whole, left_out, report["summary"])
+        headline = _headline_of(whole, left_out, option)
+        report = replace(report, headline=headline, summary=_headline_summary(whole, left_out, report.summary))
     warnings = fit_warnings(report)
-    if left_out:
-        warnings.insert(0, report["headline"]["sentence"])
-    check_kt(str(data), report["parameters"]["kt"]["value"], sheet, str(spec))
+    if report.headline is not None:
+        warnings.insert(0, report.headline.sentence)
+    check_kt(str(data), report.kt, sheet, str(spec))
     if sheet is not None:
         warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
     motor = None
@@ -298,7 +298,7 @@ def fit_current(
         if "extrapolated" in motor:
             warnings.append(
                 f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
-                f"(|i| <= {report['peak_torque']['max_measured_current']:.3g} A); written with "
+                f"(|i| <= {report.peak.max_measured_current:.3g} A); written with "
                 "'extrapolated: [peak_torque]'"
             )
         if not diagnosis.at_noise_floor:
@@ -318,7 +318,7 @@ def fit_current(
         ladder=ladder,
         peak=peak,
         compensation=comp,
-        report=report,
+        report=replace(report, warnings=tuple(warnings)),
         notes=notes,
         log_warnings=log_warnings,
         warnings=tuple(warnings),
@@ -552,11 +552,10 @@ def _headline_summary(whole: Fitted, left_out: tuple[Stretch, ...], summary: str
     )
 
 
-def _headline_report(
-    whole: Fitted, left_out: tuple[Stretch, ...], option: str | None
-) -> tuple[dict[str, Any], dict[str, Any]]:
-    """The report's ``headline`` (what was left out and why, the option that repeats it, a sentence) and
-    ``whole_log`` (the whole log's fit)."""
+def _headline_of(whole: Fitted, left_out: tuple[Stretch, ...], option: str | None) -> Headline:
+    """What the headline leaves out and why, the option that repeats it, a sentence, and the whole log's fit."""
+    from hound_id.dyno.current.fit_report import Headline, LeftOut, WholeLog
+
     signals = whole.signals
     kt = whole.fit.parameters.get("kt")
     kt_text = f"Kt = {kt.value:.4g} +- {kt.stderr:.2g} N m/A" if kt is not None else "no Kt"
@@ -567,17 +566,25 @@ def _headline_report(
         f"gives {kt_text} with a cross-validated error of {whole.fit.rmse_test:.3g} N m (pass --whole-log to make "
         "it the headline)"
     )
-    headline = {"option": option, "sentence": sentence}
-    whole_log = {
-        "model": list(whole.fit.model),
-        "parameters": {name: est.to_dict() for name, est in whole.fit.parameters.items()},
-        "rmse_test": whole.fit.rmse_test,
-        "noise_floor": whole.diagnosis.noise_floor,
-        "at_noise_floor": whole.diagnosis.at_noise_floor,
-        "flags": list(whole.diagnosis.flags),
-        "summary": whole.diagnosis.summary(),
-    }
-    return headline, whole_log
+    whole_log = WholeLog(
+        model=tuple(whole.fit.model),
+        parameters=dict(whole.fit.parameters),
+        rmse_test=whole.fit.rmse_test,
+        noise_floor=whole.diagnosis.noise_floor,
+        at_noise_floor=whole.diagnosis.at_noise_floor,
+        flags=tuple(whole.diagnosis.flags),
+        summary=whole.diagnosis.summary(),
+    )
+    spans = tuple(
+        LeftOut(
+            rows=(s.start, s.stop - 1),
+            kind=s.kind,
+            reading=s.reading,
+            time=(float(signals.time[s.start]), float(signals.time[s.stop - 1])) if signals.timed else None,
+        )
+        for s in left_out
+    )
+    return Headline(option=option, sentence=sentence, whole_log=whole_log, left_out=spans)
 
 
 def _figure(

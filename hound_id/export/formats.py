@@ -1,11 +1,13 @@
 """Export formats: the registry (:data:`FORMATS`), the bundle and the Isaac Lab actuator fields; the URDF, MuJoCo,
-mjlab and Newton writers live in their own modules.
+mjlab and Newton formats live in their own modules.
 
-Every writer takes an :class:`~hound_id.export.target.Export` (the robot with its fits, its bundle
-and its URDF) and a folder, writes its files atomically and returns what it wrote with a short
-report (:class:`~hound_id.export.target.Written`). They are registered in :data:`FORMATS` (sorted by
-name); ``hound-id export --format NAME`` runs one. A new format is one module importing
-:mod:`hound_id.export.target` (as :mod:`hound_id.export.mujoco` does) plus one line in :data:`FORMATS`.
+Every format is a function taking an :class:`~hound_id.export.target.Export` (the robot with its fits, its
+bundle and its URDF) and the folder its files will be written to (relative mesh paths are computed from it); it
+writes nothing and returns its files' text by name with what the user should know
+(:class:`~hound_id.export.target.Written`); :func:`hound_id.export.run.write_outputs` writes every format's files
+at once. They are registered in :data:`FORMATS` (sorted by name); ``hound-id export --format NAME`` runs one. A
+new format is one module importing :mod:`hound_id.export.target` (as :mod:`hound_id.export.mujoco` does) plus one
+line in :data:`FORMATS`.
 
 Joint-side numbers of an uncoupled joint with gear ratio G (motor turns per joint turn):
 torque G tau_m, speed omega_m / G, rotor inertia J G^2, Coulomb friction G f_c, viscous G^2 b.
@@ -22,26 +24,23 @@ from typing import Any
 
 import numpy as np
 
-from hound_id import io
 from hound_id.export.bundle import BundleMotor
-from hound_id.export.mjlab import write_mjlab
-from hound_id.export.mujoco import write_mujoco
-from hound_id.export.newton import write_newton
-from hound_id.export.target import Export, Written, group_inertia
-from hound_id.export.urdf import write_urdf, write_urdf_open
+from hound_id.export.mjlab import mjlab_files
+from hound_id.export.mujoco import mujoco_files
+from hound_id.export.newton import newton_files
+from hound_id.export.target import Export, Written, bundle_json, group_inertia
+from hound_id.export.urdf import urdf_files, urdf_open_files
 
 ISAACLAB_SCHEMA = "hound-id/isaaclab/2"
 
 
-def write_bundle(ex: Export, out: Path) -> Written:
+def bundle_files(ex: Export, out: Path) -> Written:
     """``<robot>_bundle.yaml`` and the same content as ``<robot>_bundle.json``."""
     import yaml
 
-    y, j = out / f"{ex.stem}_bundle.yaml", out / f"{ex.stem}_bundle.json"
     content = ex.bundle.to_dict()
-    io.write_text(y, yaml.safe_dump(content, sort_keys=False))
-    io.write_json(j, content)
-    return Written((str(y), str(j)), ("load it in a trainer with hound_id.runtime.load",))
+    files = dict([(f"{ex.stem}_bundle.yaml", yaml.safe_dump(content, sort_keys=False)), bundle_json(ex)])
+    return Written(files, ("load it in a trainer with hound_id.runtime.load",))
 
 
 def isaaclab_fields(ex: Export) -> dict[str, Any]:
@@ -186,13 +185,12 @@ def _over_promise(motor: BundleMotor) -> float:
     return worst
 
 
-def write_isaaclab(ex: Export, out: Path) -> Written:
+def isaaclab_files(ex: Export, out: Path) -> Written:
     """``<robot>_isaaclab.yaml``: :func:`isaaclab_fields`."""
     import yaml
 
     data = isaaclab_fields(ex)
-    path = out / f"{ex.stem}_isaaclab.yaml"
-    io.write_text(path, yaml.safe_dump(data, sort_keys=False))
+    files = {f"{ex.stem}_isaaclab.yaml": yaml.safe_dump(data, sort_keys=False)}
     coupled = [j for j, v in data["joints"].items() if v["coupled"]]
     straight = [j for j, v in data["joints"].items() if not v["coupled"] and v.get("use")]
     notes: tuple[str, ...] = (f"{len(coupled)} coupled joints point to hound_id.runtime",) if coupled else ()
@@ -213,16 +211,16 @@ def write_isaaclab(ex: Export, out: Path) -> Written:
             f"to {g['dropped_off_diagonal']:.4g} kg m^2 ({g['dropped_relative']:.1%} of sqrt(M_ii M_jj)), the rotors' "
             f"kinetic energy then errs by up to {g['kinetic_energy_error']:.1%} (reflected_inertia_group)",
         )
-    return Written((str(path),), (*notes, *ex.friction_not_held("isaaclab")))
+    return Written(files, (*notes, *ex.friction_not_held("isaaclab")))
 
 
 #: Every format, by name (sorted).
 FORMATS: dict[str, Callable[[Export, Path], Written]] = {
-    "bundle": write_bundle,
-    "isaaclab": write_isaaclab,
-    "mjlab": write_mjlab,  # imports mujoco when it runs
-    "mujoco": write_mujoco,  # imports mujoco when it runs
-    "newton": write_newton,
-    "urdf": write_urdf,
-    "urdf-open": write_urdf_open,
+    "bundle": bundle_files,
+    "isaaclab": isaaclab_files,
+    "mjlab": mjlab_files,  # imports mujoco when it runs
+    "mujoco": mujoco_files,  # imports mujoco when it runs
+    "newton": newton_files,
+    "urdf": urdf_files,
+    "urdf-open": urdf_open_files,
 }

@@ -27,9 +27,9 @@ from typing import Any
 
 import numpy as np
 
-from hound_id import __version__, io
+from hound_id import __version__
 from hound_id.export.mujoco import full_precision, mujoco_spec, stand_qpos
-from hound_id.export.target import Export, Written
+from hound_id.export.target import Export, Written, bundle_json
 
 #: mjlab release the generated module is written for and tested with.
 MJLAB_VERSION = "1.6.0"
@@ -290,7 +290,7 @@ def stand_pose(ex: Export, model: Any) -> tuple[dict[str, float], float]:
     return joints, float(qpos[2])
 
 
-def write_mjlab(ex: Export, out: Path) -> Written:
+def mjlab_files(ex: Export, out: Path) -> Written:
     """``<robot>_mjlab.xml`` (tendons, no actuators), ``<robot>_mjlab.py`` (the actuator configs) and
     ``<robot>_bundle.json`` (for ``hound_id.runtime``)."""
     import mujoco
@@ -300,12 +300,10 @@ def write_mjlab(ex: Export, out: Path) -> Written:
     model = spec.compile()
     xml = full_precision(spec.to_xml(), ex)
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
-    xml_path, module, bundle = out / f"{stem}_mjlab.xml", out / f"{stem}_mjlab.py", out / f"{stem}_bundle.json"
-    io.write_text(xml_path, xml)
-    text = mjlab_module(ex, xml_path.name, bundle.name, stand_pose(ex, model))
-    compile(text, str(module), "exec")  # what is written parses
-    io.write_text(module, text)
-    io.write_json(bundle, ex.bundle.to_dict())
+    (xml_name, module), (bundle, content) = (f"{stem}_mjlab.xml", f"{stem}_mjlab.py"), bundle_json(ex)
+    text = mjlab_module(ex, xml_name, bundle, stand_pose(ex, model))
+    compile(text, str(out / module), "exec")  # what is written parses
+    files = {xml_name: xml, module: text, bundle: content}
     n_coupled = sum(coupled_motors(ex))
     notes: tuple[Any, ...] = (
         f"{n_coupled} coupled motors are voltage-input dcmotors on tendons: send hound_id.runtime's voltage(tau, qd) "
@@ -313,4 +311,4 @@ def write_mjlab(ex: Export, out: Path) -> Written:
         "clip)",
         *not_held(ex, "dcmotor", "mjlab"),
     )
-    return Written((str(xml_path), str(module), str(bundle)), notes)
+    return Written(files, notes)

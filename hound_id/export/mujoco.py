@@ -34,7 +34,6 @@ from typing import Any
 
 import numpy as np
 
-from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.target import Export, Written, put_feet
 
@@ -169,7 +168,7 @@ def stand_qpos(model: Any) -> Any:
     return qpos
 
 
-def write_mujoco(ex: Export, out: Path) -> Written:
+def mujoco_files(ex: Export, out: Path) -> Written:
     """``<robot>.xml``: the MJCF, compiled once here and again from the written text."""
     import mujoco
 
@@ -177,8 +176,7 @@ def write_mujoco(ex: Export, out: Path) -> Written:
     spec.compile()
     xml = full_precision(spec.to_xml(), ex)
     mujoco.MjModel.from_xml_string(xml)  # what is written loads
-    path = out / f"{ex.stem}.xml"
-    io.write_text(path, xml)
+    files = {f"{ex.stem}.xml": xml}
     curved = [m.name for m in ex.bundle.motors if m.envelope]
     notes: tuple[str, ...] = ()
     if curved and ex.mujoco_actuator.startswith("dcmotor"):
@@ -215,14 +213,14 @@ def write_mujoco(ex: Export, out: Path) -> Written:
         )
     lost = ex.friction_not_held("mujoco")
     if notes:
-        return Written((str(path),), (*DIFFERENCES, *notes, *lost))
+        return Written(files, (*DIFFERENCES, *notes, *lost))
     if ex.mujoco_actuator == "motor":
         notes = (
             "plain <motor> actuators on the tendons, force-limited to the torque limit only: call "
             "hound_id.runtime.load(bundle).saturate(tau, qd) every step and send sat.motor_torque(tau) as ctrl",
         )
-        return Written((str(path),), (*notes, *lost))
-    return Written((str(path),), (*DIFFERENCES, *lost))
+        return Written(files, (*notes, *lost))
+    return Written(files, (*DIFFERENCES, *lost))
 
 
 def _repr(values: Any) -> str:

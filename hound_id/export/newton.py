@@ -16,9 +16,9 @@ from pathlib import Path
 
 import numpy as np
 
-from hound_id import __version__, io
+from hound_id import __version__
 from hound_id.export.mjlab import not_held
-from hound_id.export.target import Export, Written
+from hound_id.export.target import Export, Written, bundle_json
 from hound_id.export.urdf import limited_urdf
 
 #: Newton release the generated module is written for and tested with.
@@ -141,16 +141,14 @@ def newton_module(ex: Export, urdf_name: str, bundle_name: str) -> str:
     )
 
 
-def write_newton(ex: Export, out: Path) -> Written:
+def newton_files(ex: Export, out: Path) -> Written:
     """``<robot>_newton.urdf`` (open limits, no joint friction, the optimised foot), ``<robot>_newton.py`` (the
     tendons and dcmotors) and ``<robot>_bundle.json`` (for ``hound_id.runtime``)."""
     stem = ex.stem
-    urdf, module, bundle = out / f"{stem}_newton.urdf", out / f"{stem}_newton.py", out / f"{stem}_bundle.json"
-    io.write_text(urdf, limited_urdf(ex, out, limits="open", friction=False))
-    text = newton_module(ex, urdf.name, bundle.name)
-    compile(text, str(module), "exec")  # what is written parses
-    io.write_text(module, text)
-    io.write_json(bundle, ex.bundle.to_dict())
+    (urdf, module), (bundle, content) = (f"{stem}_newton.urdf", f"{stem}_newton.py"), bundle_json(ex)
+    text = newton_module(ex, urdf, bundle)
+    compile(text, str(out / module), "exec")  # what is written parses
+    files = {urdf: limited_urdf(ex, out, limits="open", friction=False), module: text, bundle: content}
     notes = (
         "a fixed tendon and a voltage-input dcmotor per motor (add_actuators(builder) after add_urdf): send "
         "hound_id.runtime's voltage(tau, qd) as control.mujoco.ctrl",
@@ -158,4 +156,4 @@ def write_newton(ex: Export, out: Path) -> Written:
         "tendons do",
         *not_held(ex, "voltage", "newton"),
     )
-    return Written((str(urdf), str(module), str(bundle)), notes)
+    return Written(files, notes)

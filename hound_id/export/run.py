@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -11,7 +11,7 @@ from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.bundle import apply_fits, build_bundle, foot_from_json
 from hound_id.export.formats import FORMATS
-from hound_id.export.target import Export
+from hound_id.export.target import Export, Written
 
 SCHEMA = "hound-id/export/1"
 
@@ -32,9 +32,9 @@ class ExportOptions:
     """``dcmotor`` (the region in MuJoCo) or ``motor`` (saturate with the runtime)."""
 
 
-def run_export(robot_path: Path, out: Path, options: ExportOptions = ExportOptions()) -> dict[str, Any]:
+def run_export(robot_path: Path, out: Path, options: ExportOptions = ExportOptions()) -> ExportResult:
     """``hound-id export``: check the options and ``out`` before any work, load the robot with its fits, URDF and
-    foot, write the formats into ``out`` (all or nothing); the ``hound-id/export/1`` report."""
+    foot, and build every format's files for ``out`` (:func:`write_outputs` writes them)."""
     names = formats_from(options.formats)
     io.check_folder(out)
     ex = prepare(robot_path, options.fits, options.foot, options.urdf, options.mujoco_actuator)
@@ -99,21 +99,51 @@ def _spec_files(robot_path: str | None) -> list[Path]:
     return [base / rel for rel in (files or {}).values() if isinstance(rel, str)] if isinstance(files, dict) else []
 
 
-def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any]:
-    """Write the formats into ``out`` (created if missing); the ``hound-id/export/1`` report.
+@dataclass(frozen=True)
+class ExportResult:
+    """What ``hound-id export`` produced, not yet written: every format's files and notes, for one folder."""
 
-    Every file is written into a temporary folder beside ``out`` first and moved in only when
-    all formats succeeded, so a failing format leaves ``out`` as it was.
-    """
+    robot: str
+    """The robot's name."""
+    out: Path
+    """The folder the files go to (:func:`write_outputs`)."""
+    formats: Mapping[str, Written]
+    """Format name -> its files' text and notes, in the order asked for."""
+    fitted_motors: tuple[str, ...]
+    """The motor specs a fit replaced (sorted)."""
+    foot: bool
+    """Whether the optimised foot is on the robot."""
+    joints: tuple[str, ...]
+    """The bundle's joints, in its order."""
+    inputs: tuple[str, ...]
+    """The files the export read (robot, fits, foot, URDF, the robot's spec sheets): never written over."""
+
+    def files(self, name: str) -> list[str]:
+        """The paths format ``name`` writes, in ``out``."""
+        return [str(self.out / f) for f in self.formats[name].files]
+
+    def to_json(self) -> dict[str, Any]:
+        """The ``hound-id/export/1`` report: each format's files (their paths in ``out``) and notes."""
+        return {
+            "schema": SCHEMA,
+            "robot": self.robot,
+            "formats": {n: {"files": self.files(n), "notes": list(w.notes)} for n, w in self.formats.items()},
+            "fitted_motors": list(self.fitted_motors),
+            "foot": self.foot,
+            "joints": list(self.joints),
+        }
+
+
+def export_robot(ex: Export, formats: Sequence[str], out: Path) -> ExportResult:
+    """Every format's files for the folder ``out``, and their notes; nothing is written (:func:`write_outputs`)."""
     if out.exists() and not out.is_dir():
         raise SpecError(f"--out {out}: is a file; give a folder")
     if any(f in URDF_FORMATS for f in formats):
-        ex.urdf()  # fail before writing anything
+        ex.urdf()  # fail before any format's work
     sources = ex.bundle.sources
     inputs = [sources.get("robot"), *(sources.get("fits") or ()), sources.get("foot"), ex.robot.urdf]
     inputs += _spec_files(sources.get("robot"))
-    with io.staged_folder(out, inputs=inputs) as staging:
-        written = {name: FORMATS[name](ex, staging) for name in formats}
+    written = {name: FORMATS[name](ex, out) for name in formats}
     unlisted = ex.unlisted_joints() if any(f in URDF_FORMATS for f in formats) else []
     if unlisted:  # the robot file covers part of the URDF: say what the rest gets
         note = (
@@ -122,18 +152,24 @@ def export_robot(ex: Export, formats: Sequence[str], out: Path) -> dict[str, Any
             "robot file to export them"
         )
         written = {n: (replace(w, notes=(*w.notes, note)) if n in URDF_FORMATS else w) for n, w in written.items()}
-    fitted = sorted({m.spec for m in ex.bundle.motors if m.fitted})
+    return ExportResult(
+        robot=ex.robot.name,
+        out=out,
+        formats=written,
+        fitted_motors=tuple(sorted({m.spec for m in ex.bundle.motors if m.fitted})),
+        foot=ex.bundle.foot is not None,
+        joints=tuple(ex.bundle.joints),
+        inputs=tuple(str(f) for f in inputs if f is not None),
+    )
 
-    def final(path: str) -> str:
-        return str(out / Path(path).name)
 
-    return {
-        "schema": SCHEMA,
-        "robot": ex.robot.name,
-        "formats": {
-            name: {"files": [final(f) for f in w.files], "notes": list(w.notes)} for name, w in written.items()
-        },
-        "fitted_motors": fitted,
-        "foot": ex.bundle.foot is not None,
-        "joints": list(ex.bundle.joints),
-    }
+def write_outputs(result: ExportResult) -> None:
+    """Write every format's files into ``result.out`` (created if missing), all or nothing: they are written into a
+    temporary folder beside it and moved in together, never over one of the export's inputs. Formats that share a
+    file (the bundle JSON of bundle, mjlab and Newton) write it once."""
+    files: dict[str, str] = {}
+    for written in result.formats.values():
+        files.update(written.files)
+    with io.staged_folder(result.out, inputs=result.inputs) as staging:
+        for name, text in files.items():
+            io.write_text(staging / name, text)

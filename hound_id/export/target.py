@@ -1,8 +1,9 @@
 """What every export format is written from and returns: :class:`Export`, :class:`Written`, and the
 helpers more than one format uses (:func:`put_feet`).
 
-A format is one module with a writer ``write_x(ex: Export, out: Path) -> Written`` that imports this
-module, plus one line in :data:`hound_id.export.formats.FORMATS`. Formats built on another's model import it
+A format is one module with a function ``x_files(ex: Export, out: Path) -> Written`` (its files' text by name;
+``out`` is where they will be written, for relative paths) that imports this module, plus one line in
+:data:`hound_id.export.formats.FORMATS`. Formats built on another's model import it
 (mjlab builds on :mod:`hound_id.export.mujoco`'s MJCF, Newton on :mod:`hound_id.export.urdf`'s open URDF); the
 registry imports every format, so no format imports the registry.
 """
@@ -149,10 +150,18 @@ class Export:
 
 @dataclass(frozen=True)
 class Written:
-    """Files a writer produced, and what the user should know."""
+    """What a format produced: its files' text, not yet written, and what the user should know."""
 
-    files: tuple[str, ...]
+    files: Mapping[str, str]
+    """File name (in the export folder) -> its text."""
     notes: tuple[str, ...] = ()
+    """What the format cannot hold, and how a trainer gets it instead."""
+
+
+def bundle_json(ex: Export) -> tuple[str, str]:
+    """(``<robot>_bundle.json``, its text): the bundle as JSON, which the bundle, mjlab and Newton formats all carry
+    (the same file when written together)."""
+    return f"{ex.stem}_bundle.json", io.json_text(ex.bundle.to_dict())
 
 
 def put_feet(root: ET.Element, foot: Mapping[str, Any], path: Path) -> None:

@@ -10,7 +10,6 @@ from typing import Any
 
 import numpy as np
 
-from hound_id import io
 from hound_id.errors import SpecError
 from hound_id.export.target import Export, Written, group_inertia, put_feet
 
@@ -103,17 +102,16 @@ def limited_urdf(ex: Export, out_dir: Path | None, limits: str = "inner", fricti
     return '<?xml version="1.0"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def write_urdf(ex: Export, out: Path) -> Written:
+def urdf_files(ex: Export, out: Path) -> Written:
     """``<robot>_limits.urdf``: :func:`limited_urdf`."""
-    path = out / f"{ex.stem}_limits.urdf"
-    io.write_text(path, limited_urdf(ex, out))
+    files = {f"{ex.stem}_limits.urdf": limited_urdf(ex, out)}
     notes = [
         "effort/velocity limits are the inner boxes, feasible at every point at the battery's lowest bus voltage where "
         "the specs state a range (else the nominal) and at 20 degC (a warm winding: apply hound_id.runtime with its "
         "temperature); coupled joints get the group's box",
         *ex.friction_not_held("urdf"),
     ]
-    return Written((str(path),), tuple(notes))
+    return Written(files, tuple(notes))
 
 
 #: Why the open URDF's limits are what they are (its first comment).
@@ -125,13 +123,12 @@ OPEN_REASON = (
 )
 
 
-def write_urdf_open(ex: Export, out: Path) -> Written:
+def urdf_open_files(ex: Export, out: Path) -> Written:
     """``<robot>_open_limits.urdf`` (:func:`limited_urdf` with open limits) and ``<robot>_armature.yaml``: per joint
     the reflected rotor inertia, with each coupled group's full matrix and what a per-joint armature drops."""
     import yaml
 
-    urdf = out / f"{ex.stem}_open_limits.urdf"
-    io.write_text(urdf, limited_urdf(ex, out, limits="open"))
+    urdf = limited_urdf(ex, out, limits="open")
     reflected = ex.bundle.reflected_inertia
     sidecar: dict[str, Any] = {
         "schema": ARMATURE_SCHEMA,
@@ -152,12 +149,11 @@ def write_urdf_open(ex: Export, out: Path) -> Written:
                 sidecar["groups"].append(group_inertia(M[np.ix_(idx, idx)], list(tx["joints"])))
     else:
         sidecar["reason"] += "; a motor's rotor inertia is unknown, so none is given"
-    side = out / f"{ex.stem}_armature.yaml"
-    io.write_text(side, yaml.safe_dump(sidecar, sort_keys=False))
+    files = {f"{ex.stem}_open_limits.urdf": urdf, f"{ex.stem}_armature.yaml": yaml.safe_dump(sidecar, sort_keys=False)}
     notes = (
         f"effort/velocity limits are open (what the runtime returns up to {OPEN_REACH:g} x overspeed): apply "
         "hound_id.runtime's saturation each step",
         "armature (reflected rotor inertia) in the sidecar; URDF has no field for it",
         *ex.friction_not_held("urdf-open"),
     )
-    return Written((str(urdf), str(side)), notes)
+    return Written(files, notes)

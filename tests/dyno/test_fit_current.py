@@ -6,6 +6,7 @@ import yaml
 from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
 from hound_id.dyno.simulate.current import simulate
 from hound_id.errors import FitError, HoundIdError
+from tests.conftest import SAMPLES
 
 HIDDEN = ("linear", "saturation", "coulomb")
 
@@ -27,8 +28,8 @@ def test_auto_finds_the_hidden_effect_and_the_true_kt(seeded):
     kt = result.fit.parameters["kt"]
     assert abs(kt.value - truth["kt"]) < 5 * kt.stderr + 1e-3 * truth["kt"]
     assert result.diagnosis.at_noise_floor
-    assert result.report["parameters"]["kt"]["value"] == kt.value
-    assert list(result.report_json())[-1] == "warnings" and "warnings" not in result.report
+    assert result.report.kt == kt.value and result.report.warnings == result.warnings
+    assert list(result.report_json())[-1] == "warnings"
     assert result.motor is None and result.figure is None  # neither --out nor --plot asked for
 
 
@@ -94,8 +95,8 @@ def test_a_stretch_that_holds_the_highest_currents_stays_in_the_headline(tmp_pat
     """Left out, the stretch that reaches 12 A would leave a headline of currents up to 5 A and a curve extrapolated
     beyond them; it stays in, flagged, and the whole log is the headline."""
     result = fit_current(_two_regimes(tmp_path / "top.csv", 50.0), FitCurrentOptions(auto=True))
-    assert "headline" not in result.report, result.report.get("headline")
-    assert any(f.startswith("blocks") for f in result.report["flags"]), result.report["flags"]
+    assert result.report.headline is None, result.report.headline
+    assert any(f.startswith("blocks") for f in result.report.flags), result.report.flags
 
 
 def test_a_flagged_stretch_within_the_current_range_is_left_out_of_the_headline(tmp_path):
@@ -109,7 +110,7 @@ def test_a_flagged_stretch_within_the_current_range_is_left_out_of_the_headline(
     rows[:, 2] = np.where(rows[:, 0] >= 50.0, 0.7 * rows[:, 1], rows[:, 2])
     np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
     result = fit_current(path, FitCurrentOptions(auto=True))
-    report = result.report
+    report = result.report_json()
     assert report["left_out"] and all(s["time"][0] >= 49.0 for s in report["left_out"]), report.get("left_out")
     assert result.fit.value("kt") == pytest.approx(0.9, rel=0.01)
     assert report["whole_log"]["parameters"]["kt"]["value"] < 0.89 and "--whole-log" in report["headline"]["sentence"]
@@ -131,7 +132,8 @@ def test_a_stretch_that_holds_most_of_the_high_currents_stays_in_the_headline(tm
     rows[:, 2] = np.where(one, 0.9 * rows[:, 1], rows[:, 2])
     np.savetxt(path, rows, delimiter=",", header="time,current,torque,velocity", comments="", fmt="%.5f")
     result = fit_current(path, FitCurrentOptions(auto=True))
-    assert not any(s["time"][0] >= 39.0 for s in result.report.get("left_out", [])), result.report.get("left_out")
+    left_out = result.report_json().get("left_out", [])
+    assert not any(s["time"][0] >= 39.0 for s in left_out), left_out
 
 
 def test_the_printed_verdict_says_the_headline_left_a_stretch_out(tmp_path):
@@ -178,3 +180,26 @@ def test_a_wandering_torque_is_named_in_the_printed_verdict_and_the_json(tmp_pat
     w = report["wander"]
     assert w["kind"] == "slow" or w["floor_is_wander"]
     assert 0.2 < w["slow_rms"] < 0.4 and w["units"]["slow_rms"] == "N m"
+
+
+def test_the_report_is_typed_pickles_small_and_relabels_every_text(tmp_path):
+    """The fleet's workers return the typed report: it pickles back to the same JSON, carries no log arrays (a few
+    kB, not the log's size), and a relabelled report names the log as the user gave it everywhere."""
+    import json
+    import pickle
+    import shutil
+
+    from hound_id.dyno.current.fit_report import FitReport
+
+    local = tmp_path / "worker_copy.csv"
+    shutil.copy(SAMPLES / "fleet" / "FL_hip.csv", local)
+    result = fit_current(local, FitCurrentOptions(auto=True))
+    report = result.report
+    assert isinstance(report, FitReport)
+    blob = pickle.dumps(report)
+    assert pickle.loads(blob).to_json() == report.to_json() == result.report_json()
+    assert len(blob) < 0.1 * local.stat().st_size
+    moved = report.relabel(str(local), "FL_hip.csv")
+    text = json.dumps(moved.to_json())
+    assert str(local) in json.dumps(report.to_json()) and str(local) not in text and "FL_hip.csv" in text
+    assert moved.to_json()["parameters"] == report.to_json()["parameters"] and moved.kt == report.kt

@@ -735,13 +735,13 @@ def test_clean_small_tables_keep_every_row(n):
         i = rng.uniform(-20, 20, n)
         frame = pd.DataFrame({"current": i, "torque": 0.138 * i + rng.normal(0, 0.02, n)})
         result = fit_current_frame(frame, FitCurrentOptions())
-        assert "headline" not in result.report and result.report["rows"]["fitted"] == n
-        kt = result.report["parameters"]["kt"]
-        kts.append(abs(kt["value"] - 0.138) / kt["stderr"])
+        assert result.report.headline is None and result.report.rows.fitted == n
+        kt = result.report.parameters["kt"]
+        kts.append(abs(kt.value - 0.138) / kt.stderr)
     assert max(kts) < 4.5
     exact = pd.DataFrame({"current": np.round(np.linspace(-10.0, 10.0, n)), "torque": 0.0})
     exact["torque"] = 0.5 * exact["current"]
-    report = fit_current_frame(exact, FitCurrentOptions()).report
+    report = fit_current_frame(exact, FitCurrentOptions()).report_json()
     assert report["noise"]["method"] != "quantisation" and not any("worse on its own" in f for f in report["flags"])
     del fit_current
 

@@ -108,3 +108,13 @@ fit:
 """
     )
     return path
+
+
+def write_export(ex, formats, out: Path) -> dict:
+    """What ``hound-id export`` does with a prepared export: build the formats' files for ``out``, write them; the
+    ``hound-id/export/1`` report."""
+    from hound_id.export.run import export_robot, write_outputs
+
+    result = export_robot(ex, formats, out)
+    write_outputs(result)
+    return result.to_json()

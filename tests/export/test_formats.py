@@ -7,10 +7,10 @@ import pytest
 
 import hound_id.runtime
 from hound_id.errors import SpecError
-from hound_id.export.run import export_robot, formats_from, prepare
+from hound_id.export.run import formats_from, prepare
 from hound_id.mor.saturation import dc_motor_clip
 from tests.conftest import MOTOR, ROBOT
-from tests.export.conftest import fitted_motor
+from tests.export.conftest import fitted_motor, write_export
 
 
 @pytest.fixture(scope="module")
@@ -19,7 +19,7 @@ def exported(tmp_path_factory):
 
     folder = tmp_path_factory.mktemp("export")
     ex = prepare(ROBOT, [fitted_motor(folder)])
-    report = export_robot(ex, formats_from("all"), folder / "out")
+    report = write_export(ex, formats_from("all"), folder / "out")
     return ex, report, folder / "out"
 
 
@@ -60,7 +60,7 @@ def test_mujoco_dcmotor_realises_the_operating_region(exported, tmp_path, actuat
 
     ex, report, out = exported
     if actuator != "dcmotor":
-        export_robot(replace(ex, mujoco_actuator=actuator), ["mujoco"], tmp_path)
+        write_export(replace(ex, mujoco_actuator=actuator), ["mujoco"], tmp_path)
     xml = (out if actuator == "dcmotor" else tmp_path) / "hound_like.xml"
     assert ('input="ff"' in xml.read_text()) == (actuator == "dcmotor-ff")
     assert 'input="voltage"' not in xml.read_text()  # the default: MuJoCo 3.x refuses the keyword
@@ -97,7 +97,7 @@ def test_mujoco_motor_fallback_with_the_runtime_each_step(exported, tmp_path):
     ex, _, out = exported
     from dataclasses import replace
 
-    export_robot(replace(ex, mujoco_actuator="motor"), ["mujoco"], tmp_path)
+    write_export(replace(ex, mujoco_actuator="motor"), ["mujoco"], tmp_path)
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "hound_like.xml"))
     sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
     worst = []
@@ -136,7 +136,7 @@ def test_isaaclab_fields_reproduce_the_clip_on_uncoupled_joints(exported, tmp_pa
     if not fitted:  # the spec sheet's 20 % point: a saturating curve
         ex = prepare(ROBOT, [])
         out = tmp_path / "out"
-        export_robot(ex, formats_from("bundle,isaaclab"), out)
+        write_export(ex, formats_from("bundle,isaaclab"), out)
     fields = yaml.safe_load((out / "hound_like_isaaclab.yaml").read_text())
     assert fields["schema"] == "hound-id/isaaclab/2"
     sat = hound_id.runtime.load(out / "hound_like_bundle.yaml")
@@ -198,7 +198,7 @@ def test_formats_that_need_the_urdf_say_so(tmp_path, write_yaml):
     robot = write_yaml("r.yaml", text.replace("../motors/", str(ROBOT.parent.parent / "motors") + "/"))
     ex = prepare(robot)
     with pytest.raises(SpecError, match="needs the robot's URDF; add 'urdf: my_robot.urdf'"):
-        export_robot(ex, ["bundle", "mujoco"], tmp_path / "out")
+        write_export(ex, ["bundle", "mujoco"], tmp_path / "out")
     assert not (tmp_path / "out").exists()
     with pytest.raises(SpecError, match="--format: found 'mjcf'"):
         formats_from("mjcf")
@@ -213,11 +213,11 @@ def test_a_failing_format_leaves_the_output_folder_as_it_was(exported, tmp_path)
     from dataclasses import replace
 
     with pytest.raises(SpecError, match="RR_KFE"):
-        export_robot(replace(ex, robot=replace(ex.robot, urdf=str(broken))), formats_from("all"), out)
+        write_export(replace(ex, robot=replace(ex.robot, urdf=str(broken))), formats_from("all"), out)
     assert {p.name: p.read_bytes() for p in out.iterdir()} == before
     assert [p.name for p in out.parent.iterdir() if p.name.startswith(".")] == []  # no staging folder left
     with pytest.raises(SpecError):
-        export_robot(replace(ex, robot=replace(ex.robot, urdf=str(broken))), ["bundle", "urdf"], tmp_path / "new")
+        write_export(replace(ex, robot=replace(ex.robot, urdf=str(broken))), ["bundle", "urdf"], tmp_path / "new")
     assert not (tmp_path / "new").exists()
 
 
@@ -231,7 +231,7 @@ def test_the_voltage_input_of_a_curved_motor_is_within_its_straight_line_gap(tmp
     from hound_id.mor.region_report import straight_gap
 
     ex = prepare(ROBOT, [])
-    export_robot(ex, formats_from("bundle,mujoco"), tmp_path)
+    write_export(ex, formats_from("bundle,mujoco"), tmp_path)
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "hound_like.xml"))
     data = mujoco.MjData(model)
     sat = hound_id.runtime.load(tmp_path / "hound_like_bundle.yaml")
@@ -269,7 +269,7 @@ def test_mujoco_to_twice_the_no_load_speed_within_the_stated_braking(tmp_path, f
     from hound_id.mor.region import operating_region
 
     ex = prepare(ROBOT, [fitted_motor(tmp_path)] if fits == "linear_fit" else [])
-    report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
+    report = write_export(ex, formats_from("bundle,mujoco"), tmp_path / "out")
     model = mujoco.MjModel.from_xml_path(str(tmp_path / "out" / "hound_like.xml"))
     data = mujoco.MjData(model)
     sat = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.yaml")
@@ -307,7 +307,7 @@ def test_the_open_urdf_never_fights_the_runtime_and_the_armature_is_a_sidecar(tm
     from hound_id.mor.region import operating_region
 
     ex = prepare(ROBOT, [])
-    report = export_robot(ex, formats_from("bundle,urdf-open"), tmp_path)
+    report = write_export(ex, formats_from("bundle,urdf-open"), tmp_path)
     assert any("open" in n for n in report["formats"]["urdf-open"]["notes"])
     urdf = tmp_path / "hound_like_open_limits.urdf"
     assert "never fight hound_id.runtime" in urdf.read_text()
@@ -345,7 +345,7 @@ def test_isaaclab_friction_split_static_kinetic_viscous_and_mjlab_names_what_it_
     )
     (tmp_path / "stribeck.yaml").write_text(text)
     ex = prepare(ROBOT, [tmp_path / "stribeck.yaml"])
-    export_robot(ex, formats_from("isaaclab,mjlab"), tmp_path / "out")
+    write_export(ex, formats_from("isaaclab,mjlab"), tmp_path / "out")
     haa = yaml.safe_load((tmp_path / "out" / "hound_like_isaaclab.yaml").read_text())["joints"]["FL_HAA"]
     assert haa["dcmotor"]["friction"] == pytest.approx(9 * (0.08 + 0.03))
     assert haa["dcmotor"]["dynamic_friction"] == pytest.approx(9 * 0.08)
@@ -366,7 +366,7 @@ def test_a_rated_speed_is_named_as_a_cause_of_the_straight_line_gap(tmp_path):
     text = text.replace("motor_spec: ilm85, ratios: [9.0]", "motor_spec: qdd, ratios: [9.0]")
     text = text.replace("urdf: hound_like.urdf", f"urdf: {SAMPLES / 'robots' / 'hound_like.urdf'}")
     (tmp_path / "mixed.yaml").write_text(text)
-    export_robot(prepare(tmp_path / "mixed.yaml", []), formats_from("isaaclab,mjlab"), tmp_path / "out")
+    write_export(prepare(tmp_path / "mixed.yaml", []), formats_from("isaaclab,mjlab"), tmp_path / "out")
     haa = yaml.safe_load((tmp_path / "out" / "hound_like_isaaclab.yaml").read_text())["joints"]["FL_HAA"]
     assert "rated speed cuts them" in haa["reason"] and "current-torque curve" in haa["reason"]
     module = (tmp_path / "out" / "hound_like_mjlab.py").read_text()
@@ -387,7 +387,7 @@ def test_a_robot_file_covering_part_of_the_urdf_says_what_the_other_joints_get(t
         "joints: [FL_HAA, FL_HFE, FL_KFE]",
     )
     (tmp_path / "oneleg.yaml").write_text(text)
-    report = export_robot(prepare(tmp_path / "oneleg.yaml", []), formats_from("bundle,mjlab,urdf"), tmp_path / "out")
+    report = write_export(prepare(tmp_path / "oneleg.yaml", []), formats_from("bundle,mjlab,urdf"), tmp_path / "out")
     for name in ("mjlab", "urdf"):
         notes = " ".join(report["formats"][name]["notes"])
         assert "the URDF's joints FR_HAA, FR_HFE, FR_KFE, RL_HAA" in notes and "keep the URDF's own limits" in notes
@@ -409,21 +409,20 @@ def test_the_exports_state_the_braking_past_overspeed_they_cannot_hold(tmp_path)
     assert most == pytest.approx(5.32, abs=0.01)  # 13.74 N m of diode braking against the 8.416 N m limit
     stated = f"up to {most:.4g} N m more than"
     assert stated in not_held(ex, "voltage", "newton")[-1]
-    report = export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
+    report = write_export(ex, formats_from("bundle,mujoco"), tmp_path / "out")
     assert any(f"up to {most:.4g} N m more than dcmotor" in n for n in report["formats"]["mujoco"]["notes"])
 
 
-#: A toy export format in one module, as ARCHITECTURE.md's recipe has it: a writer taking ``Export``, returning
-#: ``Written`` with the friction it cannot hold.
+#: A toy export format in one module, as ARCHITECTURE.md's recipe has it: a function taking ``Export`` and the
+#: folder, returning ``Written``: its file's text and the friction it cannot hold.
 TOY_FORMAT = """
 from hound_id import io
 from hound_id.export.target import Export, Written
 
 
-def write_toy(ex: Export, out):
-    path = out / f"{ex.stem}_toy.json"
-    io.write_json(path, {"joints": list(ex.bundle.joints), "torque_limit": [m.torque_limit for m in ex.bundle.motors]})
-    return Written((str(path),), ex.friction_not_held("toy"))
+def toy_files(ex: Export, out):
+    table = {"joints": list(ex.bundle.joints), "torque_limit": [m.torque_limit for m in ex.bundle.motors]}
+    return Written({f"{ex.stem}_toy.json": io.json_text(table)}, ex.friction_not_held("toy"))
 """
 
 
@@ -439,9 +438,9 @@ def test_a_new_format_is_one_module_and_one_registry_line(tmp_path, monkeypatch)
     spec = importlib.util.spec_from_file_location("toy_format", tmp_path / "toy_format.py")
     module = importlib.util.module_from_spec(spec)
     spec.loader.exec_module(module)
-    monkeypatch.setitem(FORMATS, "toy", module.write_toy)  # the one registry line
+    monkeypatch.setitem(FORMATS, "toy", module.toy_files)  # the one registry line
     ex = prepare(ROBOT, [fitted_motor(tmp_path)])
-    report = export_robot(ex, formats_from("bundle,toy"), tmp_path / "out")
+    report = write_export(ex, formats_from("bundle,toy"), tmp_path / "out")
     written = json.loads((tmp_path / "out" / "hound_like_toy.json").read_text())
     assert written["joints"] == list(ex.bundle.joints)
     notes = report["formats"]["toy"]["notes"]

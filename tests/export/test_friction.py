@@ -87,7 +87,8 @@ def test_a_new_friction_effect_reaches_the_trainer_from_one_file(tmp_path):
     trainer: fit-current finds it on a log that has it, the bundle carries it, the runtime applies it, and every
     export states what it loses (none holds it), with nothing else edited."""
     from hound_id.dyno.current import effects
-    from hound_id.export.run import export_robot, formats_from, prepare
+    from hound_id.export.run import formats_from, prepare
+    from tests.export.conftest import write_export
 
     sim = simulate(("linear", "saturation", "coulomb"), seed=6)
     frame = sim.frame.copy()
@@ -109,7 +110,7 @@ def test_a_new_friction_effect_reaches_the_trainer_from_one_file(tmp_path):
     try:
         effects.load_effects_file(toy)  # the trainer side registers the same file
         ex = prepare(ROBOT, [fitted])
-        report = export_robot(ex, formats_from("bundle,mujoco,urdf"), tmp_path / "out")
+        report = write_export(ex, formats_from("bundle,mujoco,urdf"), tmp_path / "out")
         sat = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.json")
         assert np.all(sat.friction["windage"] == fit["value"])
         w = np.linspace(-400.0, 400.0, 81)[:, None] * np.ones((1, 12))

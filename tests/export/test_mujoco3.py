@@ -11,9 +11,9 @@ import numpy as np
 import pytest
 
 import hound_id.runtime
-from hound_id.export.run import export_robot, formats_from, prepare
+from hound_id.export.run import formats_from, prepare
 from tests.conftest import ROBOT, ROOT
-from tests.export.conftest import fitted_motor, trainer_python
+from tests.export.conftest import fitted_motor, trainer_python, write_export
 
 MUJOCO_3 = "3.11.0"
 #: What the export writer imports besides numpy and mujoco.
@@ -48,7 +48,7 @@ def mujoco3() -> str:
 
 def test_the_voltage_dcmotor_export_loads_steps_and_matches_the_runtime_in_mujoco_3(mujoco3, tmp_path):
     ex = prepare(ROBOT, [fitted_motor(tmp_path)])  # a linear curve: the dcmotor's straight lines are exact
-    export_robot(ex, formats_from("bundle,mujoco"), tmp_path / "out")
+    write_export(ex, formats_from("bundle,mujoco"), tmp_path / "out")
     sat = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.yaml")
     rng = np.random.default_rng(3)
     omega = rng.uniform(-1, 1, (200, 12)) * 540.0  # motor speeds across the region
@@ -71,11 +71,11 @@ WRITE = """
 import sys
 from pathlib import Path
 from hound_id.errors import SpecError
-from hound_id.export.run import ExportOptions, run_export
+from hound_id.export.run import ExportOptions, run_export, write_outputs
 robot, out, fit = Path(sys.argv[1]), Path(sys.argv[2]), Path(sys.argv[3])
-run_export(robot, out, ExportOptions("bundle,mujoco", (fit,)))
+write_outputs(run_export(robot, out, ExportOptions("bundle,mujoco", (fit,))))
 try:
-    run_export(robot, out / "ff", ExportOptions("mujoco", mujoco_actuator="dcmotor-ff"))
+    write_outputs(run_export(robot, out / "ff", ExportOptions("mujoco", mujoco_actuator="dcmotor-ff")))
 except SpecError as err:
     print(err)
 """

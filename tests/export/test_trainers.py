@@ -10,11 +10,11 @@ from pathlib import Path
 
 import pytest
 
-from hound_id.export.run import export_robot, formats_from, prepare
+from hound_id.export.run import formats_from, prepare
 from hound_id.export.target import TRAINER_REACH
 from hound_id.mor.region import operating_region
 from tests.conftest import ROBOT, ROOT
-from tests.export.conftest import fitted_motor, trainer_python
+from tests.export.conftest import fitted_motor, trainer_python, write_export
 
 SCRIPTS = Path(__file__).parent / "in_trainers"
 MJLAB = ("mjlab==1.6.0", "torch==2.13.0")
@@ -40,7 +40,7 @@ def exported(tmp_path: Path, fits: list[Path], formats: str, reach: bool = False
     """(export, its folder, the largest motor speed to draw): just within every motor's overspeed, or with ``reach``
     :data:`TRAINER_REACH` (2) times the no-load speed, where a robot at full tilt or a falling leg can spin them."""
     ex = prepare(ROBOT, fits)
-    export_robot(ex, formats_from(formats), tmp_path / "out")
+    write_export(ex, formats_from(formats), tmp_path / "out")
     regions = [operating_region(s) for s in ex.robot.motor_specs.values()]
     if reach:
         return ex, tmp_path / "out", TRAINER_REACH * min(r.no_load_speed for r in regions)

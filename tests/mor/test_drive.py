@@ -203,9 +203,10 @@ def test_field_weakening_without_a_reactance_is_named():
 
 def test_the_runtime_carries_the_batterys_range(tmp_path):
     import hound_id.runtime
-    from hound_id.export.run import export_robot, formats_from, prepare
+    from hound_id.export.run import formats_from, prepare
+    from tests.export.conftest import write_export
 
-    export_robot(prepare(ROBOT, []), formats_from("bundle"), tmp_path / "out")
+    write_export(prepare(ROBOT, []), formats_from("bundle"), tmp_path / "out")
     rt = hound_id.runtime.load(tmp_path / "out" / "hound_like_bundle.yaml")
     assert rt.bus_voltage_range is not None and np.array_equal(rt.bus_voltage_range, np.tile([66.0, 84.0], (12, 1)))
     tau, qd = np.full((3, 12), 200.0), np.full((3, 12), 30.0)

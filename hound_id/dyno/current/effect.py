@@ -142,6 +142,44 @@ class Hyper:
     """Whether to refine the best candidate by a bounded scalar search."""
 
 
+#: The torque offset the identifiability check always allows for, as a partner a parameter cannot be told from.
+OFFSET = "a torque offset"
+
+
+@dataclass(frozen=True)
+class FleetMetric:
+    """A quantity ``hound-id fleet`` compares across actuators of one type, read from each actuator's fit."""
+
+    key: str
+    """Its key in the fleet's table, CSV and JSON (and ``--tolerance KEY=...``)."""
+    label: str
+    """Its name in tables, plots and readings."""
+    short: str
+    """Its column heading in the printed fleet table."""
+    unit: str
+    """SI unit."""
+    side: str
+    """Which deviations are faults: "both", "high" or "low"."""
+    tolerance: float
+    """Least relative difference from the fleet's median that is flagged [-] (an assumption; ``--tolerance``)."""
+    parameters: tuple[str, ...] = ()
+    """Read from: one parameter (its value and standard error; a value at its bound or without a standard error is
+    not judged); several, the harmonics of one periodic term (their root-sum-square amplitude, the error
+    propagated); none, a quantity of the whole fit the fleet reads itself (the peak torque, the noise floor)."""
+    order: str | None = None
+    """For harmonics: the parameter holding their order per revolution, compared across the fleet where the
+    amplitude is significant (an actuator with another order is another motor)."""
+    per_amp: bool = False
+    """A quantity per amp of current: compared within a current-scale group (logs on different current scales)."""
+    rank: int = 50
+    """Its place among the fleet's columns, smaller first: the curve's (Kt 0; the peak torque, read by the fleet, is
+    10), friction 20-29, periodic terms 30-39, a user's effect's 50 unless it says, the noise floor last (100)."""
+    low: str = ""
+    """What a low value means physically."""
+    high: str = ""
+    """What a high value means physically."""
+
+
 @dataclass(frozen=True)
 class Effect:
     """A named physical term of the torque model."""
@@ -168,6 +206,12 @@ class Effect:
     friction."""
     trainer: str = ""
     """For an effect without a friction term: how a trainer feels it, or why it does not (one sentence)."""
+    unidentified: Callable[[str, Signals], str | None] | None = None
+    """Why a log cannot tell this effect's parameter from ``partner`` (another effect's parameter, or
+    :data:`OFFSET`), in the log's terms and with what to record instead; None (or a callable returning None) when it
+    has no reason of its own: the identifiability check then says their regressors are nearly collinear."""
+    fleet: tuple[FleetMetric, ...] = ()
+    """What ``hound-id fleet`` compares of it across actuators (none: it is fitted but not compared)."""
     builtin: bool = False
     """True for the effects hound-id ships: a failure of their regressors is a bug and keeps its traceback (a
     user's effect that fails is one FitError line)."""

@@ -33,10 +33,12 @@ import numpy as np
 
 from hound_id.dyno.current.effect import (
     EPS_SPEED,
+    OFFSET,
     REGISTRY,
     T_REF,
     Array,
     Effect,
+    FleetMetric,
     Hyper,
     Signals,
     describe,
@@ -51,6 +53,8 @@ from hound_id.dyno.current.effect import (
 from hound_id.dyno.current.transducer import DAMPING_RANGE, frequency_range, overshoot
 from hound_id.parameter import Parameter
 
+#: The cogging effect's parameters: the sine and cosine of its first two harmonics.
+COGGING_HARMONICS = ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2")
 #: Share of rows a Stribeck speed needs within twice itself to be searched. Calibrated on
 #: test_logs::test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read and
 #: test_diagnose::test_each_hidden_effect_is_named_first_and_adding_it_reaches_the_noise.
@@ -254,11 +258,55 @@ _ANGLE = (
 _FRICTION_BOUND = "friction dissipates energy, it opposes motion"
 
 
+#: The current-torque curve's parameters and the offsets: against each other, only a varying current tells them apart.
+_CURVE_PARTNERS = frozenset({"kt", "k_sat", "k_sat3", "k_knee", "offset", OFFSET})
+
+
+def _held_current(partner: str, signals: Signals) -> str | None:
+    """Why a curve parameter cannot be told from another or from an offset: the current hardly varies."""
+    mean, std = float(np.mean(signals.current)), float(np.std(signals.current))
+    if partner not in _CURVE_PARTNERS or std >= 0.1 * max(abs(mean), 1e-300):
+        return None
+    return (
+        f"the current hardly varies ({mean:.3g} +- {std:.2g} A), so torque per amp cannot be told from a constant "
+        "torque; vary the current: record a current sweep over both signs"
+    )
+
+
+def _one_quadrant(partner: str, signals: Signals) -> str | None:
+    """Why load-dependent friction cannot be told from Kt: current and speed keep one sign relative to each other."""
+    if signals.velocity is None:
+        return None
+    quadrant = np.sign(signals.current * signals.velocity)
+    moving = quadrant[quadrant != 0]
+    share = float(np.mean(moving > 0)) if moving.size else 1.0
+    if 0.05 <= share <= 0.95:
+        return None
+    kind = "motoring" if share > 0.5 else "braking"
+    return (
+        f"current and speed keep one sign relative to each other ({max(share, 1 - share):.0%} of the rows "
+        f"{kind}), so friction that grows with load looks like a change of Kt; record both motoring and "
+        "braking (all four quadrants)"
+    )
+
+
+def _one_direction(partner: str, signals: Signals) -> str | None:
+    """Why friction that opposes motion cannot be told from an offset: the speed keeps one sign."""
+    if partner not in (OFFSET, "offset") or signals.velocity is None:
+        return None
+    share = float(np.mean(signals.velocity > 0))
+    return (
+        f"the speed keeps one sign ({max(share, 1 - share):.0%} of the rows), so friction that opposes motion "
+        "looks like a sensor offset; record both directions of rotation"
+    )
+
+
 def _builtin() -> None:
     sat_doc = "magnetic saturation: the core's flux saturates and torque per amp falls at high current"
     register(
         Effect(
             name="linear",
+            unidentified=_held_current,
             physics="torque is proportional to current through the torque constant Kt",
             parameters=(
                 Parameter("kt", "N m/A", "torque constant at 20 degC", 0.0, bound_reason="torque follows current"),
@@ -267,11 +315,29 @@ def _builtin() -> None:
             shape=True,
             evidence=_evidence_linear,
             trainer=_CURVE_TRAINER,
+            fleet=(
+                FleetMetric(
+                    "kt",
+                    "Kt",
+                    "Kt",
+                    "N m/A",
+                    "both",
+                    0.05,
+                    ("kt",),
+                    per_amp=True,
+                    rank=0,
+                    low="Kt low: a weakened (demagnetised) magnet or a wrong winding (or, for logs from several rigs, "
+                    "a torque sensor calibrated differently)",
+                    high="Kt high: another winding or magnet grade than the fleet's: check the part (or, for logs from "
+                    "several rigs, a torque sensor calibrated differently)",
+                ),
+            ),
         )
     )
     register(
         Effect(
             name="saturation",
+            unidentified=_held_current,
             physics=f"{sat_doc} (odd quadratic, as in the paper: -k i|i|)",
             parameters=(
                 Parameter("k_sat", "N m/A^2", "quadratic saturation coefficient", 0.0, bound_reason=_SAT_BOUND),
@@ -285,6 +351,7 @@ def _builtin() -> None:
     register(
         Effect(
             name="saturation_cubic",
+            unidentified=_held_current,
             physics=f"{sat_doc} (odd cubic: -k i^3)",
             parameters=(Parameter("k_sat3", "N m/A^3", "cubic saturation coefficient", 0.0, bound_reason=_SAT_BOUND),),
             regressors=lambda s, h: -(s.current**3),
@@ -296,6 +363,7 @@ def _builtin() -> None:
     register(
         Effect(
             name="saturation_knee",
+            unidentified=_held_current,
             physics=(
                 f"{sat_doc} (linear up to a knee current, logarithmic beyond; the 'knee plus log' curve written "
                 "with ln so value and slope are continuous at the knee)"
@@ -313,6 +381,7 @@ def _builtin() -> None:
     register(
         Effect(
             name="offset",
+            unidentified=_held_current,
             physics="the torque transducer reads a constant bias at zero torque",
             parameters=(Parameter("offset", "N m", "sensor offset"),),
             regressors=lambda s, h: np.ones_like(s.current),
@@ -323,17 +392,32 @@ def _builtin() -> None:
     register(
         Effect(
             name="coulomb",
+            unidentified=_one_direction,
             physics="dry friction opposes motion with a constant torque whatever the speed",
             parameters=(Parameter("coulomb", "N m", "Coulomb friction torque", 0.0, bound_reason=_FRICTION_BOUND),),
             regressors=lambda s, h: -s.velocity_sign,
             requires=("velocity",),
             evidence=_evidence_coulomb,
             friction="coulomb",
+            fleet=(
+                FleetMetric(
+                    "coulomb",
+                    "Coulomb friction",
+                    "Coul.",
+                    "N m",
+                    "high",
+                    0.5,
+                    ("coulomb",),
+                    rank=20,
+                    high="friction high: a bearing or gearbox problem",
+                ),
+            ),
         )
     )
     register(
         Effect(
             name="viscous",
+            unidentified=_one_direction,
             physics="viscous and eddy-current drag grow in proportion to speed",
             parameters=(
                 Parameter("viscous", "N m s/rad", "viscous friction coefficient", 0.0, bound_reason=_FRICTION_BOUND),
@@ -342,11 +426,25 @@ def _builtin() -> None:
             requires=("velocity",),
             evidence=_evidence_viscous,
             friction="viscous",
+            fleet=(
+                FleetMetric(
+                    "viscous",
+                    "viscous friction",
+                    "visc.",
+                    "N m s/rad",
+                    "high",
+                    0.5,
+                    ("viscous",),
+                    rank=21,
+                    high="viscous friction high: a rubbing seal, too much or too thick grease, or a bearing problem",
+                ),
+            ),
         )
     )
     register(
         Effect(
             name="stribeck",
+            unidentified=_one_direction,
             physics="static friction exceeds Coulomb friction near rest and fades as speed builds a lubricant film",
             parameters=(
                 Parameter("stribeck", "N m", "extra static friction at rest", 0.0, bound_reason=_FRICTION_BOUND),
@@ -356,11 +454,25 @@ def _builtin() -> None:
             hypers=(Hyper("stribeck_speed", "rad/s", _speed_grid),),
             evidence=_evidence_stribeck,
             friction="stribeck",
+            fleet=(
+                FleetMetric(
+                    "stribeck",
+                    "static (Stribeck) friction",
+                    "static",
+                    "N m",
+                    "high",
+                    0.5,
+                    ("stribeck",),
+                    rank=22,
+                    high="static friction high: a bearing or gearbox that sticks at rest",
+                ),
+            ),
         )
     )
     register(
         Effect(
             name="gear_friction",
+            unidentified=_one_quadrant,
             physics="gear-mesh friction grows with the transmitted load (efficiency below 100 %), opposing motion",
             parameters=(
                 Parameter(
@@ -371,6 +483,20 @@ def _builtin() -> None:
             requires=("velocity",),
             evidence=_evidence_gear,
             friction="gear_friction",
+            fleet=(
+                FleetMetric(
+                    "gear_friction",
+                    "load-dependent friction",
+                    "gear",
+                    "N m/A",
+                    "high",
+                    0.5,
+                    ("gear_friction",),
+                    per_amp=True,
+                    rank=23,
+                    high="load-dependent friction high: a gearbox problem (worn, misaligned or dry gears)",
+                ),
+            ),
         )
     )
     register(
@@ -387,6 +513,20 @@ def _builtin() -> None:
             hypers=(Hyper("cogging_order", "1/rev", _order_candidates(False), integer=True, refine=False),),
             evidence=_evidence_cogging,
             trainer=f"{_ANGLE}; its amplitude is in the bundle's effects and the export notes",
+            fleet=(
+                FleetMetric(
+                    "cogging_amplitude",
+                    "cogging amplitude",
+                    "cog.",
+                    "N m",
+                    "high",
+                    0.5,
+                    COGGING_HARMONICS,
+                    order="cogging_order",
+                    rank=30,
+                    high="cogging high: a displaced or chipped magnet, or an eccentric rotor",
+                ),
+            ),
         )
     )
     register(
@@ -523,7 +663,9 @@ __all__ = [
     "BUILTIN",
     "EPS_SPEED",
     "Effect",
+    "FleetMetric",
     "Hyper",
+    "OFFSET",
     "Parameter",
     "REGISTRY",
     "Signals",

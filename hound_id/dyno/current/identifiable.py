@@ -9,7 +9,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from hound_id.dyno.current.effects import Signals
+from hound_id.dyno.current.effects import OFFSET, REGISTRY, Signals
 from hound_id.dyno.current.stats import Array, Stats
 
 #: Variance inflation beyond which the log cannot tell a parameter from the others (R^2 > 0.9999). The library's effects
@@ -19,10 +19,6 @@ from hound_id.dyno.current.stats import Array, Stats
 #: test_polled_rig::test_a_held_current_cannot_identify_kt, test_fit_cli::test_logs_that_identify_nothing_are_refused
 #: and test_diagnose::test_combinations_of_hidden_effects_are_found_exactly_with_nothing_extra.
 VIF_MAX = 1.0e4
-
-
-#: Name of the torque offset the identifiability check always allows for.
-OFFSET = "a torque offset"
 
 
 def vif(G: Array) -> tuple[Array, Array]:
@@ -60,35 +56,16 @@ class Unidentified:
 
 
 def _why(a: str, b: str, signals: Signals, vif_value: float) -> str:
-    """The physical reason two parameters cannot be told apart on this log, and what to record."""
-    pair = {a, b}
-    i = signals.current
-    friction = {"coulomb", "stribeck", "viscous"}
-    curve = {"kt", "k_sat", "k_sat3", "k_knee", "offset", OFFSET}
-    mean, std = float(np.mean(i)), float(np.std(i))
-    if pair <= curve and std < 0.1 * max(abs(mean), 1e-300):
-        return (
-            f"the current hardly varies ({mean:.3g} +- {std:.2g} A), so torque per amp cannot be told from a constant "
-            "torque; vary the current: record a current sweep over both signs"
-        )
-    if "gear_friction" in pair and signals.velocity is not None:
-        quadrant = np.sign(i * signals.velocity)
-        moving = quadrant[quadrant != 0]
-        share = float(np.mean(moving > 0)) if moving.size else 1.0
-        if share > 0.95 or share < 0.05:
-            kind = "motoring" if share > 0.5 else "braking"
-            return (
-                f"current and speed keep one sign relative to each other ({max(share, 1 - share):.0%} of the rows "
-                f"{kind}), so friction that grows with load looks like a change of Kt; record both motoring and "
-                "braking (all four quadrants)"
-            )
-    if pair & friction and (OFFSET in pair or "offset" in pair) and signals.velocity is not None:
-        w = signals.velocity
-        share = float(np.mean(w > 0))
-        return (
-            f"the speed keeps one sign ({max(share, 1 - share):.0%} of the rows), so friction that opposes motion "
-            "looks like a sensor offset; record both directions of rotation"
-        )
+    """The physical reason two parameters cannot be told apart on this log, and what to record: the first that
+    either parameter's effect gives (:attr:`Effect.unidentified <hound_id.dyno.current.effect.Effect.unidentified>`),
+    else that their regressors are nearly collinear."""
+    owner = {p.name: e for e in REGISTRY.values() for p in e.parameters}
+    for name, partner in ((a, b), (b, a)):
+        effect = owner.get(name)
+        if effect is not None and effect.unidentified is not None:
+            reason = effect.unidentified(partner, signals)
+            if reason is not None:
+                return reason
     return (
         f"their regressors are nearly collinear on this log (variance inflation {vif_value:.2g}, above "
         f"{VIF_MAX:.0g}); vary the current and the speed more widely"

@@ -2,18 +2,18 @@
 
 from __future__ import annotations
 
-import math
 import os
 from collections.abc import Sequence
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
 from hound_id.dyno.current.curve import Compensation, PeakTorque
-from hound_id.dyno.current.diagnose import Diagnosis, Step, Suggestion
+from hound_id.dyno.current.diagnose import Diagnosis, Step
 from hound_id.dyno.current.fit import FitResult
+from hound_id.dyno.current.fit_report import BlockRow, FitReport, Rows, Rung
 from hound_id.mor.current_curve import CurrentCurve
 
-SCHEMA = "hound-id/fit/3"
 #: A fitted Kt or peak torque further than this factor from the spec sheet's is warned about.
 SPEC_FACTOR = 1.25
 
@@ -29,7 +29,7 @@ def summarize(
     current_limit: float | None = None,
     time: Any = None,
     reply_range: float | None = None,
-) -> tuple[PeakTorque, Compensation, dict[str, Any]]:
+) -> tuple[PeakTorque, Compensation, FitReport]:
     """Peak torque, current compensation (up to the peak, or the measured range) and the report of a fit.
 
     Args:
@@ -45,8 +45,7 @@ def summarize(
     comp = compensation(fit, peak.current if peak.current is not None else current_max)
     curve = fitted_curve(fit, current_max) if fit.value("kt") > 0 else None
     report = fit_report(source, fit, diagnosis, peak, comp, ladder, cleaning, rows_read, time, curve)
-    report["current_limit"] = current_limit
-    return peak, comp, report
+    return peak, comp, replace(report, current_limit=current_limit)
 
 
 #: A fitted Kt further than this factor from the sheet's is refused: the RMS/peak (1.41) and the
@@ -101,26 +100,26 @@ def _unit_hint(ratio: float) -> str:
     return ""
 
 
-def spec_checks(report: dict[str, Any], spec: Any) -> list[str]:
+def spec_checks(report: FitReport, spec: Any) -> list[str]:
     """Warnings where a fit disagrees with the motor's spec sheet (a :class:`~hound_id.mor.spec.MotorSpec`)."""
     out = []
-    kt = report["parameters"]["kt"]["value"]
+    kt = report.kt
     ratio = kt / spec.kt
     if not 1 / SPEC_FACTOR <= ratio <= SPEC_FACTOR:
         out.append(
             f"fitted Kt = {kt:.4g} N m/A is {ratio:.3g}x the sheet's {spec.kt:.4g} N m/A (more than a factor "
             f"{SPEC_FACTOR:g} off): check the current and torque units and which side of a gearbox each is measured"
         )
-    peak = report["peak_torque"]
-    if peak["torque"] is not None:
-        ratio = peak["torque"] / spec.peak_torque
+    peak = report.peak
+    if peak.torque is not None:
+        ratio = peak.torque / spec.peak_torque
         if not 1 / SPEC_FACTOR <= ratio <= SPEC_FACTOR:
             out.append(
-                f"fitted peak torque {peak['torque']:.4g} N m is {ratio:.3g}x the sheet's {spec.peak_torque:.4g} N m "
+                f"fitted peak torque {peak.torque:.4g} N m is {ratio:.3g}x the sheet's {spec.peak_torque:.4g} N m "
                 f"(more than a factor {SPEC_FACTOR:g} off)"
-                + (" and is extrapolated beyond the measured current" if peak["extrapolated"] else "")
+                + (" and is extrapolated beyond the measured current" if peak.extrapolated else "")
             )
-    i_max = peak["max_measured_current"]
+    i_max = peak.max_measured_current
     if spec.max_current is not None and i_max > spec.max_current * 1.001:
         out.append(
             f"the log holds currents up to {i_max:.4g} A, beyond the sheet's max_current {spec.max_current:.4g} A: "
@@ -140,8 +139,9 @@ def fit_report(
     rows_read: int | None = None,
     time: Any = None,
     curve: CurrentCurve | None = None,
-) -> dict[str, Any]:
-    """JSON-ready report, schema ``hound-id/fit/3`` (SI units).
+) -> FitReport:
+    """The typed report of a fit (:class:`~hound_id.dyno.current.fit_report.FitReport`); its JSON, schema
+    ``hound-id/fit/3`` (SI units), is :meth:`~hound_id.dyno.current.fit_report.FitReport.to_json`.
 
     Version 3 also carries ``noise`` (added later, so readers of version 3 without it still work): how
     ``noise_floor`` was found (``method``: ``still``, ``neighbours``, ``sample-to-sample`` or ``quantisation``; each
@@ -168,78 +168,61 @@ def fit_report(
     blocks = []
     for c in range(fit.blocks.count):
         a, b = int(edges[c]), int(edges[c + 1])
-        entry: dict[str, Any] = {
-            "rows": [a, b - 1],
-            "fold": int(fit.blocks.fold[c]),
-            "rmse_held_out": float(fit.block_rmse[c]),
-            "noise_floor": float(diagnosis.block_floor[c]) if diagnosis.block_floor.size else None,
-            "disagrees": bool(diagnosis.disagreeing[c]) if diagnosis.disagreeing.size else False,
-        }
-        if time is not None:
-            entry["time"] = [float(time[a]), float(time[b - 1])]
-        blocks.append(entry)
-    return {
-        "schema": SCHEMA,
-        "source": source,
-        "model": list(fit.model),
-        "parameters": {name: est.to_dict() for name, est in fit.parameters.items()},
-        "rmse": {
-            "train": fit.rmse_train,
-            "test": fit.rmse_test,
-            "outside_flagged": diagnosis.rmse_outside,
-            "blocks": blocks,
-        },
-        "aic": fit.aic,
-        "bic": fit.bic,
-        "robust": fit.robust,
-        "rows": {"read": rows_read, "fitted": fit.n_train, "blocks": fit.blocks.count, "folds": fit.blocks.folds},
-        "unphysical": dict(fit.unphysical),
-        "flags": list(diagnosis.flags),
-        "peak_torque": peak.to_dict(),
-        "current_curve": None if curve is None else curve.to_dict(),
-        "compensation": None if curve is None else curve.compensation(),
-        "compensation_polynomial": None if comp is None else comp.to_dict(),
-        "suggestions": [suggestion_dict(s) for s in diagnosis.suggestions],
-        "skipped": list(diagnosis.skipped),
-        "outliers": diagnosis.outliers,
-        "noise_floor": diagnosis.noise_floor,
-        "noise": None if diagnosis.noise is None else diagnosis.noise.to_dict(),
-        "wander": None if diagnosis.wander is None else diagnosis.wander.to_dict(diagnosis.wander_said),
-        "at_noise_floor": diagnosis.at_noise_floor,
-        "summary": diagnosis.summary(),
-        "ladder": None if ladder is None else [step_dict(s) for s in ladder],
-        "cleaning": [{"kind": n.kind, "rows": n.rows, "message": n.message} for n in cleaning],
-        "units": {"torque": "N m", "current": "A", "rmse": "N m", "noise_floor": "N m"},
-    }
+        blocks.append(
+            BlockRow(
+                rows=(a, b - 1),
+                fold=int(fit.blocks.fold[c]),
+                rmse_held_out=float(fit.block_rmse[c]),
+                noise_floor=float(diagnosis.block_floor[c]) if diagnosis.block_floor.size else None,
+                disagrees=bool(diagnosis.disagreeing[c]) if diagnosis.disagreeing.size else False,
+                time=(float(time[a]), float(time[b - 1])) if time is not None else None,
+            )
+        )
+    return FitReport(
+        source=source,
+        model=tuple(fit.model),
+        parameters=dict(fit.parameters),
+        rmse_train=fit.rmse_train,
+        rmse_test=fit.rmse_test,
+        rmse_outside_flagged=diagnosis.rmse_outside,
+        blocks=tuple(blocks),
+        aic=fit.aic,
+        bic=fit.bic,
+        robust=fit.robust,
+        rows=Rows(rows_read, fit.n_train, fit.blocks.count, fit.blocks.folds),
+        unphysical=dict(fit.unphysical),
+        flags=tuple(diagnosis.flags),
+        peak=peak,
+        curve=curve,
+        polynomial=comp,
+        suggestions=tuple(diagnosis.suggestions),
+        skipped=tuple(diagnosis.skipped),
+        outliers=diagnosis.outliers,
+        noise_floor=diagnosis.noise_floor,
+        noise=diagnosis.noise,
+        wander=diagnosis.wander,
+        wander_said=diagnosis.wander_said,
+        at_noise_floor=diagnosis.at_noise_floor,
+        summary=diagnosis.summary(),
+        ladder=None if ladder is None else tuple(rung(s) for s in ladder),
+        cleaning=tuple(cleaning),
+    )
 
 
-def suggestion_dict(s: Suggestion) -> dict[str, Any]:
-    """A suggestion of the report (``p_value`` is the corrected one, ``rmse_test`` the cross-validated RMSE)."""
-    return {
-        "effect": s.effect,
-        "explained": s.explained,
-        "significant": s.significant,
-        "physical": s.physical,
-        "p_value": None if math.isnan(s.p_adjusted) else s.p_adjusted,
-        "rmse_test": None if math.isnan(s.rmse) else s.rmse,
-        "reason": s.reason,
-    }
-
-
-def step_dict(step: Step[tuple[str, ...], FitResult]) -> dict[str, Any]:
+def rung(step: Step[tuple[str, ...], FitResult]) -> Rung:
     """A rung of the report's ``ladder``."""
-    return {
-        "model": list(step.model),
-        "added": step.added,
-        "rmse_train": step.fit.rmse_train,
-        "rmse_test": step.fit.rmse_test,
-        "at_noise_floor": step.diagnosis.at_noise_floor,
-        "aic": step.fit.aic,
-        "bic": step.fit.bic,
-    }
+    return Rung(
+        model=tuple(step.model),
+        added=step.added,
+        rmse_train=step.fit.rmse_train,
+        rmse_test=step.fit.rmse_test,
+        at_noise_floor=step.diagnosis.at_noise_floor,
+        aic=step.fit.aic,
+        bic=step.fit.bic,
+    )
 
 
-def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str | None = None) -> dict[str, Any]:
+def fitted_motor(report: FitReport, out: Path, spec: Path | None, name: str | None = None) -> dict[str, Any]:
     """A motor spec (schema hound-id/motor/1) whose fitted Kt and peak torque override ``spec``'s.
 
     With a spec sheet the file points at it (``base:``, relative to the output file),
@@ -250,28 +233,30 @@ def fitted_motor(report: dict[str, Any], out: Path, spec: Path | None, name: str
         motor["base"] = os.path.relpath(spec.resolve(), out.resolve().parent)
     if name is not None:
         motor["name"] = name
-    motor["kt"] = report["parameters"]["kt"]["value"]
-    if report["peak_torque"]["torque"] is not None:
-        motor["peak_torque"] = report["peak_torque"]["torque"]
-        if report["peak_torque"]["extrapolated"]:
+    motor["kt"] = report.kt
+    if report.peak.torque is not None:
+        motor["peak_torque"] = report.peak.torque
+        if report.peak.extrapolated:
             motor["extrapolated"] = ["peak_torque"]
-    motor["source"] = f"hound-id fit-current on {report['source']} (model {'+'.join(report['model'])})"
-    motor["fit"] = {
-        k: report[k]
-        for k in (
-            "schema",
-            "source",
-            "model",
-            "parameters",
-            "rmse",
-            "peak_torque",
-            "current_curve",
-            "compensation",
-            "compensation_polynomial",
-            "noise_floor",
-            "at_noise_floor",
-            "flags",
-            "summary",
-        )
-    }
+    motor["source"] = f"hound-id fit-current on {report.source} (model {'+'.join(report.model)})"
+    rendered = report.to_json()
+    motor["fit"] = {k: rendered[k] for k in FITTED_MOTOR_KEYS}
     return motor
+
+
+#: The parts of the report a fitted-motor file carries under ``fit``.
+FITTED_MOTOR_KEYS = (
+    "schema",
+    "source",
+    "model",
+    "parameters",
+    "rmse",
+    "peak_torque",
+    "current_curve",
+    "compensation",
+    "compensation_polynomial",
+    "noise_floor",
+    "at_noise_floor",
+    "flags",
+    "summary",
+)

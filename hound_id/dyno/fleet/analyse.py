@@ -4,7 +4,7 @@ Every actuator's log is fitted by ``fit-current`` with the same model and option
 :mod:`hound_id.dyno.fleet.engine`); this module only reads the fit reports (schema
 ``hound-id/fit/3``). Pure functions, no engine, no printing.
 
-**Outliers.** For each quantity of :data:`METRICS`, over the actuators where the log identifies it:
+**Outliers.** For each quantity of :func:`metrics`, over the actuators where the log identifies it:
 the fleet's median m and its robust spread s = 1.4826 MAD (the standard deviation for a normal
 fleet, untouched by up to half the fleet being faulty). An actuator with value x and standard
 error e is flagged when both hold:
@@ -26,10 +26,14 @@ import math
 from collections import Counter
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, replace
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
+from hound_id.dyno.current.effect import FleetMetric
 from hound_id.dyno.fleet.scale import ScaleGroup, scale_groups, sentence
 from hound_id.errors import FleetError
+
+if TYPE_CHECKING:
+    from hound_id.dyno.current.fit_report import FitReport
 
 #: /2: ``engine`` has ``workers_asked`` and ``capped`` (a local cluster's worker count capped at the usable CPUs and
 #: the logs).
@@ -47,102 +51,52 @@ MIN_FLEET = 5
 COGGING_SIGNIFICANCE = 4.0
 
 
-@dataclass(frozen=True)
-class Metric:
-    """A per-actuator quantity the fleet is compared on."""
-
-    key: str
-    """Key in the report, the CSV and the JSON."""
-    label: str
-    """Name for tables and plots."""
-    unit: str
-    """SI unit."""
-    side: str
-    """Which deviations are faults: "both", "high" or "low"."""
-    tolerance: float
-    """Least relative difference from the fleet's median that is flagged [-] (assumed; ``--tolerance``)."""
-    low: str = ""
-    """What a low value means physically."""
-    high: str = ""
-    """What a high value means physically."""
-
+#: A quantity the fleet is compared on: declared by an effect (:attr:`Effect.fleet
+#: <hound_id.dyno.current.effect.Effect.fleet>`), or by the fleet for the quantities of the whole fit below.
+Metric = FleetMetric
 
 PEAK_LOW = "peak torque low: the core saturates early (another stator or lamination)"
 
-#: The quantities compared, in table order. Tolerances are assumptions, not measured fleet data:
-#: Kt 5 % (a usual datasheet tolerance of Kt; magnet remanence and winding keep healthy motors of one
-#: type within a few per cent), peak torque 10 % (it goes with Kt squared over the saturation), friction
-#: and cogging 50 % (they vary between healthy units with grease, preload and temperature), the noise
-#: floor a factor 2.
-METRICS: tuple[Metric, ...] = (
-    Metric(
-        "kt",
-        "Kt",
-        "N m/A",
-        "both",
-        0.05,
-        low="Kt low: a weakened (demagnetised) magnet or a wrong winding (or, for logs from several rigs, a torque "
-        "sensor calibrated differently)",
-        high="Kt high: another winding or magnet grade than the fleet's: check the part (or, for logs from several "
-        "rigs, a torque sensor calibrated differently)",
-    ),
+#: The quantities of the whole fit, which no one effect owns. Tolerances are assumptions, not measured fleet data
+#: (the effects' own, in :mod:`hound_id.dyno.current.effects`, likewise): peak torque 10 % (it goes with Kt squared
+#: over the saturation), the noise floor a factor 2.
+FIT_METRICS: tuple[Metric, ...] = (
     Metric(
         "peak_torque",
         "peak torque",
+        "peak",
         "N m",
         "both",
         0.10,
+        rank=10,
         low=PEAK_LOW,
         high="peak torque high: a stronger motor than the fleet's: check the part",
-    ),
-    Metric("coulomb", "Coulomb friction", "N m", "high", 0.5, high="friction high: a bearing or gearbox problem"),
-    Metric(
-        "viscous",
-        "viscous friction",
-        "N m s/rad",
-        "high",
-        0.5,
-        high="viscous friction high: a rubbing seal, too much or too thick grease, or a bearing problem",
-    ),
-    Metric(
-        "stribeck",
-        "static (Stribeck) friction",
-        "N m",
-        "high",
-        0.5,
-        high="static friction high: a bearing or gearbox that sticks at rest",
-    ),
-    Metric(
-        "gear_friction",
-        "load-dependent friction",
-        "N m/A",
-        "high",
-        0.5,
-        high="load-dependent friction high: a gearbox problem (worn, misaligned or dry gears)",
-    ),
-    Metric(
-        "cogging_amplitude",
-        "cogging amplitude",
-        "N m",
-        "high",
-        0.5,
-        high="cogging high: a displaced or chipped magnet, or an eccentric rotor",
     ),
     Metric(
         "noise_floor",
         "noise floor",
+        "noise",
         "N m",
         "high",
         1.0,
+        rank=100,
         high="noise floor high: the measurement (a loose coupling, a noisy transducer or cable), not the motor",
     ),
 )
-METRIC_BY_KEY: Mapping[str, Metric] = {m.key: m for m in METRICS}
-#: Quantities per amp of current: compared within a current-scale group (:mod:`hound_id.dyno.fleet.scale`).
-PER_AMP = ("kt", "gear_friction")
-#: The friction parameters of the effects library that become fleet columns.
-FRICTION = ("coulomb", "viscous", "stribeck", "gear_friction")
-COGGING_PARAMETERS = ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2")
+
+
+def metrics() -> tuple[Metric, ...]:
+    """Every quantity the fleet is compared on, in table order (:attr:`FleetMetric.rank`): the registered effects'
+    (a user's effects file included) and the whole fit's."""
+    from hound_id.dyno.current.effects import REGISTRY
+
+    declared = [m for e in REGISTRY.values() for m in e.fleet]
+    return tuple(sorted((*declared, *FIT_METRICS), key=lambda m: m.rank))
+
+
+def metric_keys() -> tuple[str, ...]:
+    """The keys of :func:`metrics`, in table order."""
+    return tuple(m.key for m in metrics())
 
 
 @dataclass(frozen=True)
@@ -153,8 +107,8 @@ class ActuatorFit:
     """The actuator's name (the log's file name without its suffix, or its path when names repeat)."""
     source: str
     """The log as given."""
-    report: Mapping[str, Any] | None
-    """The fit report (what ``fit-current --json`` prints, schema ``hound-id/fit/3``); None when it failed."""
+    report: FitReport | None
+    """The fit's report (``fit-current --json`` prints its JSON); None when it failed."""
     error: str | None = None
     """Why it failed: the one-line message ``fit-current`` gives."""
     bug: bool = False
@@ -293,10 +247,10 @@ class FleetReport:
                     for k, v in self.values[a.name].items()
                 }
                 row["cogging_order"] = self.cogging_order.get(a.name)
-                row["rmse_test"] = a.report["rmse"]["test"]
-                row["at_noise_floor"] = a.report["at_noise_floor"]
-                row["verdict"] = a.report["summary"]
-                row["warnings"] = list(a.report.get("warnings", ()))
+                row["rmse_test"] = a.report.rmse_test
+                row["at_noise_floor"] = a.report.at_noise_floor
+                row["verdict"] = a.report.summary
+                row["warnings"] = list(a.report.warnings)
                 row["flags"] = [f.to_dict() for f in self.flags_of(a.name)]
             else:
                 row["error"] = a.error
@@ -361,10 +315,10 @@ class FleetReport:
             order = self.cogging_order.get(a.name)
             cells += [
                 "" if order is None else order,
-                a.report["rmse"]["test"],
-                a.report["at_noise_floor"],
+                a.report.rmse_test,
+                a.report.at_noise_floor,
                 "; ".join(f.reading for f in self.flags_of(a.name)),
-                a.report["summary"],
+                a.report.summary,
             ]
             rows.append(cells)
         return header, rows
@@ -375,52 +329,62 @@ def _num(x: float) -> float | None:
     return None if x is None or not math.isfinite(x) else float(x)
 
 
-def _parameter(report: Mapping[str, Any], name: str) -> Value:
-    p = report["parameters"].get(name)
+def _parameter(report: FitReport, name: str) -> Value:
+    p = report.parameters.get(name)
     if p is None:
         return Value(None, None, "not in the model")
-    if p.get("at_bound"):
-        return Value(None, None, f"held at its physical bound {p['value']:.4g}: the log cannot show it")
-    err = p.get("stderr")
-    if err is None or not math.isfinite(err):
+    if p.at_bound:
+        return Value(None, None, f"held at its physical bound {p.value:.4g}: the log cannot show it")
+    if not math.isfinite(p.stderr):
         return Value(None, None, "no standard error: the log cannot separate it from another term")
-    return Value(float(p["value"]), float(err))
+    return Value(float(p.value), float(p.stderr))
 
 
-def _cogging(report: Mapping[str, Any]) -> tuple[Value, float | None]:
-    """Cogging amplitude (root-sum-square of the harmonics) with its propagated error, and the order."""
-    params = report["parameters"]
-    if not all(n in params for n in COGGING_PARAMETERS):
+def _amplitude(report: FitReport, metric: Metric) -> tuple[Value, float | None]:
+    """Amplitude of harmonics (root-sum-square) with its propagated error, and their order when the amplitude is
+    significant (None: not identified)."""
+    params = report.parameters
+    if not all(n in params for n in metric.parameters):
         return Value(None, None, "not in the model"), None
-    values = [float(params[n]["value"]) for n in COGGING_PARAMETERS]
-    errors = [params[n].get("stderr") for n in COGGING_PARAMETERS]
-    if any(e is None or not math.isfinite(e) for e in errors):
+    values = [float(params[n].value) for n in metric.parameters]
+    errors = [params[n].stderr for n in metric.parameters]
+    if any(not math.isfinite(e) for e in errors):
         return Value(None, None, "no standard error"), None
     amplitude = math.sqrt(sum(v * v for v in values))
     if amplitude == 0.0:
         return Value(0.0, math.sqrt(sum(e * e for e in errors) / len(errors))), None
     stderr = math.sqrt(sum((v / amplitude) ** 2 * e * e for v, e in zip(values, errors, strict=True)))
-    order = params.get("cogging_order", {}).get("value")
+    order = params[metric.order].value if metric.order is not None and metric.order in params else None
     significant = amplitude > COGGING_SIGNIFICANCE * stderr
     return Value(amplitude, stderr), (float(order) if order is not None and significant else None)
 
 
-def values_of(report: Mapping[str, Any]) -> tuple[dict[str, Value], float | None]:
-    """Every metric of one fit report, and its cogging order (None: not identified)."""
-    out = {"kt": _parameter(report, "kt")}
-    peak = report["peak_torque"]
-    if peak.get("at_least") is not None:
-        out["peak_torque"] = Value(None, None, "no saturation seen: only a bound")
-    elif peak["torque"] is None:
-        out["peak_torque"] = Value(None, None, "not reached by the fitted curve")
-    elif peak["extrapolated"]:  # beyond the measured current: the fit's shape, not what the log shows
-        out["peak_torque"] = Value(None, None, "extrapolated beyond the measured current: not judged")
-    else:
-        out["peak_torque"] = Value(float(peak["torque"]), None)
-    for name in FRICTION:
-        out[name] = _parameter(report, name)
-    out["cogging_amplitude"], order = _cogging(report)
-    out["noise_floor"] = Value(float(report["noise_floor"]), None)
+def _peak(report: FitReport) -> Value:
+    peak = report.peak
+    if peak.at_least is not None:
+        return Value(None, None, "no saturation seen: only a bound")
+    if peak.torque is None:
+        return Value(None, None, "not reached by the fitted curve")
+    if peak.extrapolated:  # beyond the measured current: the fit's shape, not what the log shows
+        return Value(None, None, "extrapolated beyond the measured current: not judged")
+    return Value(float(peak.torque), None)
+
+
+def values_of(report: FitReport, compared: Sequence[Metric] | None = None) -> tuple[dict[str, Value], float | None]:
+    """Every metric (default :func:`metrics`) of one fit report, and the order of its harmonics (the cogging order;
+    None: not identified)."""
+    out: dict[str, Value] = {}
+    order: float | None = None
+    for metric in metrics() if compared is None else compared:
+        if metric.key == "peak_torque":
+            out[metric.key] = _peak(report)
+        elif metric.key == "noise_floor":
+            out[metric.key] = Value(float(report.noise_floor), None)
+        elif len(metric.parameters) == 1:
+            out[metric.key] = _parameter(report, metric.parameters[0])
+        else:
+            out[metric.key], found = _amplitude(report, metric)
+            order = found if found is not None else order
     return out, order
 
 
@@ -439,8 +403,8 @@ def parse_tolerances(text: str | Mapping[str, float] | None) -> dict[str, float]
             items.append((key.strip(), value.strip()))
     out = {}
     for key, value in items:
-        if key not in METRIC_BY_KEY:
-            raise FleetError(f"--tolerance: unknown metric {key!r}; expected one of {', '.join(METRIC_BY_KEY)}")
+        if key not in (keys := metric_keys()):
+            raise FleetError(f"--tolerance: unknown metric {key!r}; expected one of {', '.join(keys)}")
         try:
             fraction = float(value)
         except ValueError:
@@ -484,17 +448,17 @@ def analyse(
     Args:
         actuators: Every log's outcome (failed ones are listed, not compared).
         z: Modified z-score limit.
-        tolerances: Metric key -> least relative difference flagged, overriding :data:`METRICS`' own.
+        tolerances: Metric key -> least relative difference flagged, overriding :func:`metrics`' own.
         model: The fleet's model in the order to report it (default: the first fitted log's).
 
     Raises:
         FleetError: ``z`` is not positive, or the fitted logs were fitted with different models.
     """
     check_z(z)
-    metrics = [replace(m, tolerance=(tolerances or {}).get(m.key, m.tolerance)) for m in METRICS]
+    compared = [replace(m, tolerance=(tolerances or {}).get(m.key, m.tolerance)) for m in metrics()]
     ordered = tuple(sorted(actuators, key=lambda a: a.name))
     fitted = [a for a in ordered if a.report is not None]
-    models = {frozenset(a.report["model"]): tuple(a.report["model"]) for a in fitted if a.report is not None}
+    models = {frozenset(a.report.model): tuple(a.report.model) for a in fitted if a.report is not None}
     if len(models) > 1:
         raise FleetError(
             "the logs were fitted with different models ("
@@ -510,17 +474,17 @@ def analyse(
     reports = {a.name: a.report for a in fitted if a.report is not None}
     for a in fitted:
         assert a.report is not None
-        values[a.name], orders[a.name] = values_of(a.report)
+        values[a.name], orders[a.name] = values_of(a.report, compared)
     notes: list[str] = []
     kts = {n: v["kt"].value for n, v in values.items() if v["kt"].value is not None}
-    groups = scale_groups(kts, {n: r.get("current_range") for n, r in reports.items()})  # type: ignore[misc]
+    groups = scale_groups(kts, {n: r.current_range for n, r in reports.items()})
     ratio = {n: g.ratio for g in groups for n in g.members}
     if groups:
         notes.append(sentence(groups))
     stats, flags = [], []
-    for metric in metrics:
+    for metric in compared:
         present = {n: v[metric.key] for n, v in values.items()}
-        if metric.key in PER_AMP and ratio:  # within its current-scale group: divided by the group's ratio
+        if metric.per_amp and ratio:  # within its current-scale group: divided by the group's ratio
             present = {n: _scaled(v, ratio.get(n, 1.0)) for n, v in present.items()}
         if present and all(v.why == "not in the model" for v in present.values()):
             continue  # a friction or cogging term the fleet's model does not have
@@ -550,7 +514,7 @@ def analyse(
             zscore = abs(dev) / scale if scale > 0 else math.inf
             if zscore > limit and abs(dev) > metric.tolerance * abs(median):
                 reading = metric.high if side == "high" else metric.low
-                scaled = metric.key in PER_AMP and ratio.get(name, 1.0) != 1.0
+                scaled = metric.per_amp and ratio.get(name, 1.0) != 1.0
                 against = "its current-scale group's median" if scaled else "the fleet's median"
                 percent = f"{dev / median:+.0%} against {against}" if median else ""
                 flags.append(
@@ -576,7 +540,7 @@ def analyse(
             f"the z limit used is {', '.join(f'{r:g}' for r in raised)}, above the {z:g} asked for: with this many "
             "actuators a lower limit would flag a healthy fleet with chance above 1 %"
         )
-    missing = [a for a in fitted if a.report is not None and not a.report["at_noise_floor"]]
+    missing = [a for a in fitted if a.report is not None and not a.report.at_noise_floor]
     if fitted and 2 * len(missing) > len(fitted):
         notes.append(
             f"{len(missing)} of {len(fitted)} fits are not at their noise floor: the model misses effects the logs "
@@ -599,9 +563,8 @@ def analyse(
                 )
     flags += _verdict_flags(fitted)
     flags = [_qualified(f, reports[f.actuator]) for f in flags]
-    flags.sort(
-        key=lambda f: (f.actuator, [m.key for m in metrics].index(f.metric) if f.metric in METRIC_BY_KEY else 99)
-    )
+    columns = [m.key for m in compared]
+    flags.sort(key=lambda f: (f.actuator, columns.index(f.metric) if f.metric in columns else len(columns)))
     return FleetReport(
         actuators=ordered,
         values=values,
@@ -627,9 +590,9 @@ def _scaled(v: Value, ratio: float) -> Value:
 QUOTE = 160
 
 
-def _qualified(flag: Flag, report: Mapping[str, Any]) -> Flag:
+def _qualified(flag: Flag, report: FitReport) -> Flag:
     """A flag on an actuator whose own fit is flagged says so: the log may explain it before the motor."""
-    own = list(report.get("flags", ()))
+    own = list(report.flags)
     if not own or flag.metric == "verdict":
         return flag
     first = own[0] if len(own[0]) <= QUOTE else own[0][: QUOTE - 3] + "..."
@@ -658,15 +621,15 @@ def _fleet_order(orders: Mapping[str, float | None], notes: list[str]) -> float 
 
 def _verdict_flags(fitted: Sequence[ActuatorFit]) -> list[Flag]:
     """Actuators whose fit misses an effect while most of the fleet's is at the noise floor."""
-    at_floor = [a for a in fitted if a.report is not None and a.report["at_noise_floor"]]
+    at_floor = [a for a in fitted if a.report is not None and a.report.at_noise_floor]
     if len(fitted) < MIN_FLEET or 2 * len(at_floor) <= len(fitted):
         return []
     out = []
     for a in fitted:
         assert a.report is not None
-        if a.report["at_noise_floor"]:
+        if a.report.at_noise_floor:
             continue
-        best = next((s["effect"] for s in a.report["suggestions"] if s["significant"]), None)
+        best = next((s.effect for s in a.report.suggestions if s.significant), None)
         missing = f"{best} is significant in its residual" if best else "its residual is above the noise floor"
         out.append(
             Flag(

@@ -188,10 +188,7 @@ def fit_log(name: str, source: str, data: bytes, options: FitCurrentOptions) -> 
 
         try:
             local.write_bytes(data)
-            result = fit_current(local, options)
-            import json
-
-            report = json.loads(relabel(json.dumps(result.report_json())))
+            report = fit_current(local, options).report.relabel(str(local), source)
             error, bug = None, False
         except HoundIdError as err:
             report, error, bug = None, relabel(str(err)), False
@@ -330,11 +327,11 @@ def common_model(fits: Sequence[ActuatorFit], start: Sequence[str]) -> tuple[str
     terms it cannot identify. Order: the order in which the logs (by name) added them.
     """
     fitted = [f for f in sorted(fits, key=lambda f: f.name) if f.report is not None]
-    counts = Counter(e for f in fitted if f.report is not None for e in set(f.report["model"]))
+    counts = Counter(e for f in fitted if f.report is not None for e in set(f.report.model))
     model = list(start)
     for fit in fitted:
         assert fit.report is not None
-        model += [e for e in fit.report["model"] if e not in model and 2 * counts[e] > len(fitted)]
+        model += [e for e in fit.report.model if e not in model and 2 * counts[e] > len(fitted)]
     return tuple(model)
 
 
@@ -395,7 +392,7 @@ def run_fleet(
         again = [
             (name, path)
             for name, path in jobs
-            if (report := fits[name].report) is not None and set(report["model"]) != set(model)
+            if (report := fits[name].report) is not None and set(report.model) != set(model)
         ]
         if again:
             if on_pass is not None:

@@ -150,10 +150,10 @@ def _verdict_panel(ax: Axes, report: FleetReport, index: dict[str, int], flagged
     for name, i in index.items():
         a = report.fitted[i]
         assert a.report is not None
-        floor = a.report["noise_floor"]
-        ratio = a.report["rmse"]["test"] / floor if floor > 0 else math.nan
+        floor = a.report.noise_floor
+        ratio = a.report.rmse_test / floor if floor > 0 else math.nan
         bad = (name, "verdict") in flagged
-        at_floor = a.report["at_noise_floor"]
+        at_floor = a.report.at_noise_floor
         ax.plot(
             i, ratio, "o" if at_floor else "D", ms=4, color=FLAGGED if bad else (HEALTHY if at_floor else "#e67e22")
         )

@@ -155,7 +155,7 @@ def write_outputs(result: FleetResult, dpi: int = 120) -> None:
                 assert a.report is not None
                 target = folder / f"{a.name}.json"
                 target.parent.mkdir(parents=True, exist_ok=True)  # names with folders when stems repeat
-                io.write_json(target, a.report)
+                io.write_json(target, a.report.to_json())
     if opts.plot is not None:
         from hound_id.dyno.fleet.plot import plot_fleet
 

@@ -98,3 +98,38 @@ def test_parameter_names_must_be_unique():
             )
         )
     assert "dup_user" not in REGISTRY
+
+
+def test_why_a_log_cannot_identify_a_parameter_comes_from_its_effect(monkeypatch):
+    """The identifiability check asks the pair's effects for the reason in the log's terms: a held current (the
+    curve), one quadrant (load-dependent friction), one direction (friction against an offset), and a toy effect's
+    own reason from one register call; with none, the regressors are nearly collinear."""
+    import numpy as np
+
+    from hound_id.dyno.current.effects import OFFSET, REGISTRY, Effect, Parameter, Signals
+    from hound_id.dyno.current.identifiable import _why
+
+    t = np.linspace(0.0, 10.0, 1000)
+    sweep = 10.0 * np.sin(t)
+    held = Signals(time=t, current=5.0 + 0.01 * np.sin(t), velocity=np.cos(t))
+    assert "the current hardly varies" in _why("kt", OFFSET, held, 1e5)
+    assert "the current hardly varies" in _why("offset", "k_sat", held, 1e5)
+    motoring = Signals(time=t, current=sweep, velocity=3.0 * np.sign(sweep))
+    assert "all four quadrants" in _why("kt", "gear_friction", motoring, 1e5)
+    assert "all four quadrants" in _why("gear_friction", "kt", motoring, 1e5)
+    one_way = Signals(time=t, current=sweep, velocity=np.full_like(t, 2.0))
+    assert "record both directions of rotation" in _why("offset", "coulomb", one_way, 1e5)
+    assert "record both directions of rotation" in _why("viscous", OFFSET, one_way, 1e5)
+    assert "nearly collinear" in _why("coulomb", "viscous", one_way, 1e5)
+    toy = Effect(
+        name="windage",
+        physics="air drag on the rotor grows with the square of speed",
+        parameters=(Parameter("windage", "N m s^2/rad^2", "windage coefficient", 0.0),),
+        regressors=lambda s, h: -s.channel("velocity") * abs(s.channel("velocity")),
+        requires=("velocity",),
+        unidentified=lambda partner, s: "the speed stays low; spin it faster" if partner == "viscous" else None,
+        trainer="too small to matter in a trainer",
+    )  # fmt: skip
+    monkeypatch.setitem(REGISTRY, "windage", toy)
+    assert _why("viscous", "windage", one_way, 1e5) == "the speed stays low; spin it faster"
+    assert "nearly collinear" in _why("windage", "coulomb", one_way, 1e5)

@@ -3,12 +3,15 @@
 from __future__ import annotations
 
 import math
+from dataclasses import replace
 
 import numpy as np
 import pytest
 from hypothesis import given, settings
 from hypothesis import strategies as st
 
+from hound_id.dyno.current.curve import PeakTorque
+from hound_id.dyno.current.stats import Estimate
 from hound_id.dyno.fleet.analyse import (
     MAD_TO_SIGMA,
     MIN_FLEET,
@@ -17,7 +20,9 @@ from hound_id.dyno.fleet.analyse import (
     parse_tolerances,
     values_of,
 )
+from hound_id.dyno.identify.engine import Suggestion
 from hound_id.errors import FleetError
+from tests.dyno.fleet.conftest import typed_report
 
 MODEL = ["linear", "saturation", "coulomb", "cogging"]
 
@@ -34,35 +39,26 @@ def report(
     coulomb_bound=False,
     model=MODEL,
 ):
-    """A fit report with just the fields the fleet reads (schema hound-id/fit/3)."""
+    """A fit report with the values the fleet reads set, the rest neutral."""
     half = cogging / math.sqrt(2)
-    params = {
-        "kt": {"value": kt, "stderr": kt_err, "unit": "N m/A", "at_bound": False},
-        "k_sat": {"value": 4e-4, "stderr": 1e-6, "unit": "N m/A^2", "at_bound": False},
-    }
+    params = {"kt": Estimate(kt, kt_err, "N m/A", "linear"), "k_sat": Estimate(4e-4, 1e-6, "N m/A^2", "saturation")}
     if "coulomb" in model:
-        params["coulomb"] = {
-            "value": 0.0 if coulomb_bound else coulomb,
-            "stderr": 3e-4,
-            "unit": "N m",
-            "at_bound": coulomb_bound,
-        }
+        params["coulomb"] = Estimate(0.0 if coulomb_bound else coulomb, 3e-4, "N m", "coulomb", at_bound=coulomb_bound)
     if "cogging" in model:
         for name, value in (("cogging_sin_1", half), ("cogging_cos_1", half), ("cogging_sin_2", 0.0)):
-            params[name] = {"value": value, "stderr": 2e-4, "unit": "N m", "at_bound": False}
-        params["cogging_cos_2"] = {"value": 0.0, "stderr": 2e-4, "unit": "N m", "at_bound": False}
-        params["cogging_order"] = {"value": order, "stderr": None, "unit": "1/rev", "at_bound": False}
-    return {
-        "model": list(model),
-        "parameters": params,
-        "peak_torque": {"torque": peak, "extrapolated": False},
-        "noise_floor": noise,
-        "rmse": {"test": noise},
-        "at_noise_floor": at_floor,
-        "summary": "at the noise floor" if at_floor else "missing: stribeck",
-        "suggestions": [] if at_floor else [{"effect": "stribeck", "significant": True}],
-        "warnings": [],
-    }
+            params[name] = Estimate(value, 2e-4, "N m", "cogging")
+        params["cogging_cos_2"] = Estimate(0.0, 2e-4, "N m", "cogging")
+        params["cogging_order"] = Estimate(order, math.nan, "1/rev", "cogging")
+    suggestions = () if at_floor else (Suggestion("stribeck", 0.5, True, 1e-6, 1e-5, noise, "it explains half"),)
+    return typed_report(
+        model,
+        params,
+        peak=PeakTorque(peak, 60.0, 70.0, False, ""),
+        noise_floor=noise,
+        at_noise_floor=at_floor,
+        summary="at the noise floor" if at_floor else "missing: stribeck",
+        suggestions=suggestions,
+    )
 
 
 def fleet(n=10, **changes):
@@ -162,7 +158,9 @@ def test_a_log_missing_an_effect_is_flagged_only_against_a_fleet_at_its_floor():
 
 def test_an_outlier_whose_own_fit_is_flagged_says_the_log_may_be_the_cause():
     fits = fleet(a02={"kt": 0.09})
-    fits[2].report["flags"] = ["Kt = 0.09 +- 0.12 N m/A is not determined by this log"]
+    fits[2] = replace(
+        fits[2], report=replace(fits[2].report, flags=("Kt = 0.09 +- 0.12 N m/A is not determined by this log",))
+    )
     (flag,) = analyse(fits).flags
     assert not flag.trusted and flag.reading.startswith("Kt low")
     assert "own fit is flagged (Kt = 0.09 +- 0.12 N m/A is not determined by this log)" in flag.reading
@@ -231,17 +229,19 @@ def test_flags_do_not_depend_on_units_or_on_the_order_of_the_logs(scale, shift, 
     for a in base[shift:] + base[:shift]:
         r = a.report
         kw = dict(
-            kt=r["parameters"]["kt"]["value"] * scale,
-            kt_err=r["parameters"]["kt"]["stderr"] * scale,
-            coulomb=r["parameters"]["coulomb"]["value"] * scale,
-            noise=r["noise_floor"] * scale,
-            peak=r["peak_torque"]["torque"] * scale,
+            kt=r.parameters["kt"].value * scale,
+            kt_err=r.parameters["kt"].stderr * scale,
+            coulomb=r.parameters["coulomb"].value * scale,
+            noise=r.noise_floor * scale,
+            peak=r.peak.torque * scale,
         )
         rs = report(**kw)
-        for p in ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2"):
-            rs["parameters"][p] = {**r["parameters"][p], "value": r["parameters"][p]["value"] * scale,
-                                   "stderr": r["parameters"][p]["stderr"] * scale}  # fmt: skip
-        rs["parameters"]["coulomb"]["stderr"] = r["parameters"]["coulomb"]["stderr"] * scale
+        params = dict(rs.parameters)
+        for p in ("cogging_sin_1", "cogging_cos_1", "cogging_sin_2", "cogging_cos_2", "coulomb"):
+            params[p] = replace(params[p] if p == "coulomb" else r.parameters[p], stderr=r.parameters[p].stderr * scale)
+            if p != "coulomb":
+                params[p] = replace(params[p], value=r.parameters[p].value * scale)
+        rs = replace(rs, parameters=params)
         scaled.append(ActuatorFit(a.name, a.source, rs))
     assert flagged(analyse(scaled)) == flagged(analyse(base))
 
@@ -297,3 +297,33 @@ def test_current_scale_groups_are_named_and_not_flagged():
     assert "j" in ref.members and ref.current_range == pytest.approx(18.0, rel=1e-3)  # j shows no range: nearest Kt
     assert all("another current scale" in g.reading and "Kt x range" in g.reading for g in groups if g.reading)
     assert scale_groups({**kt, "a": 2.0, "b": 2.0, "c": 2.0}, rng) != groups  # Kt x range no longer one value
+
+
+def test_an_effect_that_declares_a_fleet_metric_is_compared_with_no_edit_to_the_fleet(monkeypatch):
+    """A toy effect (windage) registered with its FleetMetric: the fleet compares it in its declared column, flags
+    the actuator whose value is high with the effect's own reading, and accepts --tolerance on its key."""
+    from hound_id.dyno.current.effects import REGISTRY, Effect, FleetMetric, Parameter
+    from hound_id.dyno.fleet.analyse import metric_keys, parse_tolerances
+
+    toy = Effect(
+        name="windage",
+        physics="air drag on the rotor grows with the square of speed",
+        parameters=(Parameter("windage", "N m s^2/rad^2", "windage coefficient", 0.0),),
+        regressors=lambda s, h: -s.channel("velocity") * abs(s.channel("velocity")),
+        requires=("velocity",),
+        trainer="too small to matter in a trainer",
+        fleet=(FleetMetric("windage", "windage", "wind.", "N m s^2/rad^2", "high", 0.5, ("windage",), rank=25,
+                           high="windage high: a fan blade or a rubbing cover"),),
+    )  # fmt: skip
+    monkeypatch.setitem(REGISTRY, "windage", toy)
+    assert metric_keys().index("windage") == metric_keys().index("gear_friction") + 1  # its rank, 25
+    assert parse_tolerances("windage=0.2") == {"windage": 0.2}
+    fits = []
+    for a in fleet():
+        value = 4e-6 if a.name == "a04" else 1e-6 * (1 + 0.01 * int(a.name[1:]))
+        params = {**a.report.parameters, "windage": Estimate(value, 1e-8, "N m s^2/rad^2", "windage")}
+        fits.append(replace(a, report=replace(a.report, model=(*a.report.model, "windage"), parameters=params)))
+    result = analyse(fits)
+    assert flagged(result) == [("a04", "windage")]
+    assert result.flags[0].reading.startswith("windage high: a fan blade or a rubbing cover (+")
+    assert "windage" in result.to_dict()["fleet"]

@@ -12,6 +12,7 @@ from hound_id.dyno.fleet.engine import actuator_names, common_model, find_logs, 
 from hound_id.dyno.simulate.fleet import FLEET_MODEL
 from hound_id.errors import FleetError
 from hound_id.samples import samples_dir
+from tests.dyno.fleet.conftest import typed_report
 
 SAMPLE = samples_dir() / "fleet"
 
@@ -77,19 +78,19 @@ def test_a_two_worker_cluster_gives_the_fits_of_this_process(tmp_path, cluster):
         here = fit_log(path.stem, str(path), path.read_bytes(), options)
         there = by_name[path.stem]
         assert there.report is not None and here.report is not None
-        assert there.report["parameters"] == here.report["parameters"]
-        assert there.report["source"] == str(path)
+        assert there.report.to_json()["parameters"] == here.report.to_json()["parameters"]  # NaN errors as null
+        assert there.report.source == str(path)
 
 
 def test_auto_compares_the_fleet_on_the_effects_most_logs_need(cluster):
     logs = sorted(SAMPLE.glob("*.csv"))
     run = run_fleet(logs, FitCurrentOptions(auto=True), scheduler=cluster.scheduler_address)
     assert set(run.model) == set(FLEET_MODEL.split("+"))
-    assert all(a.ok and set(a.report["model"]) == set(run.model) for a in run.actuators)
+    assert all(a.report is not None and set(a.report.model) == set(run.model) for a in run.actuators)
 
 
 def _fit(name, model):
-    return ActuatorFit(name, f"{name}.csv", {"model": list(model)})
+    return ActuatorFit(name, f"{name}.csv", typed_report(model, {}))
 
 
 def test_the_fleet_model_takes_what_more_than_half_of_the_logs_added():
@@ -135,4 +136,4 @@ def test_logs_scattered_ahead_of_their_task_give_the_same_fits(cluster, monkeypa
     run = run_fleet(logs, options, scheduler=cluster.scheduler_address)
     for path, there in zip(logs, run.actuators, strict=True):
         here = fit_log(path.stem, str(path), path.read_bytes(), options)
-        assert there.report is not None and there.report["parameters"] == here.report["parameters"]
+        assert there.report is not None and there.report.to_json()["parameters"] == here.report.to_json()["parameters"]

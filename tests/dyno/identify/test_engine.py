@@ -221,7 +221,7 @@ def test_envelope_effects_describe_their_parameter_with_the_one_type():
 
 
 def test_each_family_renders_its_own_keys_from_the_one_type():
-    from hound_id.dyno.current.report import suggestion_dict as current_dict
+    from hound_id.dyno.current.fit_report import suggestion_dict as current_dict
     from hound_id.dyno.envelope.report import suggestion_dict as envelope_dict
 
     s = sug("bus_sag", 0.8, significant=True, p_value=1e-6, p_adjusted=6e-6, rmse=0.1, statistic=40.0, value=0.15,
