@@ -3,11 +3,11 @@ run is run here or by the test its tag names.
 
 A block claims to run when it is fenced ``bash`` or ``python``; output, synopses and file contents are fenced
 ``text`` or ``yaml``. Python blocks start with ``# example: TAG``, a tag of :data:`PYTHON_TAGS` (the test that runs
-it), or, for a trainer's snippet that needs the user's own scene, ``# sketch: NAME (its calls run in SCRIPT...)``:
-every name it calls on hound-id's modules and the trainer's objects is called in that script, which runs in the
-trainer's environment (``tests/export/test_trainers.py``). Bash blocks are run line by line, in page order, in one
-scratch folder holding the samples (so the export after the quickstart finds the quickstart's fitted motor and
-foot), with these exceptions, each checked instead:
+it), or, for a trainer's snippet, ``# runs in: TRAINER (tests/PATH.py::TEST; ...)``: that test executes the block as
+printed in the trainer's own environment by calling ``run_snippet(..., "TRAINER", ...)``
+(``tests/export/test_doc_snippets.py``; :func:`python_block_problem` checks the call). Bash blocks are run line by
+line, in page order, in one scratch folder holding the samples (so the export after the quickstart finds the
+quickstart's fitted motor and foot), with these exceptions, each checked instead:
 
 * the set-up commands are the test command itself: the second must be what ``.ci/run`` runs;
 * ``benchmarks/`` scripts are timing runs, never run as tests: the script exists and its ``--help`` lists every
@@ -18,6 +18,7 @@ foot), with these exceptions, each checked instead:
 
 from __future__ import annotations
 
+import ast
 import os
 import re
 import shlex
@@ -60,6 +61,13 @@ def example(tag: str) -> str:
     """The one Python block of the manual tagged ``# example: TAG``."""
     found = [text for _, text in blocks("python") if text.startswith(f"# example: {tag}\n")]
     assert len(found) == 1, f"{len(found)} blocks tagged {tag}"
+    return found[0]
+
+
+def snippet(trainer: str) -> str:
+    """The one Python block of the manual that runs in ``trainer``: ``# runs in: TRAINER (...)``, as printed."""
+    found = [text for _, text in blocks("python") if text.startswith(f"# runs in: {trainer} (")]
+    assert len(found) == 1, f"{len(found)} blocks run in {trainer}"
     return found[0]
 
 
@@ -137,28 +145,72 @@ def test_the_readme_is_short_and_no_page_says_issue_n():
         assert not re.search(r"(?i)\bissue \d", path.read_text()), path
 
 
-def test_every_python_block_is_run_by_a_named_test():
-    """Each Python block carries a tag whose test exists, or is a trainer sketch whose calls its check script makes
-    (a new snippet without either fails here)."""
-    for page, text in blocks("python"):
-        first = text.splitlines()[0]
-        if first.startswith("# sketch: "):
-            script = re.search(r"its calls run in (tests/\S+?\.py)", first)
-            assert script, f"{page.name}: {first!r} names no check script"
-            check = (ROOT / script.group(1)).read_text()
-            body = "\n".join(line.split("#")[0] for line in text.splitlines()[1:])
-            called = set(re.findall(r"\.?([A-Za-z_]\w*)\(", body)) - {"open", "str", "dict", "print"}
-            assert called and all(name in check for name in called), (
-                page.name,
-                sorted(called - set(re.findall(r"\w+", check))),
-            )
-            continue
+#: ``# runs in: TRAINER (tests/PATH.py::TEST`` followed by ``;`` or ``)``.
+RUNS_IN = re.compile(r"# runs in: (\w+) \((tests/[\w/]+\.py)::(test_\w+)[;)]")
+
+
+def python_block_problem(first: str) -> str | None:
+    """Why a Python block with this first line is not run by a test (None when it is): ``# example: TAG`` needs a tag
+    of :data:`PYTHON_TAGS`; ``# runs in: TRAINER (tests/PATH.py::TEST...)`` needs TEST in that file to call
+    ``run_snippet`` with ``"TRAINER"`` (the helper that executes the printed block in the trainer's environment)."""
+    if first.startswith("# example: "):
         tag = first.removeprefix("# example: ")
-        assert first.startswith("# example: ") and tag in PYTHON_TAGS, f"{page.name}: a python block starts {first!r}"
+        return None if tag in PYTHON_TAGS else f"{first!r}: {tag} is not a tag of PYTHON_TAGS"
+    if not first.startswith("# runs in: "):
+        return f"a python block starts {first!r}, neither '# example: TAG' nor '# runs in: TRAINER (TEST...)'"
+    match = RUNS_IN.match(first)
+    if not match:
+        return f"{first!r} names no test: '# runs in: TRAINER (tests/PATH.py::TEST; ...)'"
+    trainer, path, name = match.groups()
+    if not (ROOT / path).is_file():
+        return f"{first!r}: {path} does not exist"
+    tests = [f for f in ast.parse((ROOT / path).read_text()).body if isinstance(f, ast.FunctionDef) and f.name == name]
+    if not tests:
+        return f"{first!r}: {path} has no {name}"
+    runs = [
+        call
+        for call in ast.walk(tests[0])
+        if isinstance(call, ast.Call)
+        and getattr(call.func, "id", None) == "run_snippet"
+        and any(isinstance(a, ast.Constant) and a.value == trainer for a in call.args)
+    ]
+    return None if runs else f"{first!r}: {name} does not call run_snippet(..., {trainer!r}, ...)"
+
+
+def test_every_python_block_is_run_by_a_named_test():
+    """Each Python block carries a tag whose test exists, or is a trainer snippet whose named test executes it in the
+    trainer's environment (a new snippet without either fails here); one block per tag and per trainer."""
+    for page, text in blocks("python"):
+        problem = python_block_problem(text.splitlines()[0])
+        assert problem is None, f"{page.name}: {problem}"
     for tag, where in PYTHON_TAGS.items():
         assert len([1 for _, t in blocks("python") if t.startswith(f"# example: {tag}\n")]) == 1, tag
         path, _, name = where.partition("::")
         assert f"def {name}(" in (ROOT / path).read_text(), (tag, where)
+    trainers = [m.group(1) for _, t in blocks("python") if (m := RUNS_IN.match(t))]
+    assert len(trainers) == len(set(trainers)) >= 4, trainers
+    for trainer in trainers:
+        assert snippet(trainer).startswith(f"# runs in: {trainer} (")
+
+
+@pytest.mark.parametrize(
+    "first",
+    [
+        "# sketch: genesis (its calls run in tests/export/in_trainers/genesis_check.py)",
+        "# runs in: genesis",
+        "# runs in: genesis (tests/export/test_nothing_here.py::test_the_genesis_snippet_runs_in_genesis)",
+        "# runs in: genesis (tests/export/test_doc_snippets.py::test_the_genesis_snippet_is_run_somewhere)",
+        "# runs in: mujoco (tests/export/test_doc_snippets.py::test_the_genesis_snippet_runs_in_genesis)",
+        "# runs in: genesis (tests/export/test_trainers.py::"
+        "test_genesis_applies_the_runtime_torques_from_the_open_urdf_and_fights_the_inner_one)",
+        "# example: no_such_tag",
+    ],
+)
+def test_a_python_block_no_test_runs_is_caught(first):
+    """A trainer snippet whose named test is missing, or does not run that trainer's snippet, fails the check (as do
+    the old ``# sketch:`` marker and an unknown example tag); the manual's own first lines pass it."""
+    assert python_block_problem(first) is not None
+    assert python_block_problem(snippet("genesis").splitlines()[0]) is None
 
 
 def test_the_set_up_commands_are_the_test_command():

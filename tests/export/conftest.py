@@ -30,6 +30,41 @@ def trainer_python(name: str, packages: tuple[str, ...], timeout: float = 1500) 
     return str(python)
 
 
+#: What each trainer's environment installs (the versions the exports are for).
+MJLAB = ("mjlab==1.6.0", "torch==2.13.0")
+NEWTON = ("newton[sim]==1.8.0",)
+ISAACLAB = ("isaaclab==2.3.2.post1", "torch==2.13.0", "usd-core")
+GENESIS = ("genesis-world==1.4.5", "torch==2.13.0")
+
+
+@pytest.fixture(scope="module")
+def mjlab() -> str:
+    return trainer_python("mjlab-1.6.0", MJLAB)
+
+
+@pytest.fixture(scope="module")
+def newton() -> str:
+    return trainer_python("newton-1.8.0", NEWTON)
+
+
+@pytest.fixture(scope="module")
+def isaaclab() -> tuple[str, str]:
+    """Isaac Lab 2.3.2 (the newest on the package index; 3.0 is not there) without Isaac Sim: the wheel's source
+    folder goes on PYTHONPATH (its top-level package bootstraps Isaac Sim), usd-core gives the pxr it imports."""
+    python = trainer_python("isaaclab-2.3.2", ISAACLAB)
+    proc = subprocess.run(
+        [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture_output=True, text=True
+    )
+    source = Path(proc.stdout.strip()) / "isaaclab" / "source" / "isaaclab"
+    assert (source / "isaaclab" / "actuators" / "actuator_pd.py").is_file(), f"no Isaac Lab source in {source}"
+    return python, str(source)
+
+
+@pytest.fixture(scope="module")
+def genesis() -> str:
+    return trainer_python("genesis-1.4.5", GENESIS)
+
+
 def fitted_motor(folder: Path, base: str = "hound_ilm85.yaml", dc_law: bool = True) -> Path:
     """A fitted-motor YAML as fit-current --out writes it (Kt, Coulomb and viscous friction, compensation). With
     ``dc_law`` (default) the sheet's inductance is dropped: a linear motor under the DC law, V = R i + omega/Kv,

@@ -14,17 +14,11 @@ from hound_id.export.run import formats_from, prepare
 from hound_id.export.target import TRAINER_REACH
 from hound_id.mor.region import operating_region
 from tests.conftest import ROBOT, ROOT
-from tests.export.conftest import fitted_motor, trainer_python, write_export
+from tests.export.conftest import fitted_motor, write_export
 
 SCRIPTS = Path(__file__).parent / "in_trainers"
-MJLAB = ("mjlab==1.6.0", "torch==2.13.0")
 #: float32 (MuJoCo-Warp) rounding of torques up to 100 N m.
 FLOAT32 = 2e-4
-
-
-@pytest.fixture(scope="module")
-def mjlab() -> str:
-    return trainer_python("mjlab-1.6.0", MJLAB)
 
 
 def run_in(python: str, script: str, *args: object, path: tuple[str, ...] = ()) -> dict:
@@ -102,14 +96,6 @@ def test_mjlab_to_twice_the_no_load_speed_within_the_stated_braking(mjlab, tmp_p
     assert r["max_difference_rollout_within_speed"] <= gap * gear + tol * gear
 
 
-NEWTON = ("newton[sim]==1.8.0",)
-
-
-@pytest.fixture(scope="module")
-def newton() -> str:
-    return trainer_python("newton-1.8.0", NEWTON)
-
-
 @pytest.mark.parametrize("engine", ["warp", "cpu"])
 def test_newton_reproduces_the_runtime_for_a_linear_motor(newton, tmp_path, engine):
     """The generated add_actuators on the exported open URDF, in SolverMuJoCo (MuJoCo-Warp and MuJoCo's CPU engine):
@@ -141,22 +127,6 @@ def test_newton_to_twice_the_no_load_speed_within_the_stated_braking(newton, tmp
     assert r["finite"] and r["max_difference_law"] < tol
     assert 0.99 * past < r["max_difference"] <= gap + tol
     assert r["rollout_top_motor_speed"] >= 0.99 * speed and r["max_difference_rollout_within_speed"] <= gap + tol
-
-
-ISAACLAB = ("isaaclab==2.3.2.post1", "torch==2.13.0", "usd-core")
-
-
-@pytest.fixture(scope="module")
-def isaaclab() -> tuple[str, str]:
-    """Isaac Lab 2.3.2 (the newest on the package index; 3.0 is not there) without Isaac Sim: the wheel's source
-    folder goes on PYTHONPATH (its top-level package bootstraps Isaac Sim), usd-core gives the pxr it imports."""
-    python = trainer_python("isaaclab-2.3.2", ISAACLAB)
-    proc = subprocess.run(
-        [python, "-c", "import sysconfig; print(sysconfig.get_paths()['purelib'])"], capture_output=True, text=True
-    )
-    source = Path(proc.stdout.strip()) / "isaaclab" / "source" / "isaaclab"
-    assert (source / "isaaclab" / "actuators" / "actuator_pd.py").is_file(), f"no Isaac Lab source in {source}"
-    return python, str(source)
 
 
 @pytest.mark.parametrize("fitted", [True, False], ids=["linear_fit", "sheet_curve"])
@@ -209,14 +179,6 @@ def test_installing_hound_id_beside_a_trainer_leaves_its_mujoco_alone(request, t
     planned = {i["metadata"]["name"].lower() for i in json.loads(report.read_text())["install"]}
     assert "hound-id" in planned
     assert not planned & {"mujoco", "mujoco-warp", "warp-lang", "torch", "numpy"}, sorted(planned)
-
-
-GENESIS = ("genesis-world==1.4.5", "torch==2.13.0")
-
-
-@pytest.fixture(scope="module")
-def genesis() -> str:
-    return trainer_python("genesis-1.4.5", GENESIS)
 
 
 def test_genesis_applies_the_runtime_torques_from_the_open_urdf_and_fights_the_inner_one(genesis, tmp_path):

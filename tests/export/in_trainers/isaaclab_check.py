@@ -1,34 +1,23 @@
 """Run inside an Isaac Lab virtual environment (tests/export/test_trainers.py): Isaac Lab 2.3.2's own actuator classes
 (DCMotor, IdealPDActuator) with hound-id's fields, and hound_id's HoundIdActuator, fed random commands at random
 joint speeds; prints the applied torques' differences from hound_id.runtime (JSON on stdout). Arguments: the export
-folder, the largest motor speed drawn [rad/s].
-
-The pip wheel of Isaac Lab 2.3.2 holds its source; its ``isaaclab.actuators`` package __init__ imports the actuator
-network's asset reader, which needs Isaac Sim's Omniverse client. The actuator modules themselves need torch and
-isaaclab.utils only, so they are imported here as the package's submodules without running that __init__ (nothing
-of Isaac Lab is replaced)."""
+folder, the largest motor speed drawn [rad/s]. Isaac Lab's actuator modules are imported without Isaac Sim by
+isaaclab_without_sim (nothing of Isaac Lab is replaced)."""
 
 import json
 import logging
 import sys
-import types
 import warnings
 from pathlib import Path
 
 import isaaclab
 import torch
 import yaml
+from isaaclab.utils.types import ArticulationActions
+from isaaclab_without_sim import actuator_pd, actuator_pd_cfg
 
-pkg = types.ModuleType("isaaclab.actuators")
-pkg.__path__ = [str(Path(isaaclab.__path__[0]) / "actuators")]
-sys.modules["isaaclab.actuators"] = pkg
-from isaaclab.actuators import actuator_pd, actuator_pd_cfg  # noqa: E402
-from isaaclab.utils.types import ArticulationActions  # noqa: E402
-
-pkg.IdealPDActuator, pkg.IdealPDActuatorCfg = actuator_pd.IdealPDActuator, actuator_pd_cfg.IdealPDActuatorCfg
-
-import hound_id.runtime  # noqa: E402
-from hound_id.export.isaaclab_actuator import HoundIdActuatorCfg  # noqa: E402
+import hound_id.runtime
+from hound_id.export.isaaclab_actuator import HoundIdActuatorCfg
 
 folder, speed = Path(sys.argv[1]), float(sys.argv[2])
 # every warning Isaac Lab raises or logs while the configs and actuators are built (deprecations among them)
