@@ -242,10 +242,10 @@ def clip_correction(
     reference: float = 0.0,
 ) -> None:
     """``out`` = clip(tau_m, interval(u)) - tau_m for C-contiguous arrays of one shape and dtype, with the
-    constants ``c`` (:class:`hound_id.mor.saturation._Constants`, their ``stacked`` limits expanded to that shape);
+    constants ``c`` (:class:`hound_id.mor.clip_operators.Constants`, their ``stacked`` limits expanded to that shape);
     ``omega`` (the motor speeds) is read only when the constants have a rated speed, ``volts`` (the bus voltage
     per element, same shape) only when given, ``temps`` (the winding temperature per element [degC]) with ``heat``
-    (the six thermal rows of :meth:`hound_id.mor.saturation.Saturation._heated_bounds`, expanded to that shape) and
+    (the six thermal rows of :func:`hound_id.mor.clip_paths.heated_bounds`, expanded to that shape) and
     ``reference`` (the temperature [degC] the 20 degC constants hold at) only when given."""
     has_heat = temps is not None
     loop = _correction(c.has_curve, c.has_cap, c.has_max_speed, volts is not None, c.has_drive, c.has_fw, has_heat)
