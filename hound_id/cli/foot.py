@@ -76,8 +76,6 @@ def foot(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/foot/2 or foot-leg/1)."),
 ) -> None:
     """The leg's mass properties and contact angles; with --optimise, the lightest spherical-cap foot."""
-    from hound_id.foot.run import foot_data, run_foot, write_outputs
-
     options = FootOptions(
         optimise=optimise,
         leg=leg,
@@ -109,7 +107,14 @@ def foot(
         out=out,
         plot=plot,
     )
-    if optimise:
+    _run_and_render(options, json_out)
+
+
+def _run_and_render(options: FootOptions, json_out: bool) -> None:
+    """Run the verb (with a status line while it optimises), write its files and render its result."""
+    from hound_id.foot.run import foot_data, run_foot, write_outputs
+
+    if options.optimise:
         with console.status("optimising the foot (casadi/IPOPT), building the mesh, checking with Pinocchio"):
             run = run_foot(options)
     else:

@@ -17,7 +17,8 @@ from hound_id.io import check_output
 from hound_id.units import RPM_PER_RAD_S
 
 if TYPE_CHECKING:
-    from hound_id.dyno.compare_envelope import CompareOptions
+    from hound_id.dyno.compare_envelope import CompareOptions, EnvelopeComparison
+    from hound_id.mor.run import MotorRegions
 
 
 def mor(
@@ -83,6 +84,18 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
     if json_out:
         print_json(data)
         return
+    _print_compare_head(result, data)
+    _print_ladder(data)
+    _print_compare_coverage(result, data)
+    _print_compare_verdict(result, data)
+    if plot is not None:
+        console.print(f"plot written to {plot}", highlight=False)
+    if out is not None:
+        console.print(f"motor spec with the measured envelope written to {out}", highlight=False)
+
+
+def _print_compare_head(result: EnvelopeComparison, data: dict[str, Any]) -> None:
+    """The samples outside the region, the bins at the limit and how the limit was detected (``mor --compare``)."""
     spec, log = result.spec, result.log
     outside = data["outside"]
     console.print(
@@ -112,6 +125,10 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
             f"noise {detection['noise']:.2g} N m inside the region",
             highlight=False,
         )
+
+
+def _print_ladder(data: dict[str, Any]) -> None:
+    """The effects added step by step and the table of candidates on top of the model (``mor --compare``)."""
     for step in data["ladder"][1:]:
         params = ", ".join(f"{k} = {v:.4g}" for k, v in step["model"].items())
         console.print(f"+ {step['added']}: envelope error {step['envelope_rmse']:.3g} N m ({params})", highlight=False)
@@ -129,6 +146,10 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
         table.add_row(sug["effect"], f"{sug['value']:.4g} {sug['unit']}", f"{sug['explained']:.1%}",
                       f"{sug['rmse']:.3g} N m", "yes" if sug["significant"] else "no")  # fmt: skip
     console.print(table)
+
+
+def _print_compare_coverage(result: EnvelopeComparison, data: dict[str, Any]) -> None:
+    """The motor speeds at which the log shows the limits, and a note when it stops short of speed."""
     cov = data["coverage"]
     console.print(
         "the log shows the limits at motor speeds "
@@ -140,10 +161,14 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
         forward, backward = result.motoring_speeds
         console.print(
             f"note: the log shows the motoring edges to {forward:.4g} rad/s forward and {backward:.4g} rad/s backward "
-            f"(no-load speed {spec.no_load_speed:.4g} rad/s): effects that act at speed (bus_sag, inductance, "
+            f"(no-load speed {result.spec.no_load_speed:.4g} rad/s): effects that act at speed (bus_sag, inductance, "
             "thermal_resistance) show little or nothing below that, so the verdict holds only there",
             highlight=False,
         )
+
+
+def _print_compare_verdict(result: EnvelopeComparison, data: dict[str, Any]) -> None:
+    """The flags, the effects not needed, and what to add or check next (``mor --compare``)."""
     final = data["envelope_rmse"]["with_added"]
     for text in result.flag_warnings:
         warn(text)
@@ -169,10 +194,6 @@ def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_
         console.print(
             "note: thermal_resistance enters --out at 25 degC (the polyline has no temperature)", highlight=False
         )
-    if plot is not None:
-        console.print(f"plot written to {plot}", highlight=False)
-    if out is not None:
-        console.print(f"motor spec with the measured envelope written to {out}", highlight=False)
 
 
 #: A region with more vertices than this (curved edges) has them in --json only.
@@ -184,7 +205,7 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
 
     check_output(plot, (".png",), "plot")
     run = motor_regions(path, bus_range)
-    spec, sheet, region, measured = run.spec, run.sheet, run.region, run.measured
+    spec = run.spec
     for w in run.warnings:
         warn(w)
     if plot is not None:
@@ -194,6 +215,21 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
         data["plot"] = str(plot) if plot else None
         print_json(data)
         return
+    console.print(_spec_table(run))
+    _print_curve(path, run)
+    speed = run.at_speed
+    if speed is not None:
+        _print_at_speed(spec, speed)
+    if run.heat is not None:
+        _print_heat(spec, run.heat)
+    _print_shape(run)
+    if plot is not None:
+        console.print(f"plot written to {plot}", highlight=False)
+
+
+def _spec_table(run: MotorRegions) -> Table:
+    """The ``mor --spec`` table: constants, limits, speeds, inner box (the sheet's beside a measured envelope)."""
+    spec, sheet, region, measured = run.spec, run.sheet, run.region, run.measured
     title = f"Operating region of {spec.name} (motor side" + (", measured envelope)" if measured else ")")
     table = Table(title=title, title_justify="left")
     table.add_column("quantity")
@@ -239,7 +275,12 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
         )
     for r in rows:
         table.add_row(*r)
-    console.print(table)
+    return table
+
+
+def _print_curve(path: Path, run: MotorRegions) -> None:
+    """The dyno fit the spec carries, its current-torque curve and which limit binds at which speed."""
+    spec = run.spec
     if spec.fit is not None:
         model = "+".join(spec.fit.model)
         rmse = spec.fit.rmse_test
@@ -258,11 +299,11 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
     for binding in run.bindings:
         w0, w1 = binding.speeds
         console.print(f"  {w0:.4g} to {w1:.4g} rad/s: {binding.limit}: {binding.detail}", highlight=False)
-    speed = run.at_speed
-    if speed is not None:
-        _print_at_speed(spec, speed)
-    if run.heat is not None:
-        _print_heat(spec, run.heat)
+
+
+def _print_shape(run: MotorRegions) -> None:
+    """What a linear Kt would promise, the convex cut, the vertices and the measured envelope (``mor --spec``)."""
+    spec, region, measured = run.spec, run.region, run.measured
     lk = run.linear_kt
     if lk.largest > 0:
         linear, curved = (f"{t:.4g}" for t in lk.torque_limit)
@@ -294,8 +335,6 @@ def _mor_spec(path: Path, plot: Path | None, json_out: bool, bus_range: str | No
             f"short of it by up to {region.convexity_loss:.3g} N m",
             highlight=False,
         )
-    if plot is not None:
-        console.print(f"plot written to {plot}", highlight=False)
 
 
 def _print_heat(spec: Any, h: Any) -> None:

@@ -257,52 +257,17 @@ def _constraints(
     arcsines (whose derivative is infinite at 1) and the stance leg length as one two-sided
     (``within``) row per angle instead of a maximum; the numeric rows are what the report shows.
     """
-    R, t, W, lo, hi, zc, rb = (x[i] for i in range(len(_X)))
+    parts = tuple(x[i] for i in range(len(_X)))
+    R, t, W, lo, hi, zc, rb = parts
     e_star = effective_modulus(req.material, req.ground)
-    F, mu, nu, allowed = req.peak_force, req.friction, req.material.poisson, req.allowed_stress
+    F, allowed = req.peak_force, req.allowed_stress
     a = contact_radius(F, R, e_star)
     rim = (rb + t) / (R - t)  # sine of the half-angle of the boss plus a rim of one wall
     cos_n, L = math.cos(req.nominal_angle), mount.mount_length
     # knee-to-ground height, new minus original, with the calf at contact angle theta
     dh = [R - mount.contact_radius - zc * math.cos(theta) for theta in _stance_angles(req)]
     boss_len = ops.sqrt(ops.fmax((R - t) ** 2 - rb**2, SQRT_FLOOR)) - zc
-    if symbolic:
-        seats = [
-            ("boss_seat_front", ops.sin(-lo), rim, ">=", "-", ""),
-            ("boss_seat_back", ops.sin(hi), rim, ">=", "-", ""),
-        ]
-        stance = [(f"leg_length_stance_{i}", d, req.length_tolerance, "within", "m", "") for i, d in enumerate(dh)]
-    else:
-        seat = ops.asin(ops.fmin(rim, 1.0))
-        seats = [
-            (
-                "boss_seat_front",
-                -lo,
-                seat,
-                ">=",
-                "rad",
-                "the boss and a rim of one wall land inside the cap (touchdown side)",
-            ),
-            (
-                "boss_seat_back",
-                hi,
-                seat,
-                ">=",
-                "rad",
-                "the boss and a rim of one wall land inside the cap (liftoff side)",
-            ),
-        ]
-        worst = max(abs(d) for d in dh)
-        stance = [
-            (
-                "leg_length_stance",
-                worst,
-                req.length_tolerance,
-                "<=",
-                "m",
-                "knee-to-ground height within the tolerance of the original's over the whole contact arc",
-            )
-        ]
+    seats, stance = _seats_and_stance(lo, hi, rim, dh, req, ops, symbolic)
     out = [
         ("coverage_touchdown", lo, req.low, "<=", "rad", "the cap reaches the lowest contact angle"),
         ("coverage_liftoff", hi, req.high, ">=", "rad", "the cap reaches the highest contact angle"),
@@ -321,6 +286,63 @@ def _constraints(
         ("boss_length", boss_len, req.min_boss_length, ">=", "m",
          "room for the fastening between the mount and the cap"),
     ]  # fmt: skip
+    out += _strength_rows(parts, req, ops, a, boss_len, allowed)
+    if req.max_radius is not None:
+        out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
+    return out
+
+
+def _seats_and_stance(
+    lo: Any, hi: Any, rim: Any, dh: list[Any], req: FootRequirements, ops: Any, symbolic: bool
+) -> tuple[list[tuple[str, Any, Any, str, str, str]], list[tuple[str, Any, Any, str, str, str]]]:
+    """(boss-seat rows, stance rows): smooth forms for IPOPT if ``symbolic``, else what the report shows."""
+    if symbolic:
+        seats = [
+            ("boss_seat_front", ops.sin(-lo), rim, ">=", "-", ""),
+            ("boss_seat_back", ops.sin(hi), rim, ">=", "-", ""),
+        ]
+        stance = [(f"leg_length_stance_{i}", d, req.length_tolerance, "within", "m", "") for i, d in enumerate(dh)]
+        return seats, stance
+    seat = ops.asin(ops.fmin(rim, 1.0))
+    seats = [
+        (
+            "boss_seat_front",
+            -lo,
+            seat,
+            ">=",
+            "rad",
+            "the boss and a rim of one wall land inside the cap (touchdown side)",
+        ),
+        (
+            "boss_seat_back",
+            hi,
+            seat,
+            ">=",
+            "rad",
+            "the boss and a rim of one wall land inside the cap (liftoff side)",
+        ),
+    ]
+    worst = max(abs(d) for d in dh)
+    stance = [
+        (
+            "leg_length_stance",
+            worst,
+            req.length_tolerance,
+            "<=",
+            "m",
+            "knee-to-ground height within the tolerance of the original's over the whole contact arc",
+        )
+    ]
+    return seats, stance
+
+
+def _strength_rows(
+    parts: tuple[Any, ...], req: FootRequirements, ops: Any, a: Any, boss_len: Any, allowed: float
+) -> list[tuple[str, Any, Any, str, str, str]]:
+    """The fastener's rows (with a bolt) and the stress rows of the design's variables (in _X's order)."""
+    R, t, W, lo, hi, zc, rb = parts
+    F, mu, nu = req.peak_force, req.friction, req.material.poisson
+    out: list[tuple[str, Any, Any, str, str, str]] = []
     if req.fastener is not None:
         f = req.fastener
         out += [
@@ -347,8 +369,6 @@ def _constraints(
         ("shell_edge_liftoff", R * (hi - req.high + req.margin), l_char, ">=", "m",
          "the stance's farthest liftoff contact lies >= l from the cap's edge (the interior bending formula holds)"),
     ]  # fmt: skip
-    if req.max_radius is not None:
-        out.append(("max_radius", R, req.max_radius, "<=", "m", "the sphere fits the packaging limit"))
     return out
 
 
@@ -470,18 +490,7 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
     ops = casadi_ops()
     m = volume_moments(_geometry(x, req), ops=ops)
     inertia, objective = _objective(m, mount, req)
-    rows = _constraints(x, mount, req, ops, symbolic=True)
-    g, lbg, ubg = [], [], []
-    for _, value, limit, kind, unit, _ in rows:
-        scale = MPA_PER_PA if unit == "Pa" else (MM_PER_M if unit == "m" else 1.0)  # MPa, mm, rad
-        if kind == "within":  # -limit <= value <= limit
-            g.append(value * scale)
-            lbg.append(-limit * scale)
-            ubg.append(limit * scale)
-            continue
-        g.append((value - limit) * scale)
-        lbg.append(0.0 if kind in (">=", "==") else -ca.inf)
-        ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
+    g, lbg, ubg = _scaled_rows(_constraints(x, mount, req, ops, symbolic=True))
     i_ref = mount.foot.about_axis_y((0.0, 0.0, mount.mount_length))  # objective scale
     nlp = {"x": y, "f": objective / i_ref, "g": ca.vertcat(*g)}
     opts: dict[str, Any] = {"ipopt.print_level": 0, "print_time": False, "ipopt.tol": IPOPT_TOL,
@@ -489,39 +498,8 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             "show_eval_warnings": False}  # fmt: skip
     solver = ca.nlpsol("foot", "ipopt", nlp, opts)
     to_x = ca.Function("x", [y], [x])
-    lbx = [RADIUS_BOUNDS_MM[0], THICKNESS_SHARE_BOUNDS[0], ANGLE_GUARD, -math.pi / 2, 0.0, -CENTRE_BOUND_MM]
-    ubx = [RADIUS_BOUNDS_MM[1], THICKNESS_SHARE_BOUNDS[1], math.pi / 2 - ANGLE_GUARD, 0.0, math.pi / 2, CENTRE_BOUND_MM]
-    lbx, ubx = [*lbx, _min_boss(req) * MM_PER_M], [*ubx, BOSS_MAX_MM]
-    if req.radius is not None:
-        lbx[0] = ubx[0] = req.radius * MM_PER_M
-    boss = _X.index("boss_radius")
-    if req.boss_radius is not None:
-        lbx[boss] = ubx[boss] = req.boss_radius * MM_PER_M
-    best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
-    last: tuple[list[float], dict[str, Any]] | None = None
-    for start, wide in itertools.product(STARTS, (False, True)):  # the best of a few starts
-        guess = _guess(start * max(r_min, mount.contact_radius / START_SHRINK), mount, req, wide)
-        sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
-        stats = solver.stats()
-        y_opt = [float(v) for v in sol["x"].full().ravel()]
-        x_try = [float(v) for v in np.asarray(to_x(y_opt)).ravel()]
-        last = (x_try, stats)
-        if stats.get("success", False) and all(c.satisfied for c in evaluate(_geometry(x_try, req), mount, req)):
-            f = float(sol["f"])
-            if best is None or f < best[0] - TIE:
-                best = (f, x_try, stats, y_opt)
-    if best is None:
-        assert last is not None
-        x_bad, stats = last
-        violated = [c for c in evaluate(_geometry(x_bad, req), mount, req) if not c.satisfied]
-        detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated)
-        raise SpecError(
-            f"foot: no design found that meets every constraint (IPOPT: {stats.get('return_status')}"
-            + (f"; violated at its last point: {detail}" if detail else "")
-            + "); relax the request: a smaller --margin or --roll, a larger --max-radius or --length-tolerance, "
-            "a shorter --min-boss-length, a smaller --bolt, a lower --grf or --friction, or a stronger --material"
-        )
-    f_best, x_opt, stats, y_best = best
+    lbx, ubx = _variable_bounds(req)
+    f_best, x_opt, stats, y_best = _best_start(solver, to_x, (lbx, ubx, lbg, ubg), r_min, mount, req)
     geometry = _geometry(x_opt, req)
     constraints = evaluate(geometry, mount, req)
     violated = [c for c in constraints if not c.satisfied]
@@ -548,6 +526,74 @@ def optimise_foot(mount: FootMount, req: FootRequirements) -> FootDesign:
             "inertia_check": float(ca.Function("i", [y], [inertia])(y_best)) - knee,
         },
     )
+
+
+def _scaled_rows(rows: list[tuple[str, Any, Any, str, str, str]]) -> tuple[list[Any], list[float], list[float]]:
+    """(g, lower, upper bounds) of IPOPT's constraints from the symbolic rows, in MPa, mm and rad."""
+    import casadi as ca
+
+    g, lbg, ubg = [], [], []
+    for _, value, limit, kind, unit, _ in rows:
+        scale = MPA_PER_PA if unit == "Pa" else (MM_PER_M if unit == "m" else 1.0)  # MPa, mm, rad
+        if kind == "within":  # -limit <= value <= limit
+            g.append(value * scale)
+            lbg.append(-limit * scale)
+            ubg.append(limit * scale)
+            continue
+        g.append((value - limit) * scale)
+        lbg.append(0.0 if kind in (">=", "==") else -ca.inf)
+        ubg.append(0.0 if kind in ("<=", "==") else ca.inf)
+    return g, lbg, ubg
+
+
+def _variable_bounds(req: FootRequirements) -> tuple[list[float], list[float]]:
+    """(lower, upper) bounds of IPOPT's variables (see :func:`optimise_foot`), a fixed radius or boss radius held."""
+    lbx = [RADIUS_BOUNDS_MM[0], THICKNESS_SHARE_BOUNDS[0], ANGLE_GUARD, -math.pi / 2, 0.0, -CENTRE_BOUND_MM]
+    ubx = [RADIUS_BOUNDS_MM[1], THICKNESS_SHARE_BOUNDS[1], math.pi / 2 - ANGLE_GUARD, 0.0, math.pi / 2, CENTRE_BOUND_MM]
+    lbx, ubx = [*lbx, _min_boss(req) * MM_PER_M], [*ubx, BOSS_MAX_MM]
+    if req.radius is not None:
+        lbx[0] = ubx[0] = req.radius * MM_PER_M
+    boss = _X.index("boss_radius")
+    if req.boss_radius is not None:
+        lbx[boss] = ubx[boss] = req.boss_radius * MM_PER_M
+    return lbx, ubx
+
+
+def _best_start(
+    solver: Any,
+    to_x: Any,
+    bounds: tuple[list[float], list[float], list[float], list[float]],
+    r_min: float,
+    mount: FootMount,
+    req: FootRequirements,
+) -> tuple[float, list[float], dict[str, Any], list[float]]:
+    """(objective, x, IPOPT's stats, y) of the best feasible solution of a few starts, or SpecError."""
+    lbx, ubx, lbg, ubg = bounds
+    best: tuple[float, list[float], dict[str, Any], list[float]] | None = None
+    last: tuple[list[float], dict[str, Any]] | None = None
+    for start, wide in itertools.product(STARTS, (False, True)):  # the best of a few starts
+        guess = _guess(start * max(r_min, mount.contact_radius / START_SHRINK), mount, req, wide)
+        sol = solver(x0=guess, lbx=lbx, ubx=ubx, lbg=lbg, ubg=ubg)
+        stats = solver.stats()
+        y_opt = [float(v) for v in sol["x"].full().ravel()]
+        x_try = [float(v) for v in np.asarray(to_x(y_opt)).ravel()]
+        last = (x_try, stats)
+        if stats.get("success", False) and all(c.satisfied for c in evaluate(_geometry(x_try, req), mount, req)):
+            f = float(sol["f"])
+            if best is None or f < best[0] - TIE:
+                best = (f, x_try, stats, y_opt)
+    if best is None:
+        assert last is not None
+        x_bad, stats = last
+        violated = [c for c in evaluate(_geometry(x_bad, req), mount, req) if not c.satisfied]
+        detail = "; ".join(f"{c.name} {c.value:.4g} {c.kind} {c.limit:.4g} {c.unit}" for c in violated)
+        raise SpecError(
+            f"foot: no design found that meets every constraint (IPOPT: {stats.get('return_status')}"
+            + (f"; violated at its last point: {detail}" if detail else "")
+            + "); relax the request: a smaller --margin or --roll, a larger --max-radius or --length-tolerance, "
+            "a shorter --min-boss-length, a smaller --bolt, a lower --grf or --friction, or a stronger --material"
+        )
+    return best
 
 
 def casadi_ops() -> Any:

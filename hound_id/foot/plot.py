@@ -24,10 +24,31 @@ def plot_foot(report: FootReport) -> Any:
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
-    g, mount, angles = report.design.geometry, report.mount, report.angles
+    g, mount = report.design.geometry, report.mount
     mm = 1e3
     fig, (ax, bars) = plt.subplots(1, 2, figsize=(11, 6.2), gridspec_kw={"width_ratios": [1.25, 1]})
     fig.subplots_adjust(left=0.08, right=0.98, top=0.93, bottom=0.27, wspace=0.25)
+    _draw_feet(ax, report)
+    _draw_contacts(ax, report)
+    zc = g.centre_z
+    ax.plot([0], [zc * mm], marker="+", color="k", zorder=5)
+    ax.set_aspect("equal")
+    ax.set_xlabel("x, forward in the calf frame [mm]")
+    ax.set_ylabel("z along the calf [mm]")
+    ax.set_title("Sagittal section (calf frame, y = 0)")
+    fig.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncol=2)
+    ax.grid(alpha=0.3)
+    lim = 1.6 * max(g.radius, mount.contact_radius) * mm
+    ax.set_xlim(-lim, lim)
+    ax.set_ylim(min(-1.35 * mount.contact_radius, zc - 1.35 * g.radius) * mm, 0.9 * lim)
+    _draw_ratios(bars, report)
+    return fig
+
+
+def _draw_feet(ax: Any, report: FootReport) -> None:
+    """The original foot's contact circle, the calf, and the new cap with its boss (the bore left white) [mm]."""
+    g, mount = report.design.geometry, report.mount
+    mm = 1e3
     # original foot: the contact circle about the mount
     ox, oz = _arc(0.0, 0.0, mount.contact_radius, -math.pi, math.pi)
     ax.fill(ox * mm, oz * mm, color="0.85", zorder=0, label=f"original {mount.contact_shape}, r = "
@@ -51,6 +72,13 @@ def plot_foot(report: FootReport) -> Any:
         ax.fill(np.r_[xb, sign * rb, sign * ri] * mm, np.r_[zb, 0.0, 0.0] * mm, color="tab:blue", alpha=0.55,
                 zorder=2, label=(f"boss r = {rb * mm:.2f} mm" + (f", {bolt.name} bore" if bolt else ", solid"))
                 if sign > 0 else None)  # fmt: skip
+
+
+def _draw_contacts(ax: Any, report: FootReport) -> None:
+    """The collision spheres, the contact arc, and the touchdown and liftoff directions with the ground [mm]."""
+    g, mount, angles = report.design.geometry, report.mount, report.angles
+    mm = 1e3
+    zc = g.centre_z
     # collision spheres: the outward half of each outline (the side the ground can meet)
     for k, (sx, _, sz, sr) in enumerate(report.collision.spheres):
         phi_k = math.atan2(sx, zc - sz)
@@ -73,17 +101,10 @@ def plot_foot(report: FootReport) -> Any:
         s = np.array([-1.2, 1.2]) * g.radius
         ax.plot((cxp + s * tx) * mm, (czp + s * tz) * mm, color=colour, lw=1, ls="--", zorder=4,
                 label=f"{name}: {math.degrees(phi):.1f} deg, ground dashed")  # fmt: skip
-    ax.plot([0], [zc * mm], marker="+", color="k", zorder=5)
-    ax.set_aspect("equal")
-    ax.set_xlabel("x, forward in the calf frame [mm]")
-    ax.set_ylabel("z along the calf [mm]")
-    ax.set_title("Sagittal section (calf frame, y = 0)")
-    fig.legend(*ax.get_legend_handles_labels(), fontsize=7.5, loc="lower left", bbox_to_anchor=(0.01, 0.0), ncol=2)
-    ax.grid(alpha=0.3)
-    lim = 1.6 * max(g.radius, mount.contact_radius) * mm
-    ax.set_xlim(-lim, lim)
-    ax.set_ylim(min(-1.35 * mount.contact_radius, zc - 1.35 * g.radius) * mm, 0.9 * lim)
-    # ratios
+
+
+def _draw_ratios(bars: Any, report: FootReport) -> None:
+    """The mass and inertia ratios of this design beside the paper's."""
     names = ["calf + foot\nmass", "pitch inertia\nabout the knee", "pitch inertia\nabout own COM",
              "hip pitch\ninertia"]  # fmt: skip
     ours = [report.mass_ratio, report.inertia_ratio, report.com_inertia_ratio,
@@ -103,4 +124,3 @@ def plot_foot(report: FootReport) -> Any:
     bars.set_ylim(0, 1.15)
     bars.set_title("Ratios, new / original (Pinocchio)")
     bars.legend(fontsize=7, loc="upper right")
-    return fig

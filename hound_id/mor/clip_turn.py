@@ -287,76 +287,87 @@ def _row_measures(
 
     Works on numpy arrays or torch tensors (rows, n); torch is worked on its device and copied once.
     """
-    joints, motors = group
+    motors = group[1]
     torch_like = _is_torch(tau_cmd)
-    A_m: Any
-    J: Any
-    M: Any
-    if torch_like:
-        import torch
-
-        xp: Any = torch
-        A_m = torch.tensor(np.ascontiguousarray(A[:, list(motors)]), dtype=tau_cmd.dtype, device=tau_cmd.device)
-        eps = float(torch.finfo(tau_cmd.dtype).eps)
-        J = torch.tensor(joints, device=tau_cmd.device)
-        M = torch.tensor(motors, device=tau_cmd.device)
-
-        def cols(x: Any, idx: Any) -> Any:
-            return x.index_select(-1, idx)
-
-        def nan_like(x: Any) -> Any:
-            return torch.full_like(x, math.nan)
-    else:
-        xp = np
-        A_m = A[:, list(motors)].astype(tau_cmd.dtype, copy=False)
-        eps = float(np.finfo(tau_cmd.dtype).eps)
-        J, M = list(joints), list(motors)
-
-        def cols(x: Any, idx: Any) -> Any:
-            return x[:, idx]
-
-        def nan_like(x: Any) -> Any:
-            return np.full_like(x, np.nan)
-
+    xp, A_m, eps, J, M = _on_backend(tau_cmd, A, group)
     tol = max(CLIP_TOLERANCE, CLIP_ULPS * eps)
-    tm = tau_cmd @ A_m if motor_cmd is None else cols(motor_cmd, M)
-    tms = tau_sat @ A_m if motor_sat is None else cols(motor_sat, M)
+    tm = tau_cmd @ A_m if motor_cmd is None else _cols(motor_cmd, M)
+    tms = tau_sat @ A_m if motor_sat is None else _cols(motor_sat, M)
     # NaN counts as moved (not <=); a finite command whose motor torque is beyond the float range moved too
     ones = xp.ones_like(tm)
     within = xp.abs(tms - tm) <= tol * xp.maximum(ones, xp.abs(tm))
     moved = ~within | xp.isinf(tm)
     bits = [2.0**i for i in range(len(motors))]
     if torch_like:
+        import torch
+
         code = moved.to(tau_cmd.dtype) @ torch.tensor(bits, dtype=tau_cmd.dtype, device=tau_cmd.device)
     else:
         code = moved.astype(tau_cmd.dtype) @ np.array(bits, dtype=tau_cmd.dtype)
     clipped = code > 0
-    a, b = cols(tau_cmd, J), cols(tau_sat, J)
+    a, b = _cols(tau_cmd, J), _cols(tau_sat, J)
     angle, na, nb = _angle(a, b, xp)
     measured = clipped & (na >= floor) & (nb >= floor)
     below = clipped & ~measured
-    angle = xp.where(measured, angle, nan_like(angle))
+    angle = xp.where(measured, angle, _nan_like(angle))
     growth = xp.where(clipped[..., None], xp.abs(b) - xp.abs(a), xp.zeros_like(a))
-    columns = [code, angle, below.to(a.dtype) if torch_like else below.astype(a.dtype), growth]
+    columns = [code, angle, _as_float(below, a), growth]
     if tau_ref is not None:
-        r = cols(tau_ref, J)
-        changed = (r != a).any(-1)
-        ref_angle, nr, _ = _angle(a, r, xp)
-        ref_measured = changed & (na >= floor) & (nr >= floor)
-        _, diff = _unit(b - r, xp)
-        columns += [
-            changed.to(a.dtype) if torch_like else changed.astype(a.dtype),
-            xp.where(ref_measured, ref_angle, nan_like(ref_angle)),
-            diff,
-        ]
+        columns += _reference_columns(a, b, _cols(tau_ref, J), na, floor, xp)
         if ref_violation is not None:
-            v = cols(ref_violation, M)
+            v = _cols(ref_violation, M)
             v = xp.where(v > tol * xp.maximum(ones, xp.abs(tm)), v, -ones)
             columns.append(v.amax(-1) if torch_like else v.max(-1))
     if torch_like:
+        import torch
+
         stacked = torch.cat([c if c.ndim == 2 else c[..., None] for c in columns], -1)
         return stacked.detach().to("cpu", torch.float64).numpy()  # the one copy (and sync) of the batch
     return np.column_stack([c if c.ndim == 2 else c[:, None] for c in columns]).astype(np.float64, copy=False)
+
+
+def _on_backend(
+    like: Any, A: NDArray[np.float64], group: tuple[tuple[int, ...], tuple[int, ...]]
+) -> tuple[Any, Any, float, Any, Any]:
+    """(array module, A's columns of the group's motors, eps, joint indices, motor indices) in ``like``'s library."""
+    joints, motors = group
+    A_m: Any
+    if _is_torch(like):
+        import torch
+
+        A_m = torch.tensor(np.ascontiguousarray(A[:, list(motors)]), dtype=like.dtype, device=like.device)
+        eps = float(torch.finfo(like.dtype).eps)
+        return torch, A_m, eps, torch.tensor(joints, device=like.device), torch.tensor(motors, device=like.device)
+    A_m = A[:, list(motors)].astype(like.dtype, copy=False)
+    return np, A_m, float(np.finfo(like.dtype).eps), list(joints), list(motors)
+
+
+def _cols(x: Any, idx: Any) -> Any:
+    """The columns ``idx`` of a (rows, n) numpy array or torch tensor."""
+    return x.index_select(-1, idx) if _is_torch(x) else x[:, idx]
+
+
+def _nan_like(x: Any) -> Any:
+    """NaN shaped like ``x``, in its library and dtype."""
+    if _is_torch(x):
+        import torch
+
+        return torch.full_like(x, math.nan)
+    return np.full_like(x, np.nan)
+
+
+def _as_float(mask: Any, like: Any) -> Any:
+    """A boolean mask as 0.0 and 1.0 in ``like``'s dtype."""
+    return mask.to(like.dtype) if _is_torch(mask) else mask.astype(like.dtype)
+
+
+def _reference_columns(a: Any, b: Any, r: Any, na: Any, floor: float, xp: Any) -> list[Any]:
+    """Against the reference joint torques ``r``: (whether it changed the command, its angle [deg], |b - r| [N m])."""
+    changed = (r != a).any(-1)
+    ref_angle, nr, _ = _angle(a, r, xp)
+    ref_measured = changed & (na >= floor) & (nr >= floor)
+    _, diff = _unit(b - r, xp)
+    return [_as_float(changed, a), xp.where(ref_measured, ref_angle, _nan_like(ref_angle)), diff]
 
 
 # --- tallies (a log in batches, or one batch) ------------------------------------------------------------------------

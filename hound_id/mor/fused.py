@@ -118,6 +118,33 @@ def _window_fn(has_fw: bool) -> Any:
 
 
 @cache
+def _heated_fn() -> Any:
+    """One element's constants at its winding temperature, as the numpy steps make them (inlined into the loop)."""
+    _, _max, _min = _helpers()
+    inline = _numba().njit(nogil=True, boundscheck=False, fastmath=False, error_model="numpy", inline="always")
+
+    @inline  # type: ignore[untyped-decorator]
+    def heated(
+        temp: Any, reference: Any, heats: Any, v: Any, uk: Any, lim: Any, kr: Any, ck: Any, zero: Any, one: Any
+    ) -> tuple[Any, Any, Any, Any, Any, Any, Any, Any]:
+        # heats: (a_R, a_K, derating start, winding limit, Kt x the drive's limit, S / V_bus) of the element at
+        # ``temp`` [degC]; returns (S at V / s_R, -S, u s_K / s_R, the derated limit X, -X, k_rho / s_K, the derated
+        # circle, s_K) (:mod:`hound_id.mor.thermal`)
+        a_r, a_k, start, end, current_x, per_volt = heats
+        s_r = one + a_r * (temp - reference)
+        s_k = one + a_k * (temp - reference)
+        band = end - start
+        ramp = (end - temp) / (band if band > zero else one) if band > zero else zero
+        d = one if temp < start else _min(_max(ramp, zero), one)
+        d = temp if temp != temp else d
+        s = _max(v / s_r, zero) * per_volt
+        lim = _min(lim, d * current_x)
+        return s, -s, uk * (s_k / s_r), lim, -lim, kr / s_k, ck * d, s_k
+
+    return heated
+
+
+@cache
 def _correction(
     has_curve: bool,
     has_cap: bool,
@@ -131,6 +158,7 @@ def _correction(
     and vectorises (a loop that tests them is 1.7x slower)."""
     jit, _max, _min = _helpers()
     _window = _window_fn(has_fw)
+    _heated = _heated_fn()
 
     @jit  # type: ignore[untyped-decorator]
     def correction(
@@ -152,26 +180,11 @@ def _correction(
         per_volt, k_rho, circle, fw = limits[12], limits[13], limits[14], limits[15]
         a_r, a_k, start, end, current_x, nominal = heat[0], heat[1], heat[2], heat[3], heat[4], heat[5]
         for k in range(tau_m.size):
-            uk = u[k]
-            lim = limit_x[k]
-            nlim = neg_limit_x[k]
-            kr = k_rho[k]
-            ck = circle[k]
+            uk, lim, nlim, kr, ck = u[k], limit_x[k], neg_limit_x[k], k_rho[k], circle[k]
             if has_heat:  # the 20 degC window at s_K omega / s_R and V / s_R, k_rho / s_K, the derated limit
-                temp = temps[k]
-                s_r = one + a_r[k] * (temp - reference)
-                s_k = one + a_k[k] * (temp - reference)
-                band = end[k] - start[k]
-                ramp = (end[k] - temp) / (band if band > zero else one) if band > zero else zero
-                d = one if temp < start[k] else _min(_max(ramp, zero), one)
-                d = temp if temp != temp else d
-                s = _max((volts[k] if has_volts else nominal[k]) / s_r, zero) * per_volt[k]
-                ns = -s
-                uk = uk * (s_k / s_r)
-                lim = _min(lim, d * current_x[k])
-                nlim = -lim
-                kr = kr / s_k
-                ck = ck * d
+                v = volts[k] if has_volts else nominal[k]
+                heats = (a_r[k], a_k[k], start[k], end[k], current_x[k], per_volt[k])
+                s, ns, uk, lim, nlim, kr, ck, s_k = _heated(temps[k], reference, heats, v, uk, lim, kr, ck, zero, one)
             elif has_volts:  # the stall torque at this element's bus voltage
                 s = _max(volts[k], zero) * per_volt[k]
                 ns = -s
@@ -242,10 +255,10 @@ def clip_correction(
     reference: float = 0.0,
 ) -> None:
     """``out`` = clip(tau_m, interval(u)) - tau_m for C-contiguous arrays of one shape and dtype, with the
-    constants ``c`` (:class:`hound_id.mor.saturation._Constants`, their ``stacked`` limits expanded to that shape);
+    constants ``c`` (:class:`hound_id.mor.clip_operators.Constants`, their ``stacked`` limits expanded to that shape);
     ``omega`` (the motor speeds) is read only when the constants have a rated speed, ``volts`` (the bus voltage
     per element, same shape) only when given, ``temps`` (the winding temperature per element [degC]) with ``heat``
-    (the six thermal rows of :meth:`hound_id.mor.saturation.Saturation._heated_bounds`, expanded to that shape) and
+    (the six thermal rows of :func:`hound_id.mor.clip_paths.heated_bounds`, expanded to that shape) and
     ``reference`` (the temperature [degC] the 20 degC constants hold at) only when given."""
     has_heat = temps is not None
     loop = _correction(c.has_curve, c.has_cap, c.has_max_speed, volts is not None, c.has_drive, c.has_fw, has_heat)

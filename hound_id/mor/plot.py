@@ -76,6 +76,36 @@ def plot_region(
     """
     fig = new_figure(1, 1, (7.5, 7.0))
     ax = fig.axes[0]
+    _draw_regions(ax, region, sheet, linear, outlines)
+    w_box = _draw_boxes(ax, region)
+    tl = max(region.torque_limit, linear.torque_limit if linear is not None else 0.0)
+    w = max(region.overspeed, w_box, linear.overspeed if linear is not None else 0.0)
+    forced = _draw_past_overspeed(ax, region)
+    tl = max(tl, float(np.max(np.abs(forced))) / 1.3)
+    w = max(w, PAST_OVERSPEED * region.overspeed / 1.1)
+    _label_quadrants(ax, region, tl, w)
+    ax.set_xlim(-1.35 * tl, 1.35 * tl)
+    ax.set_ylim(-1.15 * w, 1.15 * w)
+    ax.set_xlabel("motor torque tau [N m]")
+    ax.set_ylabel("motor speed omega [rad/s]")
+    ax.set_title(
+        f"{region.motor}: torque limit {region.torque_limit:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
+        f"overspeed {region.overspeed:.4g} rad/s",
+        fontsize=9,
+    )
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize=8, frameon=False)
+    ax.grid(alpha=0.3)
+    return fig
+
+
+def _draw_regions(  # type: ignore[no-untyped-def]
+    ax,
+    region: OperatingRegion,
+    sheet: OperatingRegion | None,
+    linear: OperatingRegion | None,
+    outlines: tuple[tuple[OperatingRegion, str], ...],
+) -> None:
+    """The region filled, and the spec sheet's, the linear-Kt one and the other outlines as lines."""
     v = region.vertices
     label = "measured envelope (MOR)" if sheet is not None else "operating region (MOR)"
     ax.fill(v[:, 0], v[:, 1], color="tab:blue", alpha=0.25, label=label)
@@ -93,6 +123,10 @@ def plot_region(
     colours = ("tab:orange", "tab:brown", "tab:olive", "tab:pink", "tab:cyan")
     for (other, text), colour in zip(outlines, colours, strict=False):
         ax.plot(*_closed(other.vertices).T, color=colour, lw=1.1, ls=(0, (5, 2, 1, 2)), label=text)
+
+
+def _draw_boxes(ax, region: OperatingRegion) -> float:  # type: ignore[no-untyped-def]
+    """The URDF box and the inner box; returns the URDF box's speed [rad/s]."""
     w_box = region.max_speed if region.max_speed is not None else region.no_load_speed
     _box(
         ax,
@@ -112,8 +146,11 @@ def plot_region(
         lw=1.6,
         label=f"inner box: |tau|<={region.inner_box[0]:.3g} N m, |omega|<={region.inner_box[1]:.4g} rad/s",
     )
-    tl = max(region.torque_limit, linear.torque_limit if linear is not None else 0.0)
-    w = max(region.overspeed, w_box, linear.overspeed if linear is not None else 0.0)
+    return w_box
+
+
+def _draw_past_overspeed(ax, region: OperatingRegion) -> np.ndarray:  # type: ignore[no-untyped-def]
+    """The braking torque forced past overspeed (and a drive's step in it where control is lost); returns it [N m]."""
     # past overspeed the interval collapses onto the braking torque the back-EMF forces (region.torque_interval)
     past = np.linspace(region.overspeed, PAST_OVERSPEED * region.overspeed, 60)
     forced = torque_interval(past, region)[1]
@@ -139,8 +176,11 @@ def plot_region(
             color="tab:red",
             bbox={"boxstyle": "round,pad=0.2", "fc": "white", "ec": "none", "alpha": 0.8},
         )
-    tl = max(tl, float(np.max(np.abs(forced))) / 1.3)
-    w = max(w, PAST_OVERSPEED * region.overspeed / 1.1)
+    return forced
+
+
+def _label_quadrants(ax, region: OperatingRegion, tl: float, w: float) -> None:  # type: ignore[no-untyped-def]
+    """The axes through the origin, the quadrants' names and the corner speed."""
     ax.axhline(0, color="0.4", lw=0.8)
     ax.axvline(0, color="0.4", lw=0.8)
     for sx, sy, text in ((1, 1, "Q1 motoring"), (-1, 1, "Q2 braking"), (-1, -1, "Q3 motoring"), (1, -1, "Q4 braking")):
@@ -157,18 +197,6 @@ def plot_region(
             ha="right",
             fontsize=8,
         )
-    ax.set_xlim(-1.35 * tl, 1.35 * tl)
-    ax.set_ylim(-1.15 * w, 1.15 * w)
-    ax.set_xlabel("motor torque tau [N m]")
-    ax.set_ylabel("motor speed omega [rad/s]")
-    ax.set_title(
-        f"{region.motor}: torque limit {region.torque_limit:.4g} N m, no-load {region.no_load_speed:.4g} rad/s, "
-        f"overspeed {region.overspeed:.4g} rad/s",
-        fontsize=9,
-    )
-    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.1), ncol=1, fontsize=8, frameon=False)
-    ax.grid(alpha=0.3)
-    return fig
 
 
 def plot_robot(regions: RobotRegions) -> Figure:

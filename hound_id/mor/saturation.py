@@ -22,16 +22,17 @@ Past a motor's overspeed the result is its full braking torque; past its rated
 mjlab's ``DcMotorActuator``, kept as the reference the coupled clip must reduce to
 for an uncoupled joint, and as the benchmark's baseline.
 
-The elementwise bounds it takes are in :mod:`hound_id.mor.clip_bounds`; ``hound-id saturate`` on a log is
+The elementwise bounds it takes are in :mod:`hound_id.mor.clip_bounds`; the operators of one call (the maps and
+limits in the input's array type, its checked inputs) in :mod:`hound_id.mor.clip_operators`; the general paths (fresh
+arrays, the exact clip of commands of any size) in :mod:`hound_id.mor.clip_paths`; ``hound-id saturate`` on a log is
 :mod:`hound_id.mor.saturate_log`.
 """
 
 from __future__ import annotations
 
-import math
 import threading
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING, Any, NamedTuple
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import NDArray
@@ -43,7 +44,6 @@ from hound_id.mor.clip_bounds import (
     drive_arrays,
     fusable,
     is_torch,
-    largest,
     np_bounds,
     np_clip,
     numpy_views,
@@ -54,98 +54,38 @@ from hound_id.mor.clip_bounds import (
     table_polyline,
     table_top,
     thermal_rows,
-    torch_bounds,
     within_interval,
 )
+from hound_id.mor.clip_operators import (
+    CACHE_SIZE,
+    HEADROOM,
+    ORDINARY,
+    Constants,
+    build_constants,
+    check_inputs,
+    coupled_groups,
+    per_element,
+    polylines_like,
+    rows_like,
+)
+from hound_id.mor.clip_paths import clip_exact_numpy, clip_exact_torch, clip_fresh, heated_bounds, line_bounds
 from hound_id.mor.fused import clip_correction
 from hound_id.mor.fused import within as fused_within
-from hound_id.mor.region import SPEED_TOLERANCE, OperatingRegion, operating_region
+from hound_id.mor.region import OperatingRegion, operating_region
 
 if TYPE_CHECKING:  # the runtime imports this module: no robot files (yaml, pint) at run time
     from hound_id.mor.robot import Robot
 
-
-#: Cached operator sets (dtype, device, batch shape) kept per Saturation.
-_CACHE_SIZE = 16
-#: Inputs are capped at the dtype's largest finite value / (this x the largest column sum of the map
-#: they go through), so no product or partial sum of the maps can overflow (see :meth:`Saturation._caps`).
-HEADROOM = 4.0
-#: Commands whose joint torques keep every motor torque within this many times the largest stall torque
-#: (or torque limit) take the short path: the mapped correction added to the command, whose rounding is
-#: then a few tens of roundings of the limits at most (see :meth:`Saturation.__call__`).
-ORDINARY = 4.0
-
-
-def coupled_groups(A: NDArray[np.float64]) -> NDArray[np.float64]:
-    """0/1 matrix G (motors x joints): G[m, j] = 1 when motor m and joint j belong to one coupled group.
-
-    The groups are the connected parts of the graph joining joint j and motor m wherever A[j, m] or
-    A^-1[m, j] is non-zero: a clip of motor m can change only the joint torques of its group.
-    """
-    n = A.shape[0]
-    parent = list(range(2 * n))  # joints 0..n-1, motors n..2n-1
-
-    def root(k: int) -> int:
-        while parent[k] != k:
-            parent[k] = parent[parent[k]]
-            k = parent[k]
-        return k
-
-    pattern = (A != 0) | (np.linalg.inv(A).T != 0)
-    for j, m in zip(*np.nonzero(pattern), strict=True):
-        parent[root(int(j))] = root(n + int(m))
-    return np.array([[float(root(n + m) == root(j)) for j in range(n)] for m in range(n)])
-
-
-class _Constants(NamedTuple):
-    """What one call needs, in the array library, dtype, device and batch shape of its input."""
-
-    A: Any
-    A_inv: Any
-    speed_map: Any
-    """A^-T scaled by each motor's back-EMF damping: qd @ speed_map = damping * motor speed."""
-    groups: Any
-    """:func:`coupled_groups` of A."""
-    stall: Any
-    neg_stall: Any
-    torque_limit: Any
-    neg_torque_limit: Any
-    limit_x: Any
-    """Per motor Kt I, the linear-equivalent torque of the current at the torque limit."""
-    neg_limit_x: Any
-    curve_q: Any
-    """Per motor q of the quadratic current-torque curve, x - q x|x| (0: linear)."""
-    curve_top: Any
-    """Per motor linear-equivalent torque at the curve's top, 1 / (2 q) (inf: linear)."""
-    neg_curve_top: Any
-    top_torque: Any
-    """Per motor torque cap of a table curve past its polyline (inf elsewhere)."""
-    neg_top_torque: Any
-    has_cap: bool
-    has_curve: bool
-    wmax: Any
-    has_max_speed: bool
-    tau_cap: float
-    """Largest |joint torque| the maps take without overflow (larger ones are capped to it)."""
-    qd_cap: float
-    """Largest |joint velocity| likewise."""
-    ordinary: float
-    """Largest |joint torque| of an ordinary command (:data:`ORDINARY`)."""
-    stacked: Any = None
-    """numpy: the per-motor limits above and below, stall to fw, as rows of one (16, size) array whose rows they view
-    (the fused loop's operand, :func:`hound_id.mor.fused.clip_correction`); None for torch."""
-    stall_per_volt: Any = None
-    """Per motor S / V_bus [N m/V]: the stall torque at another bus voltage is this times it."""
-    k_rho: Any = None
-    """Per motor l / (R D) of the drive's reactance [1/(N m)] (0: none; :func:`hound_id.mor.drive.dq_window`)."""
-    circle_x: Any = None
-    """Per motor Kt I_max [N m], the field-weakening current circle."""
-    fw: Any = None
-    """Per motor whether the drive weakens the field (booleans; the fused loop reads the stacked row, 1.0 or 0.0)."""
-    has_drive: bool = False
-    """Whether any motor has a drive model (then every motor's window is the dq one)."""
-    has_fw: bool = False
-    """Whether any motor's drive weakens the field."""
+__all__ = [
+    "HEADROOM",
+    "ORDINARY",
+    "PER_JOINT_REFERENCE",
+    "Saturation",
+    "coupled_groups",
+    "dc_motor_clip",
+    "per_joint_clip",
+    "saturation_for",
+]
 
 
 @dataclass(frozen=True)
@@ -241,106 +181,21 @@ class Saturation:
         """Number of joints (= motors)."""
         return len(self.joints)
 
-    def _caps(self, dtype: Any) -> tuple[float, float]:
-        """(torque cap, speed cap) for a dtype: |x| <= cap keeps every product and partial sum of
-        x @ M below a quarter of the dtype's largest value, for each map M the input goes through.
-
-        Only inputs within a factor 4 x (column sum) of the float range are capped (float64: above
-        about 1e307; float32: about 1e37). Such a command is outside every motor's interval and stays
-        clipped to an edge; where coupled commands that large nearly cancel, the edge may differ from
-        the one exact arithmetic would pick. Such a speed is far past overspeed.
-        """
-        big = largest(dtype) / HEADROOM
-
-        def cap(*maps: NDArray[np.float64]) -> float:
-            return big / max(1.0, *(float(np.abs(m).sum(axis=0).max()) for m in maps))
-
-        speed_map = self.A_inv.T * self.back_emf_damping[None, :]
-        return cap(self.A), cap(speed_map, self.A_inv.T)
-
-    def _constants(self, like: Any) -> _Constants:
-        """Operators in the array library, dtype, device and batch shape of ``like`` (cached).
-
-        Per-motor limits are stored expanded to the full batch shape: elementwise
-        operations on equal shapes run several times faster than broadcasting a
-        (n,) vector, in numpy and torch alike (and Isaac Lab stores its limits so).
-        """
+    def _constants(self, like: Any) -> Constants:
+        """Operators in the array library, dtype, device and batch shape of ``like`` (cached:
+        :func:`hound_id.mor.clip_operators.build_constants`)."""
         torch_like = is_torch(like)
         shape = tuple(like.shape)
         key: Any = ("torch", like.dtype, like.device, shape) if torch_like else ("numpy", like.dtype, shape)
         hit = self._cache.get(key)
         if hit is not None:
             return hit  # type: ignore[no-any-return]
-        # u = qd @ speed_map is back_emf_damping * omega_m, folded into one product.
-        speed_map = self.A_inv.T * self.back_emf_damping[None, :]
-        wmax = self.max_speed * (1.0 + SPEED_TOLERANCE)
-        matrices = (self.A, self.A_inv, speed_map, coupled_groups(self.A))
-        limit_x = self.torque_limit if self.limit_x is None else self.limit_x
-        q = np.zeros(self.n) if self.curve_q is None else self.curve_q
-        with np.errstate(divide="ignore"):
-            top = np.where(q > 0, 0.5 / np.where(q > 0, q, 1.0), np.inf)
-        vectors: tuple[NDArray[Any], ...] = (self.stall_torque, -self.stall_torque, self.torque_limit)
-        cap = np.full(self.n, np.inf) if self.top_torque is None else self.top_torque
-        vectors = (*vectors, -self.torque_limit, limit_x, -limit_x, q, top, -top, cap, -cap, wmax)
-        volts = np.full(self.n, np.nan) if self.bus_voltage is None else self.bus_voltage
-        k_rho = np.zeros(self.n) if self.drive_k_rho is None else self.drive_k_rho
-        circle = limit_x if self.drive_circle_x is None else self.drive_circle_x
-        fw = np.zeros(self.n) if self.drive_fw is None else self.drive_fw.astype(float)
-        vectors = (*vectors, self.stall_torque / volts, k_rho, circle, fw)
-        if torch_like:
-            import torch
-
-            mats: tuple[Any, ...] = tuple(
-                torch.tensor(np.array(a), dtype=like.dtype, device=like.device) for a in matrices
-            )
-            vecs: tuple[Any, ...] = tuple(
-                torch.tensor(np.array(v), dtype=like.dtype, device=like.device).expand(shape).contiguous()
-                for v in vectors
-            )
-        else:
-            mats = tuple(np.ascontiguousarray(a, dtype=like.dtype) for a in matrices)
-            stacked = np.empty((len(vectors), *shape), dtype=like.dtype)  # one block: the fused loop takes it whole
-            for row, v in zip(stacked, vectors, strict=True):
-                row[...] = v.astype(like.dtype)
-            vecs = tuple(stacked)
-        tau_cap, qd_cap = self._caps(like.dtype)
-        colsum = max(1e-300, float(np.abs(self.A).sum(axis=0).max()))
-        consts = _Constants(
-            A=mats[0],
-            A_inv=mats[1],
-            speed_map=mats[2],
-            groups=mats[3],
-            stall=vecs[0],
-            neg_stall=vecs[1],
-            torque_limit=vecs[2],
-            neg_torque_limit=vecs[3],
-            limit_x=vecs[4],
-            neg_limit_x=vecs[5],
-            curve_q=vecs[6],
-            curve_top=vecs[7],
-            neg_curve_top=vecs[8],
-            top_torque=vecs[9],
-            neg_top_torque=vecs[10],
-            has_cap=bool(np.isfinite(cap).any()),
-            has_curve=bool(np.any(q > 0)),
-            wmax=vecs[11],
-            has_max_speed=bool(np.isfinite(self.max_speed).any()),
-            tau_cap=tau_cap,
-            qd_cap=qd_cap,
-            stacked=None if torch_like else stacked.reshape(len(vectors), -1),
-            stall_per_volt=vecs[12],
-            k_rho=vecs[13],
-            circle_x=vecs[14],
-            fw=vecs[15] > 0,
-            has_drive=self.drive_k_rho is not None,
-            has_fw=self.drive_fw is not None and bool(np.any(self.drive_fw)),
-            ordinary=min(tau_cap, ORDINARY * float(max(self.stall_torque.max(), limit_x.max())) / colsum),
-        )
+        consts = build_constants(self, like)
         self._remember(key, consts)
         return consts
 
     def _remember(self, key: Any, value: Any) -> None:
-        if len(self._cache) >= _CACHE_SIZE:
+        if len(self._cache) >= CACHE_SIZE:
             self._cache.pop(next(iter(self._cache)))
         self._cache[key] = value
 
@@ -350,74 +205,29 @@ class Saturation:
         Exact to rounding for every finite input: where a product could overflow, the inputs are
         scaled by a power of two first, so a motor torque beyond the dtype's range is ±inf, not NaN.
         """
-        tau, qd = self._check(tau, qd)
+        tau, qd = check_inputs(tau, qd, self.joints)
         consts = self._constants(tau)
         return scaled_matmul(tau, consts.A, consts.tau_cap), scaled_matmul(qd, consts.A_inv.T, consts.qd_cap)
-
-    def _check(self, tau: Any, qd: Any) -> tuple[Any, Any]:
-        if is_torch(tau) != is_torch(qd):
-            raise SaturationError("tau and qd must both be numpy arrays or both torch tensors")
-        if not is_torch(tau):
-            tau = np.asarray(tau)
-            qd = np.asarray(qd)
-            if tau.dtype.kind != "f":
-                tau = tau.astype(np.float64)
-            if qd.dtype != tau.dtype:
-                qd = qd.astype(tau.dtype)
-        elif qd.dtype != tau.dtype:
-            qd = qd.to(tau.dtype)
-        if tau.shape[-1:] != (self.n,) or qd.shape[-1:] != (self.n,) or tuple(tau.shape) != tuple(qd.shape):
-            raise SaturationError(
-                f"saturation: tau has shape {tuple(tau.shape)} and qd {tuple(qd.shape)}; "
-                f"expected both (..., {self.n}), the same shape, with joints in the order {', '.join(self.joints)}"
-            )
-        return tau, qd
 
     def torque_bounds(self, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> tuple[Any, Any]:
         """Per-motor feasible torque interval [lo, hi] at the motor speeds implied by ``qd`` (and, if given, the bus
         voltage [V] and winding temperature [degC] of each element, broadcast against ``qd``: see
         :meth:`__call__`)."""
-        _, qd = self._check(qd, qd)
+        _, qd = check_inputs(qd, qd, self.joints)
         consts = self._constants(qd)
         volts = self._volts(bus_voltage, qd)
         if temperature is not None:
-            return self._heated_bounds(qd, consts, volts, self._temperatures(temperature, qd))
+            return heated_bounds(qd, consts, volts, self._temperatures(temperature, qd), self._thermal_like(qd))
         return self._bounds(qd, consts, volts)
 
-    def _volts(self, bus_voltage: Any, like: Any, name: str = "bus_voltage", unit: str = "V") -> Any:
+    def _volts(self, bus_voltage: Any, like: Any) -> Any:
         """The bus voltage [V] per element of ``like``'s shape, in its array type, dtype and device, C-contiguous (the
-        bounds take max(V, 0)); None stays None. One voltage per environment, (..., 1), is repeated along the motors
-        (numpy's broadcasting of a length-1 axis is several times slower than a repeat)."""
+        bounds take max(V, 0); :func:`hound_id.mor.clip_operators.per_element`); None stays None."""
         if bus_voltage is None:
             return None
         if self.bus_voltage is None:
             raise SaturationError("saturation: this clip has no nominal bus voltage, so it cannot take another one")
-        shape = tuple(like.shape)
-        if is_torch(like):
-            import torch
-
-            v = torch.as_tensor(bus_voltage, dtype=like.dtype, device=like.device)
-            if tuple(v.shape) == shape and v.is_contiguous():
-                return v  # kept by the trainer at full shape (torch's broadcast_shapes alone costs ~10 us)
-            try:
-                fits = tuple(torch.broadcast_shapes(v.shape, shape)) == shape
-            except RuntimeError:
-                fits = False
-            if not fits:
-                raise SaturationError(self._volts_shape(tuple(v.shape), shape, name, unit))
-            return torch.broadcast_to(v, shape).contiguous()
-        volts = np.asarray(bus_voltage, dtype=like.dtype)
-        if volts.shape == shape and volts.flags.c_contiguous:
-            return volts  # kept by the trainer at full shape: read as it is (the clip takes max(V, 0) itself)
-        try:
-            fits = np.broadcast_shapes(volts.shape, shape) == shape
-        except ValueError:
-            fits = False
-        if not fits:
-            raise SaturationError(self._volts_shape(volts.shape, shape, name, unit))
-        if volts.ndim == len(shape) and volts.shape[:-1] == shape[:-1] and volts.shape[-1] == 1 and shape[-1] > 1:
-            return np.repeat(volts, shape[-1], axis=-1)
-        return np.ascontiguousarray(np.broadcast_to(volts, shape))
+        return per_element(bus_voltage, like, "bus_voltage", "V")
 
     def _temperatures(self, temperature: Any, like: Any) -> Any:
         """The winding temperature [degC] per element of ``like``'s shape (as :meth:`_volts`), or SaturationError."""
@@ -434,45 +244,7 @@ class Saturation:
             )
         if self.bus_voltage is None:
             raise SaturationError("saturation: this clip has no nominal bus voltage, so it cannot take a temperature")
-        return self._volts(temperature, like, "temperature", "degC")
-
-    def _heated_bounds(self, qd: Any, consts: _Constants, volts: Any, temperature: Any) -> tuple[Any, Any]:
-        """The intervals at each element's winding temperature (:mod:`hound_id.mor.thermal`): s_K times the 20 degC
-        window at speed s_K omega / s_R and bus V / s_R, the reactance's k_rho / s_K and the derated current limit."""
-        from hound_id.mor.thermal import REFERENCE, derating
-
-        torch_like = is_torch(qd)
-        rows = self._thermal_like(qd)
-        a_r, a_k, start, limit, current_x, nominal = rows
-        s_r = 1.0 + a_r * (temperature - REFERENCE)
-        s_k = 1.0 + a_k * (temperature - REFERENCE)
-        if volts is None:
-            volts = nominal
-        d = derating(temperature, start, limit)
-        c = consts
-        if torch_like:
-            import torch
-
-            lim = torch.minimum(c.limit_x, d * current_x)
-        else:
-            lim = np.minimum(c.limit_x, d * current_x)
-        c = c._replace(limit_x=lim, neg_limit_x=-lim, circle_x=c.circle_x * d, k_rho=c.k_rho / s_k)
-        qd = capped(qd, consts.qd_cap)
-        u = (qd @ c.speed_map) * (s_k / s_r)
-        if torch_like:
-            lo, hi = torch_bounds(c, u, volts / s_r)
-        else:
-            lo, hi = np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts / s_r)
-        lo, hi = lo * s_k, hi * s_k
-        if c.has_max_speed:
-            omega = qd @ c.A_inv.T
-            if torch_like:
-                hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
-                lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
-            else:
-                hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
-                lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
-        return lo, hi
+        return per_element(temperature, like, "temperature", "degC")
 
     def _thermal_like(self, like: Any) -> tuple[Any, ...]:
         """The thermal rows and the nominal bus voltage, per motor, in the array type, dtype and device of ``like``."""
@@ -480,27 +252,13 @@ class Saturation:
         hit = self._cache.get(key)
         if hit is None:
             assert self.thermal is not None and self.bus_voltage is not None
-            rows = [*self.thermal, self.bus_voltage]
-            if is_torch(like):
-                import torch
-
-                hit = tuple(torch.tensor(np.array(r), dtype=like.dtype, device=like.device) for r in rows)
-            else:
-                hit = tuple(np.asarray(r, dtype=like.dtype) for r in rows)
+            hit = rows_like([*self.thermal, self.bus_voltage], like)
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
 
-    def _volts_shape(self, got: tuple[int, ...], want: tuple[int, ...], name: str, unit: str) -> str:
-        what = "voltage" if name == "bus_voltage" else name
-        return (
-            f"saturation: {name} has shape {got}, which does not broadcast to the commands' {want}; give one "
-            f"{what} per environment as (..., 1) or one per motor as (..., {self.n}) [{unit}] (a 1-D array is per "
-            "motor)"
-        )
-
-    def _bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
+    def _bounds(self, qd: Any, consts: Constants, volts: Any = None) -> tuple[Any, Any]:
         qd = capped(qd, consts.qd_cap)
-        lo, hi = self._line_bounds(qd, consts, volts)
+        lo, hi = line_bounds(qd, consts, volts)
         if self.polylines:
             omega = qd @ consts.A_inv.T
             lo, hi = polyline_bounds(self._polylines_like(qd), omega, lo, hi)
@@ -512,46 +270,9 @@ class Saturation:
         key: Any = ("polylines", type(like), like.dtype, getattr(like, "device", None))
         hit = self._cache.get(key)
         if hit is None:
-            convert: Any = np.asarray
-            if is_torch(like):
-                import torch
-
-                def convert(a: Any) -> Any:
-                    return torch.tensor(np.array(a), dtype=like.dtype, device=like.device)
-
-            lines: list[Any] = []
-            for m, line in enumerate(self.polylines):
-                if line is None:
-                    lines.append(None)
-                    continue
-                speeds, lower, upper = line
-                ok = np.isfinite(lower) & np.isfinite(upper)
-                ends = (-math.inf, math.inf) if self.held and self.held[m] else (float(speeds[0]), float(speeds[-1]))
-                lines.append((*ends, *(convert(a[ok]) for a in (speeds, lower, upper))))
-            hit = tuple(lines)
+            hit = polylines_like(self.polylines, self.held, like)
             self._remember(key, hit)
         return hit  # type: ignore[no-any-return]
-
-    def _line_bounds(self, qd: Any, consts: _Constants, volts: Any = None) -> tuple[Any, Any]:
-        """The motors' intervals (:func:`hound_id.mor.region.torque_interval`) at joint velocities ``qd`` (already
-        capped), as fresh arrays."""
-        c = consts
-        u = qd @ c.speed_map  # back-EMF damping * motor speed
-        if is_torch(qd):
-            import torch
-
-            lo, hi = torch_bounds(c, u, volts)
-            if c.has_max_speed:
-                omega = qd @ c.A_inv.T
-                hi = torch.where(omega > c.wmax, torch.clamp(hi, max=0.0), hi)
-                lo = torch.where(omega < -c.wmax, torch.clamp(lo, min=0.0), lo)
-            return lo, hi
-        lo, hi = np_bounds(c, u, np.empty_like(u), np.empty_like(u), volts)
-        if c.has_max_speed:
-            omega = qd @ c.A_inv.T
-            hi = np.where(omega > c.wmax, np.minimum(hi, 0.0), hi)
-            lo = np.where(omega < -c.wmax, np.maximum(lo, 0.0), lo)
-        return lo, hi
 
     def __call__(self, tau: Any, qd: Any, bus_voltage: Any = None, temperature: Any = None) -> Any:
         """Saturate joint torque commands [N m] at joint velocities [rad/s], shapes (..., n).
@@ -565,7 +286,7 @@ class Saturation:
           is then a few tens of roundings of the limits at most; as before, so results are unchanged;
         * larger ones, and every batch on a GPU (where the check would cost a device sync): the
           clipped motor torques themselves mapped back, tau_j = A^-T clip(tau_m), with the inputs
-          capped (:meth:`_caps`) so that no product overflows.
+          capped (:func:`hound_id.mor.clip_operators.caps`) so that no product overflows.
 
         Either way the joints of a coupled group none of whose motors was clipped pass unchanged.
         Speeds are taken as the dtype holds them: past |qd| ~ overspeed / eps the motor speed of a
@@ -587,7 +308,7 @@ class Saturation:
         numpy and CPU tensors), the others the general path (fresh arrays), with the same result. It needs linear
         or quadratic current-torque curves. Not given: the 20 degC region, as before.
         """
-        tau, qd = self._check(tau, qd)
+        tau, qd = check_inputs(tau, qd, self.joints)
         consts = self._constants(tau)
         volts = self._volts(bus_voltage, tau)
         if temperature is not None:
@@ -638,24 +359,15 @@ class Saturation:
         out += tau
         return out
 
-    def _saturate(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None, temperature: Any = None) -> Any:
-        """The clip with fresh arrays (autograd flows through it)."""
+    def _saturate(self, tau: Any, qd: Any, consts: Constants, volts: Any = None, temperature: Any = None) -> Any:
+        """The clip with fresh arrays (autograd flows through it: :func:`hound_id.mor.clip_paths.clip_fresh`)."""
         if temperature is not None:
-            lo, hi = self._heated_bounds(qd, consts, volts, temperature)
+            lo, hi = heated_bounds(qd, consts, volts, temperature, self._thermal_like(qd))
         else:
             lo, hi = self._bounds(qd, consts, volts)
-        tau_m = capped(tau, consts.tau_cap) @ consts.A
-        if is_torch(tau):
-            import torch
+        return clip_fresh(tau, consts, lo, hi)
 
-            clipped = torch.clamp(tau_m, lo, hi)
-            touched = torch.abs(clipped - tau_m) @ consts.groups
-            return torch.where(touched == 0, tau, clipped @ consts.A_inv)
-        clipped = np.clip(tau_m, lo, hi)
-        touched = np.abs(clipped - tau_m) @ consts.groups
-        return np.where(touched == 0, tau, clipped @ consts.A_inv)
-
-    def _saturate_in_place(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
+    def _saturate_in_place(self, tau: Any, qd: Any, consts: Constants, volts: Any = None) -> Any:
         """The clip with intermediates in reused per-thread buffers (not under autograd).
 
         Large temporaries cost more in allocation (page faults) than in arithmetic on
@@ -663,14 +375,15 @@ class Saturation:
 
         Ordinary commands (motor torques within :data:`ORDINARY` stall torques, speeds below
         the cap: checked on the CPU, where a check costs no device sync) take the short path of
-        :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one. CPU
+        :meth:`_saturate_ordinary`; the others, and every batch on a GPU, the exact one
+        (:func:`hound_id.mor.clip_paths.clip_exact_numpy`, :func:`hound_id.mor.clip_paths.clip_exact_torch`). CPU
         tensors go through numpy views (:func:`numpy_views`).
         """
         c = consts
         if is_torch(tau):
             views = numpy_views(tau, qd)
             if views is None:
-                return self._saturate_torch(tau, qd, consts, volts)
+                return clip_exact_torch(tau, qd, consts, volts, self._workspace(tau))
             import torch
 
             v = None if volts is None else volts.numpy()
@@ -678,15 +391,16 @@ class Saturation:
         fused = fusable(tau, qd)
         ordinary = fused_within(tau, c.ordinary, qd, c.qd_cap) if fused else within_interval(tau, c.ordinary)
         if not (ordinary and (fused or within_interval(qd, c.qd_cap))):
-            return self._saturate_numpy(tau, qd, consts, volts)
+            return clip_exact_numpy(tau, qd, consts, volts, self._workspace(tau))
         return self._saturate_ordinary(tau, qd, consts, fused, volts)
 
-    def _saturate_ordinary(self, tau: Any, qd: Any, consts: _Constants, fused: bool = False, volts: Any = None) -> Any:
+    def _saturate_ordinary(self, tau: Any, qd: Any, consts: Constants, fused: bool = False, volts: Any = None) -> Any:
         """Clip, then add the clip's correction mapped back: tau + A^-T (clip(tau_m) - tau_m).
 
         The correction is exactly 0 in the joints of groups whose motors all passed, so those pass bit
         for bit. Its rounding is eps times the command's size, which :data:`ORDINARY` keeps within a few
-        stall torques (beyond, :meth:`_saturate_numpy` maps the clipped torques themselves back).
+        stall torques (beyond, :func:`hound_id.mor.clip_paths.clip_exact_numpy` maps the clipped torques themselves
+        back).
 
         The interval is :func:`hound_id.mor.region.torque_interval`'s: the current window the bus allows cut to the
         driver's limit (past overspeed, the braking torque the back-EMF forces), through the current-torque curve.
@@ -712,57 +426,6 @@ class Saturation:
         out += tau
         return out
 
-    def _saturate_numpy(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
-        """The exact path in numpy, for commands of any size: the inputs capped, the clipped motor torques
-        mapped back (tau_j = A^-T clip(tau_m)), the command kept in the joints of groups none of whose
-        motors clipped. The joints are picked without branches."""
-        c = consts
-        u, v, tau_m, pick, untouched, w = self._workspace(tau)
-        qd, tau = capped(qd, c.qd_cap), capped(tau, c.tau_cap)
-        np.matmul(qd, c.speed_map, out=u)  # back-EMF damping * motor speed
-        np.matmul(tau, c.A, out=tau_m)
-        omega = qd @ c.A_inv.T if c.has_max_speed else None
-        lo, hi = np_bounds(c, u, v, w, volts)  # lo is v
-        np_clip(tau_m, lo, hi, out=v)
-        if omega is not None:  # past the rated speed only braking torque passes
-            np.minimum(v, 0.0, out=v, where=omega > c.wmax)
-            np.maximum(v, 0.0, out=v, where=omega < -c.wmax)
-        np.subtract(v, tau_m, out=u)
-        np.absolute(u, out=u)
-        np.matmul(u, c.groups, out=tau_m)  # 0 exactly in the joints of groups whose motors all passed
-        out = np.matmul(v, c.A_inv)  # the clipped motor torques mapped back: tau_j = A^-T tau_m
-        # out = tau * k + out * (1 - k), k = 1 where untouched: exact with k in {0, 1}, both finite;
-        # branch-free, unlike np.where, whose cost follows the pattern of the mask.
-        np.copyto(pick, np.equal(tau_m, 0.0, out=untouched))
-        np.multiply(tau, pick, out=v)
-        np.subtract(1.0, pick, out=pick)
-        np.multiply(out, pick, out=out)
-        return np.add(out, v, out=out)
-
-    def _saturate_torch(self, tau: Any, qd: Any, consts: _Constants, volts: Any = None) -> Any:
-        """:meth:`_saturate_numpy` in torch, for every batch on a GPU (deciding would cost a device sync)."""
-        import torch
-
-        c = consts
-        u, v, tau_m, tau_in, qd_in = self._workspace(tau)
-        torch.clamp(qd, -c.qd_cap, c.qd_cap, out=qd_in)
-        torch.clamp(tau, -c.tau_cap, c.tau_cap, out=tau_in)
-        torch.matmul(qd_in, c.speed_map, out=u)
-        torch.matmul(tau_in, c.A, out=tau_m)
-        lo, hi = torch_bounds(c, u, volts)
-        torch.clamp(tau_m, lo, hi, out=v)
-        if c.has_max_speed:
-            omega = qd_in @ c.A_inv.T
-            torch.where(omega > c.wmax, torch.clamp(v, max=0.0), v, out=v)
-            torch.where(omega < -c.wmax, torch.clamp(v, min=0.0), v, out=v)
-        torch.sub(v, tau_m, out=u)
-        torch.abs(u, out=u)
-        torch.matmul(u, c.groups, out=tau_m)
-        w = torch.matmul(v, c.A_inv, out=u)
-        # lerp(a, b, s) is a + s (b - a) for s < 0.5 and b - (b - a)(1 - s) above: exactly a at s = 0 and
-        # b at s = 1 (b - a is finite, a being capped); NaN stays NaN. Cheaper than where on the CPU.
-        return torch.lerp(tau_in, w, torch.sign(tau_m, out=tau_m))
-
     def _workspace(self, like: Any) -> tuple[Any, ...]:
         """Scratch arrays shaped like ``like``, private to the calling thread: five in torch; in numpy four, a boolean
         one and a fifth float one."""
@@ -782,11 +445,12 @@ class Saturation:
         """How far each motor torque lies outside its interval [N m] (0 inside), shape (..., n), at the nominal bus or
         the given ``bus_voltage`` [V], and at 20 degC or the given winding ``temperature`` [degC] (as in
         :meth:`__call__`)."""
-        tau, qd = self._check(tau, qd)
+        tau, qd = check_inputs(tau, qd, self.joints)
         consts = self._constants(tau)
         volts = self._volts(bus_voltage, tau)
         if temperature is not None:
-            lo, hi = self._heated_bounds(qd, consts, volts, self._temperatures(temperature, tau))
+            temps = self._temperatures(temperature, tau)
+            lo, hi = heated_bounds(qd, consts, volts, temps, self._thermal_like(qd))
         else:
             lo, hi = self._bounds(qd, consts, volts)
         tau_m = scaled_matmul(tau, consts.A, consts.tau_cap)

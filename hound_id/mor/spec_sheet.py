@@ -129,148 +129,17 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         SpecError: Missing, unknown or non-physical fields.
         UnitError: A quantity with the wrong dimension.
     """
-    if not isinstance(data, Mapping):
-        raise SpecError(
-            f"{where(source)}: found {type(data).__name__}, expected a mapping of spec fields "
-            f"(name, kt, kv, resistance, bus_voltage, peak_torque, ...)",
-            found=data,
-        )
-    unknown = [k for k in data if k not in KNOWN_KEYS]
-    if unknown:
-        key = str(unknown[0])
-        raise SpecError(f"{where(source, key)}: unknown key; {_suggest(key)}", field=key)
-    schema = data.get("schema", SCHEMA)
-    if schema != SCHEMA:
-        raise SpecError(f"{where(source, 'schema')}: found {schema!r}, expected {SCHEMA!r}", field="schema")
-
-    if "fit" in data and "base" not in data:
-        missing = [k for k, (_, req) in _QUANTITY_KEYS.items() if req and k not in data]
-        if missing:
-            raise SpecError(
-                f"{where(source)}: a fitted motor without a spec sheet lacks {', '.join(missing)}; add "
-                "'base: <your motor spec>.yaml' to it, or rerun hound-id fit-current with --spec MOTOR.yaml",
-                field=missing[0],
-            )
-    values: dict[str, float] = {}
-    for key, (kind, required) in _QUANTITY_KEYS.items():
-        if key not in data or data[key] is None:
-            if required:
-                raise SpecError(
-                    f"{where(source, key)}: missing; add it (see docs/mor.md)",
-                    field=key,
-                )
-            continue
-        value = to_si(data[key], kind, source=source, field=key)
-        if not value > 0.0:
-            raise SpecError(
-                f"{where(source, key)}: found {data[key]!r}, expected a positive value", field=key, found=data[key]
-            )
-        lo, hi, unit = PLAUSIBLE[key]
-        if not lo <= value <= hi:
-            advice = "(the span of real motors); check the number and its unit"
-            raise _out_of_span(source, key, data[key], value, (lo, hi, unit), advice)
-        values[key] = value
-
-    commutation = data.get("commutation", "foc")
-    if commutation not in LINE_TO_LINE_FACTOR:
-        raise SpecError(
-            f"{where(source, 'commutation')}: found {commutation!r}, expected one of "
-            f"{', '.join(sorted(LINE_TO_LINE_FACTOR))}",
-            field="commutation",
-        )
-    if "resistance" in values and "resistance_line_to_line" in values:
-        raise SpecError(
-            f"{where(source, 'resistance_line_to_line')}: both 'resistance' and 'resistance_line_to_line' "
-            "given; keep one (the model resistance, or the datasheet line-to-line value to convert)",
-            field="resistance_line_to_line",
-        )
-    if "resistance_line_to_line" in values:
-        values["resistance"] = values.pop("resistance_line_to_line") * LINE_TO_LINE_FACTOR[commutation]
-    if "resistance" not in values:
-        raise SpecError(
-            f"{where(source, 'resistance')}: missing; give 'resistance' (model value) or "
-            "'resistance_line_to_line' (datasheet value, converted by 'commutation')",
-            field="resistance",
-        )
-
-    pole_pairs = data.get("pole_pairs")
-    if pole_pairs is not None and (
-        isinstance(pole_pairs, bool) or not isinstance(pole_pairs, int) or not 1 <= pole_pairs <= MAX_POLE_PAIRS
-    ):
-        raise SpecError(
-            f"{where(source, 'pole_pairs')}: found {pole_pairs!r}, expected a whole number from 1 to {MAX_POLE_PAIRS} "
-            "(pole pairs, not poles: a 20-pole motor has 10)",
-            field="pole_pairs",
-        )
-    name = data.get("name")
-    if name is None or (isinstance(name, str) and not name.strip()):
-        raise SpecError(f"{where(source, 'name')}: missing or empty; give the motor a name", field="name")
-    name = file_stem(name, where(source, "name"))
-    src = data.get("source")
-    if src is not None and not isinstance(src, str):
-        raise SpecError(f"{where(source, 'source')}: found {src!r}, expected text", field="source")
-    assumed = data.get("assumed", [])
-    if not isinstance(assumed, list):
-        raise SpecError(
-            f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names", field="assumed"
-        )
-    for entry in assumed:
-        if not isinstance(entry, str):
-            raise SpecError(
-                f"{where(source, 'assumed')}: found {entry!r} in the list, expected field names (kt, kv, ...)",
-                field="assumed",
-            )
-        if entry not in _QUANTITY_KEYS and entry not in _ASSUMABLE:
-            raise SpecError(
-                f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
-            )
-    extrapolated = data.get("extrapolated", [])
-    if not isinstance(extrapolated, list) or any(
-        not isinstance(e, str) or e not in _QUANTITY_KEYS for e in extrapolated
-    ):
-        raise SpecError(
-            f"{where(source, 'extrapolated')}: found {extrapolated!r}, expected a list of spec fields "
-            "(e.g. [peak_torque])",
-            field="extrapolated",
-        )
-    kt_curve = data.get("kt_curve", "quadratic")
-    if kt_curve not in KT_CURVES:
-        raise SpecError(
-            f"{where(source, 'kt_curve')}: found {kt_curve!r}, expected one of {', '.join(KT_CURVES)} (quadratic: "
-            "through the 20 % point at peak_torque; linear: tau = Kt i up to peak_torque)",
-            field="kt_curve",
-        )
-    convention = data.get("inductance_convention")
-    if convention is not None and convention not in INDUCTANCE_CONVENTIONS:
-        raise SpecError(
-            f"{where(source, 'inductance_convention')}: found {convention!r}, expected one of "
-            f"{', '.join(INDUCTANCE_CONVENTIONS)} (line_to_line: measured across two terminals; phase: one phase of "
-            "the wye)",
-            field="inductance_convention",
-        )
-    if convention is not None and "inductance" not in values:
-        raise SpecError(
-            f"{where(source, 'inductance_convention')}: given without an inductance; add 'inductance' or drop it",
-            field="inductance_convention",
-        )
-    weakening = data.get("field_weakening", False)
-    if not isinstance(weakening, bool):
-        raise SpecError(
-            f"{where(source, 'field_weakening')}: found {weakening!r}, expected true or false",
-            field="field_weakening",
-        )
-    if weakening and commutation != "foc":
-        raise SpecError(
-            f"{where(source, 'field_weakening')}: field weakening needs a field-oriented drive (commutation: foc), "
-            f"found commutation {commutation!r}",
-            field="field_weakening",
-        )
-    if weakening and "max_current" not in values:
-        raise SpecError(
-            f"{where(source, 'field_weakening')}: field weakening needs the drive's phase-current limit: add "
-            "max_current (the amplitude |i_dq| the drive holds)",
-            field="field_weakening",
-        )
+    _check_keys(data, source)
+    values = _quantities(data, source)
+    commutation = _commutation(data, source)
+    values = _resistance(values, commutation, source)
+    pole_pairs = _pole_pairs(data, source)
+    name, src = _name_and_source(data, source)
+    assumed = _assumed(data, source)
+    extrapolated = _extrapolated(data, source)
+    kt_curve = _kt_curve(data, source)
+    convention = _inductance_convention(data, values, source)
+    weakening = _field_weakening(data, values, commutation, source)
     bus_range = _bus_range(data.get("bus_voltage_range"), values["bus_voltage"], source)
     fit = data.get("fit")
     if fit is not None and not isinstance(fit, Mapping):
@@ -293,6 +162,209 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
         thermal=thermal,
         **{k: v for k, v in values.items() if k not in _THERMAL_QUANTITIES},
     )
+    _check_envelope_within_limit(spec, source)
+    return spec
+
+
+def _check_keys(data: Any, source: str | None) -> None:
+    """Refuse a sheet that is not a mapping, has an unknown key or schema, or is a fitted motor without its sheet."""
+    if not isinstance(data, Mapping):
+        raise SpecError(
+            f"{where(source)}: found {type(data).__name__}, expected a mapping of spec fields "
+            f"(name, kt, kv, resistance, bus_voltage, peak_torque, ...)",
+            found=data,
+        )
+    unknown = [k for k in data if k not in KNOWN_KEYS]
+    if unknown:
+        key = str(unknown[0])
+        raise SpecError(f"{where(source, key)}: unknown key; {_suggest(key)}", field=key)
+    schema = data.get("schema", SCHEMA)
+    if schema != SCHEMA:
+        raise SpecError(f"{where(source, 'schema')}: found {schema!r}, expected {SCHEMA!r}", field="schema")
+
+    if "fit" in data and "base" not in data:
+        missing = [k for k, (_, req) in _QUANTITY_KEYS.items() if req and k not in data]
+        if missing:
+            raise SpecError(
+                f"{where(source)}: a fitted motor without a spec sheet lacks {', '.join(missing)}; add "
+                "'base: <your motor spec>.yaml' to it, or rerun hound-id fit-current with --spec MOTOR.yaml",
+                field=missing[0],
+            )
+
+
+def _quantities(data: Mapping[str, Any], source: str | None) -> dict[str, float]:
+    """The sheet's quantities in SI, each positive and within its plausible span; the required ones present."""
+    values: dict[str, float] = {}
+    for key, (kind, required) in _QUANTITY_KEYS.items():
+        if key not in data or data[key] is None:
+            if required:
+                raise SpecError(
+                    f"{where(source, key)}: missing; add it (see docs/mor.md)",
+                    field=key,
+                )
+            continue
+        value = to_si(data[key], kind, source=source, field=key)
+        if not value > 0.0:
+            raise SpecError(
+                f"{where(source, key)}: found {data[key]!r}, expected a positive value", field=key, found=data[key]
+            )
+        lo, hi, unit = PLAUSIBLE[key]
+        if not lo <= value <= hi:
+            advice = "(the span of real motors); check the number and its unit"
+            raise _out_of_span(source, key, data[key], value, (lo, hi, unit), advice)
+        values[key] = value
+    return values
+
+
+def _commutation(data: Mapping[str, Any], source: str | None) -> str:
+    """The drive's commutation (foc unless stated), one of :data:`hound_id.mor.spec.LINE_TO_LINE_FACTOR`'s."""
+    commutation = data.get("commutation", "foc")
+    if commutation not in LINE_TO_LINE_FACTOR:
+        raise SpecError(
+            f"{where(source, 'commutation')}: found {commutation!r}, expected one of "
+            f"{', '.join(sorted(LINE_TO_LINE_FACTOR))}",
+            field="commutation",
+        )
+    return commutation
+
+
+def _resistance(values: Mapping[str, float], commutation: str, source: str | None) -> dict[str, float]:
+    """``values`` with the model resistance: given, or converted from the line-to-line one (one of the two)."""
+    if "resistance" in values and "resistance_line_to_line" in values:
+        raise SpecError(
+            f"{where(source, 'resistance_line_to_line')}: both 'resistance' and 'resistance_line_to_line' "
+            "given; keep one (the model resistance, or the datasheet line-to-line value to convert)",
+            field="resistance_line_to_line",
+        )
+    out = dict(values)
+    if "resistance_line_to_line" in out:
+        out["resistance"] = out.pop("resistance_line_to_line") * LINE_TO_LINE_FACTOR[commutation]
+    if "resistance" not in out:
+        raise SpecError(
+            f"{where(source, 'resistance')}: missing; give 'resistance' (model value) or "
+            "'resistance_line_to_line' (datasheet value, converted by 'commutation')",
+            field="resistance",
+        )
+    return out
+
+
+def _pole_pairs(data: Mapping[str, Any], source: str | None) -> int | None:
+    """The stated pole pairs (a whole number up to :data:`MAX_POLE_PAIRS`), or None."""
+    pole_pairs = data.get("pole_pairs")
+    if pole_pairs is not None and (
+        isinstance(pole_pairs, bool) or not isinstance(pole_pairs, int) or not 1 <= pole_pairs <= MAX_POLE_PAIRS
+    ):
+        raise SpecError(
+            f"{where(source, 'pole_pairs')}: found {pole_pairs!r}, expected a whole number from 1 to {MAX_POLE_PAIRS} "
+            "(pole pairs, not poles: a 20-pole motor has 10)",
+            field="pole_pairs",
+        )
+    return pole_pairs
+
+
+def _name_and_source(data: Mapping[str, Any], source: str | None) -> tuple[str, str | None]:
+    """The motor's name (usable as a file stem) and the sheet's ``source`` text."""
+    name = data.get("name")
+    if name is None or (isinstance(name, str) and not name.strip()):
+        raise SpecError(f"{where(source, 'name')}: missing or empty; give the motor a name", field="name")
+    name = file_stem(name, where(source, "name"))
+    src = data.get("source")
+    if src is not None and not isinstance(src, str):
+        raise SpecError(f"{where(source, 'source')}: found {src!r}, expected text", field="source")
+    return name, src
+
+
+def _assumed(data: Mapping[str, Any], source: str | None) -> list[str]:
+    """The ``assumed:`` list: names of spec fields (quantities or :data:`_ASSUMABLE` ones)."""
+    assumed = data.get("assumed", [])
+    if not isinstance(assumed, list):
+        raise SpecError(
+            f"{where(source, 'assumed')}: found {assumed!r}, expected a list of field names", field="assumed"
+        )
+    for entry in assumed:
+        if not isinstance(entry, str):
+            raise SpecError(
+                f"{where(source, 'assumed')}: found {entry!r} in the list, expected field names (kt, kv, ...)",
+                field="assumed",
+            )
+        if entry not in _QUANTITY_KEYS and entry not in _ASSUMABLE:
+            raise SpecError(
+                f"{where(source, 'assumed')}: '{entry}' is not a spec field; {_suggest(str(entry))}", field="assumed"
+            )
+    return assumed
+
+
+def _extrapolated(data: Mapping[str, Any], source: str | None) -> list[str]:
+    """The ``extrapolated:`` list: names of spec quantities."""
+    extrapolated = data.get("extrapolated", [])
+    if not isinstance(extrapolated, list) or any(
+        not isinstance(e, str) or e not in _QUANTITY_KEYS for e in extrapolated
+    ):
+        raise SpecError(
+            f"{where(source, 'extrapolated')}: found {extrapolated!r}, expected a list of spec fields "
+            "(e.g. [peak_torque])",
+            field="extrapolated",
+        )
+    return extrapolated
+
+
+def _kt_curve(data: Mapping[str, Any], source: str | None) -> str:
+    """The current-torque curve the sheet asks for (quadratic unless stated), one of :data:`KT_CURVES`."""
+    kt_curve = data.get("kt_curve", "quadratic")
+    if kt_curve not in KT_CURVES:
+        raise SpecError(
+            f"{where(source, 'kt_curve')}: found {kt_curve!r}, expected one of {', '.join(KT_CURVES)} (quadratic: "
+            "through the 20 % point at peak_torque; linear: tau = Kt i up to peak_torque)",
+            field="kt_curve",
+        )
+    return kt_curve
+
+
+def _inductance_convention(data: Mapping[str, Any], values: Mapping[str, float], source: str | None) -> str | None:
+    """How the inductance was measured (one of :data:`INDUCTANCE_CONVENTIONS`), or None; only with an inductance."""
+    convention = data.get("inductance_convention")
+    if convention is not None and convention not in INDUCTANCE_CONVENTIONS:
+        raise SpecError(
+            f"{where(source, 'inductance_convention')}: found {convention!r}, expected one of "
+            f"{', '.join(INDUCTANCE_CONVENTIONS)} (line_to_line: measured across two terminals; phase: one phase of "
+            "the wye)",
+            field="inductance_convention",
+        )
+    if convention is not None and "inductance" not in values:
+        raise SpecError(
+            f"{where(source, 'inductance_convention')}: given without an inductance; add 'inductance' or drop it",
+            field="inductance_convention",
+        )
+    return convention
+
+
+def _field_weakening(
+    data: Mapping[str, Any], values: Mapping[str, float], commutation: str, source: str | None
+) -> bool:
+    """Whether the drive weakens the field: only a field-oriented drive with a phase-current limit can."""
+    weakening = data.get("field_weakening", False)
+    if not isinstance(weakening, bool):
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: found {weakening!r}, expected true or false",
+            field="field_weakening",
+        )
+    if weakening and commutation != "foc":
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: field weakening needs a field-oriented drive (commutation: foc), "
+            f"found commutation {commutation!r}",
+            field="field_weakening",
+        )
+    if weakening and "max_current" not in values:
+        raise SpecError(
+            f"{where(source, 'field_weakening')}: field weakening needs the drive's phase-current limit: add "
+            "max_current (the amplitude |i_dq| the drive holds)",
+            field="field_weakening",
+        )
+    return weakening
+
+
+def _check_envelope_within_limit(spec: MotorSpec, source: str | None) -> None:
+    """Refuse a measured envelope an edge of which passes the torque limit (every sample it came from lies within)."""
     if spec.envelope is not None:  # a measured envelope lies within the torque limit, like every sample it came from
         edges = [abs(v) for edge in (spec.envelope.lower, spec.envelope.upper) for v in edge if v == v]
         slack = spec.envelope.tolerance + 1e-9 * spec.linear_torque_limit
@@ -301,7 +373,6 @@ def motor_spec_from_mapping(data: Any, source: str | None = None) -> MotorSpec:
                 f"{where(source, 'envelope')}: an edge reaches {max(edges):.4g} N m, past the torque limit "
                 f"{spec.linear_torque_limit:.4g} N m; write the envelope with hound-id mor --compare --out"
             )
-    return spec
 
 
 #: The quantities the thermal model takes (carried by :attr:`MotorSpec.thermal`, not as fields of their own).

@@ -232,6 +232,28 @@ def noise_floor(residual: Array) -> float:
     return white_floor(residual)
 
 
+@dataclass(frozen=True)
+class _Baseline:
+    """The diagnosed fit on its log: columns, statistics, cross-validated error, agreeing half, noise floor."""
+
+    design: Design
+    shifted: Signals
+    """The signals at the fit's delay."""
+    Z: Array
+    """The model's columns with a column of ones first."""
+    stats: Stats
+    cols: list[int]
+    lower: Array
+    upper: Array
+    base_sse: float
+    """The model's cross-validated sum of squares [N^2 m^2]."""
+    residual_search: Array
+    agreeing: Agreeing
+    noise: NoiseFloor
+    floor: float
+    """The noise floor the verdicts use [N m]."""
+
+
 def diagnose(
     signals: Signals, torque: Array, fit: FitResult, *, candidates: Sequence[str] | None = None, alpha: float = ALPHA
 ) -> Diagnosis:
@@ -239,8 +261,21 @@ def diagnose(
     names, skipped = candidates_for(fit.model, signals)
     if candidates is not None:
         names = [c for c in candidates if c in names]
+    base = _baseline(signals, torque, fit)
+    suggestions = []
+    dynamics = dynamics_trace(signals, fit, base.floor) if any(n in FILTERS for n in names) and signals.timed else None
+    for name in names:
+        tried = _try(name, signals, torque, fit, base, dynamics, len(names), alpha)
+        if isinstance(tried, str):
+            skipped.append(f"{name} ({tried})")
+            continue
+        suggestions.append(tried)
+    return _diagnosis(signals, fit, base, rank(suggestions), skipped)
+
+
+def _baseline(signals: Signals, torque: Array, fit: FitResult) -> _Baseline:
+    """The fit's columns, statistics and cross-validated error on the log, its agreeing half and the noise floor."""
     design = Design(signals, torque)
-    n = design.torque.size
     shifted = signals.shifted(fit.hypers.get("delay", 0.0))
     X = design.model_columns(fit.model, fit.hypers, shifted)
     Z = design.with_ones(X)
@@ -253,71 +288,89 @@ def diagnose(
     noise = estimate(signals, design.torque, np.asarray(fit.residual), rows=typical_rows(design, agreeing))
     # never below the arithmetic's own noise: a noiseless log's residual is rounding, not a missing effect
     floor = max(noise.value, NUMERICAL_FLOOR * float(np.sqrt(np.mean(design.torque**2))))
-    clusters = design.blocks.count
+    return _Baseline(design, shifted, Z, stats, cols, lower, upper, base_sse, residual_search, agreeing, noise, floor)
 
-    suggestions = []
-    dynamics = dynamics_trace(signals, fit, floor) if any(n in FILTERS for n in names) and signals.timed else None
-    for name in names:
-        try:
-            if name == "delay":
-                trial = delay_trial(signals, torque, fit)
-            elif name in FILTERS:
-                trial = dynamics if dynamics is not None else filter_trial(name, signals, torque, fit)
-            else:
-                trial = effect_trial(name, fit, design, shifted, Z, stats, residual_search)
-        except FitError as err:
-            trial = str(err)
-        if isinstance(trial, str):
-            skipped.append(f"{name} ({trial})")
-            continue
-        explained = (base_sse - trial.cv_sse) / base_sse if base_sse > 0 else 0.0
-        gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
-        material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2 and gain > 0)
-        dfd = max(clusters - 1, 1)
-        p = f_pvalue(trial.wald, trial.q, dfd) if trial.p_value is None else trial.p_value
-        p_adj = corrected(p, trials(name), len(names))
-        rmse = math.sqrt(trial.cv_sse / n)
-        effect = get(name)
-        # unphysical only if the effect is there: the fit without bounds passes the same test
-        p_free = (
-            p_adj
-            if trial.p_value is not None
-            else corrected(f_pvalue(trial.wald_free, trial.q, dfd), trials(name), len(names))
-        )
-        unphysical = trial.unphysical if p_free < alpha else None
-        verdict = significant(p_adj, material=material, physical=trial.unphysical is None, alpha=alpha)
-        if unphysical is not None:
-            reason = unphysical
-        elif verdict:
-            reason = effect.evidence(trial.values, signals) if effect.evidence is not None else "it fits"
-            reason += f" (explains {explained:.1%} of the cross-validated residual, p = {p_adj:.2g})"
-        elif p_adj < alpha and gain > 0:
-            reason = (
-                f"real (p = {p_adj:.2g}) but immaterial: it lowers the cross-validated mean-square error by "
-                f"{share_of(gain, floor**2)} of the noise variance, less than {MATERIAL:.0%}"
-            )
-        elif p_adj < alpha:
-            reason = (
-                f"fits the log better (p = {p_adj:.2g}) but raises the cross-validated error by "
-                f"{-explained:.2%}: not kept"
-            )
+
+def _try(
+    name: str,
+    signals: Signals,
+    torque: Array,
+    fit: FitResult,
+    base: _Baseline,
+    dynamics: str | None,
+    candidates: int,
+    alpha: float,
+) -> Suggestion | str:
+    """One candidate's trial scored as a suggestion (of ``candidates`` tried), or why it could not be tried."""
+    try:
+        if name == "delay":
+            trial = delay_trial(signals, torque, fit)
+        elif name in FILTERS:
+            trial = dynamics if dynamics is not None else filter_trial(name, signals, torque, fit)
         else:
-            reason = f"explains {explained:.2%} of the cross-validated residual; not significant (p = {p_adj:.2g})"
-        suggestions.append(
-            Suggestion(
-                effect=name,
-                explained=float(explained),
-                significant=verdict,
-                p_value=p,
-                p_adjusted=p_adj,
-                rmse=rmse,
-                reason=reason,
-                statistic=trial.wald,
-                physical=unphysical is None,
-                hypers=trial.hypers,
-            )
+            trial = effect_trial(name, fit, base.design, base.shifted, base.Z, base.stats, base.residual_search)
+    except FitError as err:
+        trial = str(err)
+    if isinstance(trial, str):
+        return trial
+    n = base.design.torque.size
+    base_sse, floor = base.base_sse, base.floor
+    explained = (base_sse - trial.cv_sse) / base_sse if base_sse > 0 else 0.0
+    gain = (base_sse - trial.cv_sse) / n  # fall of the cross-validated mean-square error [N^2 m^2]
+    material = bool(math.isfinite(floor) and gain >= MATERIAL * floor**2 and gain > 0)
+    dfd = max(base.design.blocks.count - 1, 1)
+    p = f_pvalue(trial.wald, trial.q, dfd) if trial.p_value is None else trial.p_value
+    p_adj = corrected(p, trials(name), candidates)
+    rmse = math.sqrt(trial.cv_sse / n)
+    effect = get(name)
+    # unphysical only if the effect is there: the fit without bounds passes the same test
+    p_free = (
+        p_adj
+        if trial.p_value is not None
+        else corrected(f_pvalue(trial.wald_free, trial.q, dfd), trials(name), candidates)
+    )
+    unphysical = trial.unphysical if p_free < alpha else None
+    verdict = significant(p_adj, material=material, physical=trial.unphysical is None, alpha=alpha)
+    if unphysical is not None:
+        reason = unphysical
+    elif verdict:
+        reason = effect.evidence(trial.values, signals) if effect.evidence is not None else "it fits"
+        reason += f" (explains {explained:.1%} of the cross-validated residual, p = {p_adj:.2g})"
+    else:
+        reason = _not_kept(explained, gain, p_adj, floor, alpha)
+    return Suggestion(
+        effect=name,
+        explained=float(explained),
+        significant=verdict,
+        p_value=p,
+        p_adjusted=p_adj,
+        rmse=rmse,
+        reason=reason,
+        statistic=trial.wald,
+        physical=unphysical is None,
+        hypers=trial.hypers,
+    )
+
+
+def _not_kept(explained: float, gain: float, p_adj: float, floor: float, alpha: float) -> str:
+    """Why a physically possible candidate is not significant: immaterial, worse held out, or not significant."""
+    if p_adj < alpha and gain > 0:
+        return (
+            f"real (p = {p_adj:.2g}) but immaterial: it lowers the cross-validated mean-square error by "
+            f"{share_of(gain, floor**2)} of the noise variance, less than {MATERIAL:.0%}"
         )
-    suggestions = rank(suggestions)
+    if p_adj < alpha:
+        return (
+            f"fits the log better (p = {p_adj:.2g}) but raises the cross-validated error by {-explained:.2%}: not kept"
+        )
+    return f"explains {explained:.2%} of the cross-validated residual; not significant (p = {p_adj:.2g})"
+
+
+def _diagnosis(
+    signals: Signals, fit: FitResult, base: _Baseline, suggestions: list[Suggestion], skipped: list[str]
+) -> Diagnosis:
+    """The diagnosis of ranked suggestions: disagreeing stretches, flags, outliers, the verdict, the wander."""
+    design, agreeing, noise, floor = base.design, base.agreeing, base.noise, base.floor
     block_floor = np.array([noise_floor(np.asarray(fit.residual)[s]) for s in design.blocks.slices()])
     disagreeing = disagreeing_blocks(agreeing, floor, block_floor)
     kt = agreeing_kt(fit, agreeing)
@@ -355,7 +408,7 @@ def diagnose(
         noise,
         kt,
         stretches,
-        rmse_outside(stats, cols, lower, upper, disagreeing),
+        rmse_outside(base.stats, base.cols, base.lower, base.upper, disagreeing),
         time_scale,
     )
 

@@ -240,6 +240,8 @@ def _finish(
     robust: bool,
     hyper_held: set[str] | None = None,
 ) -> FitResult:
+    """The linear parameters of ``model`` fitted within their bounds on the design's columns ``X`` (the hyper-parameters
+    held at ``hypers``), with their standard errors, the cross-validated errors and the held-out residual."""
     y = design.torque
     n = y.size
     p = X.shape[1]
@@ -272,42 +274,10 @@ def _finish(
     for k, beta_k in enumerate(cv.betas):
         s = blocks.rows_of_fold(k)
         held_out[s] = y[s] - X[s] @ beta_k
-    fold_train, fold_test = cv.fold_rmse_train, cv.fold_rmse_test
     rmse_cv = math.sqrt(float(block_sse.sum()) / n)
-    # robust standard errors, never below the classical ones
-    free = ~active
-    cov = robust_cov(solve_stats, cols, beta, free)
-    dof = max(n - int(free.sum()), 1)
-    sigma2 = (float((weights * resid**2).sum()) if weights is not None else rss) / dof
-    classic = np.zeros(p)
-    if free.any():
-        Gf, _, _ = solve_stats.total([c for c, f in zip(cols, free, strict=True) if f])
-        _, Ginv = solve_normal(Gf, np.zeros(Gf.shape[0]))
-        classic[free] = np.diag(Ginv) * sigma2
-    stderr = np.sqrt(np.maximum(np.maximum(np.diag(cov), classic), 0.0))
-    # how far past its bound the unconstrained fit puts each held parameter, in its own standard errors
-    beyond = np.zeros(p)
-    if active.any():
-        free_all = np.ones(p, dtype=bool)
-        free_cov = robust_cov(stats, cols, free_beta, free_all)
-        _, Ginv_all = solve_normal(G, np.zeros(p))
-        free_err = np.sqrt(np.maximum(np.maximum(np.diag(free_cov), np.diag(Ginv_all) * rss / dof), 1e-300))
-        bound = np.where(free_beta < lower, lower, upper)
-        beyond = np.abs(free_beta - bound) / free_err
-    unphysical: dict[str, float] = {}
-    params: dict[str, Estimate] = {}
-    col = 0
-    for e in effects:
-        for par in e.parameters:
-            at = bool(active[col])
-            if at and beyond[col] > UNPHYSICAL_SIGMAS:
-                unphysical[par.name] = float(free_beta[col])
-            params[par.name] = Estimate(float(beta[col]), float(stderr[col]), par.unit, e.name, at)
-            col += 1
-        for h in e.hypers:
-            err = float(hyper_stderr.get(h.name, float("nan")))
-            held = h.name in (hyper_held or set())
-            params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name, held)
+    stderr, dof = _stderr(solve_stats, cols, beta, active, weights, resid, rss)
+    beyond = _beyond(stats, cols, G, free_beta, active, (lower, upper), rss, dof)
+    params, unphysical = _estimates(effects, beta, stderr, active, beyond, free_beta, hypers, hyper_stderr, hyper_held)
     k_all = p + sum(len(e.hypers) for e in effects)
     loglik_term = n * math.log(max(rss / max(n, 1), 1e-300))
     return FitResult(
@@ -324,12 +294,88 @@ def _finish(
         held_out=frozen(held_out),
         blocks=blocks,
         block_rmse=frozen(np.sqrt(block_sse / np.maximum(np.diff(blocks.edges), 1))),
-        fold_rmse_train=frozen(fold_train),
-        fold_rmse_test=frozen(fold_test),
+        fold_rmse_train=frozen(cv.fold_rmse_train),
+        fold_rmse_test=frozen(cv.fold_rmse_test),
         robust=robust,
         hypers={h.name: float(hypers.get(h.name, 0.0)) for e in effects for h in e.hypers},
         unphysical=unphysical,
     )
+
+
+def _stderr(
+    stats: Stats,
+    cols: list[int],
+    beta: Array,
+    active: NDArray[np.bool_],
+    weights: Array | None,
+    resid: Array,
+    rss: float,
+) -> tuple[Array, int]:
+    """(standard errors, cluster-robust and never below the classical ones; the residual's degrees of freedom)."""
+    p = beta.size
+    free = ~active
+    cov = robust_cov(stats, cols, beta, free)
+    dof = max(resid.size - int(free.sum()), 1)
+    sigma2 = (float((weights * resid**2).sum()) if weights is not None else rss) / dof
+    classic = np.zeros(p)
+    if free.any():
+        Gf, _, _ = stats.total([c for c, f in zip(cols, free, strict=True) if f])
+        _, Ginv = solve_normal(Gf, np.zeros(Gf.shape[0]))
+        classic[free] = np.diag(Ginv) * sigma2
+    return np.sqrt(np.maximum(np.maximum(np.diag(cov), classic), 0.0)), dof
+
+
+def _beyond(
+    stats: Stats,
+    cols: list[int],
+    G: Array,
+    free_beta: Array,
+    active: NDArray[np.bool_],
+    bounds: tuple[Array, Array],
+    rss: float,
+    dof: int,
+) -> Array:
+    """How far past its bound the unconstrained fit puts each held parameter, in standard errors (0 if free)."""
+    p = free_beta.size
+    beyond = np.zeros(p)
+    if active.any():
+        lower, upper = bounds
+        free_all = np.ones(p, dtype=bool)
+        free_cov = robust_cov(stats, cols, free_beta, free_all)
+        _, Ginv_all = solve_normal(G, np.zeros(p))
+        free_err = np.sqrt(np.maximum(np.maximum(np.diag(free_cov), np.diag(Ginv_all) * rss / dof), 1e-300))
+        bound = np.where(free_beta < lower, lower, upper)
+        beyond = np.abs(free_beta - bound) / free_err
+    return beyond
+
+
+def _estimates(
+    effects: list[Effect],
+    beta: Array,
+    stderr: Array,
+    active: NDArray[np.bool_],
+    beyond: Array,
+    free_beta: Array,
+    hypers: Mapping[str, float],
+    hyper_stderr: Mapping[str, float],
+    hyper_held: set[str] | None,
+) -> tuple[dict[str, Estimate], dict[str, float]]:
+    """(every parameter's estimate by name; the free value of each held past UNPHYSICAL_SIGMAS at its bound)."""
+    unphysical: dict[str, float] = {}
+    params: dict[str, Estimate] = {}
+    col = 0
+    for e in effects:
+        for par in e.parameters:
+            at = bool(active[col])
+            if at and beyond[col] > UNPHYSICAL_SIGMAS:
+                unphysical[par.name] = float(free_beta[col])
+            params[par.name] = Estimate(float(beta[col]), float(stderr[col]), par.unit, e.name, at)
+            col += 1
+        for h in e.hypers:
+            err = float(hyper_stderr.get(h.name, float("nan")))
+            held = h.name in (hyper_held or set())
+            params[h.name] = Estimate(float(hypers.get(h.name, 0.0)), err, h.unit, e.name, held)
+    return params, unphysical
 
 
 def _refuse_unidentified(stats: Stats, cols: Sequence[int], model: Sequence[str], signals: Signals) -> None:

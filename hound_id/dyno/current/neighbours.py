@@ -158,38 +158,11 @@ def neighbour_scatter(
     step = float(np.median(np.diff(t)))
     gap = max(NEIGHBOUR_GAP_S, NEIGHBOUR_GAP_ROWS * step)
     spans = np.floor((t - t[0]) / gap).astype(np.int64)
-    eligible = np.arange(r.size) if rows is None else np.flatnonzero(np.asarray(rows, bool)[NEIGHBOUR_LAGS:])
-    if eligible.size < 2:
+    found = _pairs(signals, r.size, t, gap, rows, tolerances)
+    if found is None:
         return None
-    tol = Tolerances.of(signals) if tolerances is None else tolerances
-    pool = eligible[:: -(-eligible.size // NEIGHBOUR_POOL)]
-    queries = eligible[:: -(-eligible.size // NEIGHBOUR_QUERIES)]
-    idx, usable = far_partners(
-        _neighbour_inputs(signals, pool, tol),
-        _neighbour_inputs(signals, queries, tol),
-        t[pool],
-        t[queries],
-        gap,
-        NEIGHBOUR_SEARCH,
-        NEIGHBOUR_K,
-    )
-    partner = pool[idx]
-    a_rows, b_rows = np.broadcast_to(queries[:, None], usable.shape)[usable], partner[usable]
-    code = np.unique(np.minimum(a_rows, b_rows) * np.int64(r.size) + np.maximum(a_rows, b_rows))  # each pair once
-    if code.size < MIN_NEIGHBOUR_PAIRS:
-        return None
-    a_rows, b_rows = code // r.size, code % r.size
-    diff = r[a_rows] - r[b_rows]
-    dx = _neighbour_inputs(signals, a_rows, tol) - _neighbour_inputs(signals, b_rows, tol)
-    slope, *_ = np.linalg.lstsq(dx, diff, rcond=None)
-    drifting = diff - dx @ slope
-    # a drift linear in time (an offset creeping, Kt sagging as the motor warms) taken out as well, for the floor
-    dt = (t[a_rows] - t[b_rows]) / max(float(t[-1] - t[0]), step)
-    amps = 0.5 * (signals.current[a_rows + NEIGHBOUR_LAGS] + signals.current[b_rows + NEIGHBOUR_LAGS])
-    amps = amps / max(float(np.max(np.abs(amps))), 1e-300)
-    full = np.column_stack((dx, dt, dt * amps))
-    slope, *_ = np.linalg.lstsq(full, diff, rcond=None)
-    diff = diff - full @ slope
+    a_rows, b_rows, tol = found
+    diff, drifting = _differences(signals, r, t, step, a_rows, b_rows, tol)
     sep = np.abs(t[a_rows] - t[b_rows])
     episode = (spans[a_rows], spans[b_rows])
     order = np.argsort(sep, kind="stable")
@@ -215,17 +188,79 @@ def neighbour_scatter(
     if strata is not None:
         label = strata.label[NEIGHBOUR_LAGS:][a_rows[used]]
         by = {k: scatter(diff, used[label == k], MIN_NEIGHBOUR_PAIRS // LOAD_STRATA) for k in range(len(strata.share))}
-        read = {k: v for k, v in by.items() if v is not None}
-        load = strata.profile("neighbours", {k: v[0] for k, v in read.items()})
-        if load is not None:
-            value = load.value
-            w = np.asarray(load.share) / sum(load.share)
-            terms = [wk * v[0] * v[1] for wk, (_, v) in zip(w, sorted(read.items()), strict=True)]
-            error = math.sqrt(sum(x * x for x in terms)) / value if value > 0 else 0.0
+        value, error, load = _by_load(strata, {k: v for k, v in by.items() if v is not None}, value, error)
     if not value > 0:
         return None
     far_within = (float(sep[far].min()), float(sep[far].max()))
     return Neighbours(value, int(used.size), within, far_raw[0], far_within, error, far_raw[1], near_raw[0], load)
+
+
+def _pairs(
+    signals: Signals,
+    size: int,
+    t: Array,
+    gap: float,
+    rows: NDArray[np.bool_] | None,
+    tolerances: Tolerances | None,
+) -> tuple[NDArray[np.int64], NDArray[np.int64], Tolerances] | None:
+    """(first rows, second rows, tolerances) of far-apart eligible rows whose inputs coincide; None if too few."""
+    eligible = np.arange(size) if rows is None else np.flatnonzero(np.asarray(rows, bool)[NEIGHBOUR_LAGS:])
+    if eligible.size < 2:
+        return None
+    tol = Tolerances.of(signals) if tolerances is None else tolerances
+    pool = eligible[:: -(-eligible.size // NEIGHBOUR_POOL)]
+    queries = eligible[:: -(-eligible.size // NEIGHBOUR_QUERIES)]
+    idx, usable = far_partners(
+        _neighbour_inputs(signals, pool, tol),
+        _neighbour_inputs(signals, queries, tol),
+        t[pool],
+        t[queries],
+        gap,
+        NEIGHBOUR_SEARCH,
+        NEIGHBOUR_K,
+    )
+    partner = pool[idx]
+    a_rows, b_rows = np.broadcast_to(queries[:, None], usable.shape)[usable], partner[usable]
+    code = np.unique(np.minimum(a_rows, b_rows) * np.int64(size) + np.maximum(a_rows, b_rows))  # each pair once
+    if code.size < MIN_NEIGHBOUR_PAIRS:
+        return None
+    return code // size, code % size, tol
+
+
+def _differences(
+    signals: Signals,
+    r: Array,
+    t: Array,
+    step: float,
+    a_rows: NDArray[np.int64],
+    b_rows: NDArray[np.int64],
+    tol: Tolerances,
+) -> tuple[Array, Array]:
+    """(residual differences less the inputs' part and a drift linear in time, less the inputs' part only)."""
+    diff = r[a_rows] - r[b_rows]
+    dx = _neighbour_inputs(signals, a_rows, tol) - _neighbour_inputs(signals, b_rows, tol)
+    slope, *_ = np.linalg.lstsq(dx, diff, rcond=None)
+    drifting = diff - dx @ slope
+    # a drift linear in time (an offset creeping, Kt sagging as the motor warms) taken out as well, for the floor
+    dt = (t[a_rows] - t[b_rows]) / max(float(t[-1] - t[0]), step)
+    amps = 0.5 * (signals.current[a_rows + NEIGHBOUR_LAGS] + signals.current[b_rows + NEIGHBOUR_LAGS])
+    amps = amps / max(float(np.max(np.abs(amps))), 1e-300)
+    full = np.column_stack((dx, dt, dt * amps))
+    slope, *_ = np.linalg.lstsq(full, diff, rcond=None)
+    return diff - full @ slope, drifting
+
+
+def _by_load(
+    strata: Strata, read: dict[int, tuple[float, float]], value: float, error: float
+) -> tuple[float, float, LoadProfile | None]:
+    """(floor [N m], relative error, load profile): the per-stratum scatters' RMS over rows where load moves it."""
+    load = strata.profile("neighbours", {k: v[0] for k, v in read.items()})
+    if load is not None:
+        value = load.value
+        w = np.asarray(load.share) / sum(load.share)
+        terms = [wk * v[0] * v[1] for wk, (_, v) in zip(w, sorted(read.items()), strict=True)]
+        error = math.sqrt(sum(x * x for x in terms)) / value if value > 0 else 0.0
+    return value, error, load
 
 
 def _pair_sigma(

@@ -17,6 +17,7 @@ if TYPE_CHECKING:  # pragma: no cover
     from matplotlib.figure import Figure
 
     from hound_id.dyno.current.diagnose import Diagnosis
+    from hound_id.dyno.current.wander import Wander
 
 #: Points drawn per scatter (the log is subsampled evenly beyond this).
 MAX_POINTS = 15_000
@@ -64,6 +65,29 @@ def plot_fit(
     matplotlib.use("Agg")
     from matplotlib.figure import Figure
 
+    panels, along = _panels(signals, cogging_order)
+    count = 2 + len(panels)
+    ncols = (count + 1) // 2
+    fig = Figure(figsize=(5 * ncols, 9), layout="constrained")
+    axes = fig.subplots(2, ncols, squeeze=False)
+    for extra in axes.flat[count:]:
+        extra.set_axis_off()
+    n = torque.shape[0]
+    pick = np.linspace(0, n - 1, min(n, MAX_POINTS)).astype(int)
+    _curve_panel(axes[0, 0], signals, torque, fit, peak, pick)
+    for ax, (label, x) in zip(axes.flat[1 : 1 + len(panels)], panels, strict=True):
+        _residual_panel(ax, label, x, pick, fit, residuals)
+        w = diagnosis.wander if diagnosis is not None and diagnosis.wander_said is not None else None
+        if label == along and w is not None:
+            import textwrap
+
+            ax.set_title("\n".join(textwrap.wrap(_wander_title(w), 60)), fontsize=8)
+    _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
+    return fig
+
+
+def _panels(signals: Signals, cogging_order: float | None) -> tuple[list[tuple[str, Array]], str]:
+    """(label, channel) of each residual panel the log has a channel for, and the label of the time (or row) one."""
     position = (
         None
         if signals.position is None
@@ -77,18 +101,14 @@ def plot_fit(
         ("temperature [degC]", signals.temperature),
         along,
     ]
-    panels = [(label, x) for label, x in candidates if x is not None]
-    count = 2 + len(panels)
-    ncols = (count + 1) // 2
-    fig = Figure(figsize=(5 * ncols, 9), layout="constrained")
-    axes = fig.subplots(2, ncols, squeeze=False)
-    for extra in axes.flat[count:]:
-        extra.set_axis_off()
-    n = torque.shape[0]
-    pick = np.linspace(0, n - 1, min(n, MAX_POINTS)).astype(int)
-    i = signals.current
+    return [(label, x) for label, x in candidates if x is not None], along[0]
 
-    ax = axes[0, 0]
+
+def _curve_panel(ax: Axes, signals: Signals, torque: Array, fit: FitResult, peak: PeakTorque, pick: Array) -> None:
+    """Torque against current: the measured points, the linear Kt, the fitted curve and its 20 % point."""
+    import textwrap
+
+    i = signals.current
     ax.scatter(i[pick], torque[pick], s=2, color="0.6", alpha=0.4, label="measured", rasterized=True)
     grid = np.linspace(-np.max(np.abs(i)), np.max(np.abs(i)), 400)
     kt = fit.value("kt")
@@ -107,44 +127,44 @@ def plot_fit(
             ax.axhline(sign * peak.torque, color="tab:red", lw=0.8, ls=":")
     ax.set_xlabel("current [A]")
     ax.set_ylabel("torque [N m]")
-    import textwrap
-
     title = f"{' + '.join(fit.model)}: held-out RMSE {fit.rmse_test:.3g} N m"
     ax.set_title("\n".join(textwrap.wrap(title, 60)), fontsize=9)
     ax.legend(fontsize=7, loc="upper left")
     ax.grid(alpha=0.3)
 
-    for ax, (label, x) in zip(axes.flat[1 : 1 + len(panels)], panels, strict=True):
-        pairs = list(residuals) or [("+".join(fit.model), fit)]
-        colours = ["tab:red", "tab:blue", "tab:green", "tab:purple"]
-        series = [(name, f.residual, colours[k % 4]) for k, (name, f) in enumerate(pairs)]
-        for name, r, colour in series:
-            ax.scatter(x[pick], r[pick], s=1, color=colour, alpha=0.15, rasterized=True)
-            bx, by = _binned(x, r)
-            ax.plot(bx, by, color=colour, lw=1.5, label=name)
-        ax.axhline(0, color="0.3", lw=0.6)
-        # robust limits from the newest fit: the old model's spikes may run off the panel, but the structure
-        # left in the new residual stays readable
-        lim = 3.0 * float(np.percentile(np.abs(series[-1][1][pick]), 99.5))
-        if lim > 0:
-            ax.set_ylim(-lim, lim)
-        ax.set_xlabel(label)
-        ax.set_ylabel("residual [N m]")
-        ax.grid(alpha=0.3)
-        ax.legend(fontsize=6, loc="upper right")
-        w = diagnosis.wander if diagnosis is not None and diagnosis.wander_said is not None else None
-        if label == along[0] and w is not None:
-            noise = f"{w.fast:.3g} N m of noise faster than {w.window:.2g} s"
-            if w.is_offset:
-                title = f"an offset of {w.mean:+.3g} N m beside {noise}"
-            elif w.is_slow or not w.excess:
-                follows = " (it follows the current and speed)" if w.follows_inputs else ""
-                title = f"a slow part of {w.slow:.3g} N m RMS{follows} beside {noise}"
-            else:
-                title = f"the excess is fast: {noise}, {w.fast_ratio:.2g}x the floor"
-            ax.set_title("\n".join(textwrap.wrap(title, 60)), fontsize=8)
-    _block_panel(axes.flat[1 + len(panels)], signals, fit, diagnosis)
-    return fig
+
+def _residual_panel(
+    ax: Axes, label: str, x: Array, pick: Array, fit: FitResult, residuals: Sequence[tuple[str, FitResult]]
+) -> None:
+    """The residuals of each compared fit against one channel, as points and as binned means."""
+    pairs = list(residuals) or [("+".join(fit.model), fit)]
+    colours = ["tab:red", "tab:blue", "tab:green", "tab:purple"]
+    series = [(name, f.residual, colours[k % 4]) for k, (name, f) in enumerate(pairs)]
+    for name, r, colour in series:
+        ax.scatter(x[pick], r[pick], s=1, color=colour, alpha=0.15, rasterized=True)
+        bx, by = _binned(x, r)
+        ax.plot(bx, by, color=colour, lw=1.5, label=name)
+    ax.axhline(0, color="0.3", lw=0.6)
+    # robust limits from the newest fit: the old model's spikes may run off the panel, but the structure
+    # left in the new residual stays readable
+    lim = 3.0 * float(np.percentile(np.abs(series[-1][1][pick]), 99.5))
+    if lim > 0:
+        ax.set_ylim(-lim, lim)
+    ax.set_xlabel(label)
+    ax.set_ylabel("residual [N m]")
+    ax.grid(alpha=0.3)
+    ax.legend(fontsize=6, loc="upper right")
+
+
+def _wander_title(w: Wander) -> str:
+    """The time panel's title: whether the residual's excess is an offset, a slow wander or fast noise."""
+    noise = f"{w.fast:.3g} N m of noise faster than {w.window:.2g} s"
+    if w.is_offset:
+        return f"an offset of {w.mean:+.3g} N m beside {noise}"
+    if w.is_slow or not w.excess:
+        follows = " (it follows the current and speed)" if w.follows_inputs else ""
+        return f"a slow part of {w.slow:.3g} N m RMS{follows} beside {noise}"
+    return f"the excess is fast: {noise}, {w.fast_ratio:.2g}x the floor"
 
 
 def _block_panel(ax: Axes, signals: Signals, fit: FitResult, diagnosis: Diagnosis | None) -> None:

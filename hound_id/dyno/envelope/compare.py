@@ -145,66 +145,93 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
     spill0 = float(np.mean(excess0 > REFUTE * inputs.spec.linear_torque_limit))
     out = []
     for name in names:
-        value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
-        refit = dict(model)
-        if model:
-            # Refit the model's own parameters with the candidate in, from two starts: the candidate on top of the
-            # model, and the candidate alone (the model's effects then refitted): an effect added wrongly must not
-            # hide the right one.
-            alone = _fit_one(log, walls, {}, name, inputs)[0]
-            for start in ({**model, name: value}, {**model, name: alone}):
-                joint = _refit(log, walls, start, inputs, all_params=True, lead=name)
-                sse_joint = offsets(log, walls, joint, inputs).sse
-                if sse_joint < sse1:
-                    value, sse1 = joint.pop(name), sse_joint
-                    refit = joint
-                    at_bound = _at_bound(name, value, inputs)
-        dof = max(n - 1, 1)
-        f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
-        p = f_pvalue(f_stat, 1, dof)
-        effect = EFFECTS[name]
-        # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
-        # compromises between two effects passes its samples by a little)
-        excess = past_edges(log, inputs, base.sample_noise, {**refit, name: value})[0]
-        spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.linear_torque_limit))
-        refuted = spill > max(OUTSIDE_OK, SPILL_GROWTH * spill0)
-        moved = ", ".join(
-            f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
-            for k, v in refit.items()
-            if abs(v - model[k]) > MOVED * max(abs(model[k]), 1e-12)
-        )
-        out.append(
-            Suggestion(
-                effect=name,
-                value=value,
-                unit=effect.unit,
-                explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
-                rmse=math.sqrt(sse1 / n),
-                statistic=float(f_stat),
-                p_value=p,
-                p_adjusted=corrected(p, 1, len(names)),
-                # statistically and practically: the F-test, and an error that falls by at least the noise level
-                significant=significant(
-                    corrected(p, 1, len(names)),
-                    material=base.rmse - math.sqrt(sse1 / n) >= base.noise,
-                    identified=not at_bound,
-                    refuted=refuted,
-                ),
-                reason=(
-                    f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
-                    f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
-                    + (f" ({moved})" if moved else "")
-                    + (
-                        f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
-                        "its edges; the log makes torque it forbids)"
-                        if refuted
-                        else ""
-                    )
-                    + (" (at the bound of its search: not identified)" if at_bound else "")
-                ),
-                refit=refit,
+        fitted = _fit_candidate(log, walls, model, name, inputs)
+        out.append(_candidate(log, model, name, fitted, base, inputs, spill0, len(names)))
+    return rank(_with_evidence(out, log, inputs), verdict_first=False)
+
+
+def _fit_candidate(
+    log: EnvelopeLog, walls: Walls, model: Mapping[str, float], name: str, inputs: EnvelopeInputs
+) -> tuple[float, float, bool, dict[str, float]]:
+    """(value, envelope sum of squares, at a bound of its search, the model refitted with it) of a candidate."""
+    value, sse1, at_bound = _fit_one(log, walls, model, name, inputs)
+    refit = dict(model)
+    if model:
+        # Refit the model's own parameters with the candidate in, from two starts: the candidate on top of the
+        # model, and the candidate alone (the model's effects then refitted): an effect added wrongly must not
+        # hide the right one.
+        alone = _fit_one(log, walls, {}, name, inputs)[0]
+        for start in ({**model, name: value}, {**model, name: alone}):
+            joint = _refit(log, walls, start, inputs, all_params=True, lead=name)
+            sse_joint = offsets(log, walls, joint, inputs).sse
+            if sse_joint < sse1:
+                value, sse1 = joint.pop(name), sse_joint
+                refit = joint
+                at_bound = _at_bound(name, value, inputs)
+    return value, sse1, at_bound, refit
+
+
+def _candidate(
+    log: EnvelopeLog,
+    model: Mapping[str, float],
+    name: str,
+    fitted: tuple[float, float, bool, dict[str, float]],
+    base: Offsets,
+    inputs: EnvelopeInputs,
+    spill0: float,
+    candidates: int,
+) -> Suggestion:
+    """A fitted candidate scored against the model: its F-test, material, identified, refuted past its edges."""
+    value, sse1, at_bound, refit = fitted
+    n = base.offset.size
+    dof = max(n - 1, 1)
+    f_stat = max(base.sse - sse1, 0.0) / max(sse1 / dof, 1e-30)
+    p = f_pvalue(f_stat, 1, dof)
+    effect = EFFECTS[name]
+    # the whole log must fit inside: an effect whose edges the log passes by far is refuted by it (a fit that
+    # compromises between two effects passes its samples by a little)
+    excess = past_edges(log, inputs, base.sample_noise, {**refit, name: value})[0]
+    spill = float(np.mean(np.nan_to_num(excess, nan=0.0) > REFUTE * inputs.spec.linear_torque_limit))
+    refuted = spill > max(OUTSIDE_OK, SPILL_GROWTH * spill0)
+    moved = ", ".join(
+        f"{k} refitted {model[k]:.4g} -> {v:.4g} {EFFECTS[k].unit}"
+        for k, v in refit.items()
+        if abs(v - model[k]) > MOVED * max(abs(model[k]), 1e-12)
+    )
+    return Suggestion(
+        effect=name,
+        value=value,
+        unit=effect.unit,
+        explained=max(0.0, (base.sse - sse1) / base.sse) if base.sse > 0 else 0.0,
+        rmse=math.sqrt(sse1 / n),
+        statistic=float(f_stat),
+        p_value=p,
+        p_adjusted=corrected(p, 1, candidates),
+        # statistically and practically: the F-test, and an error that falls by at least the noise level
+        significant=significant(
+            corrected(p, 1, candidates),
+            material=base.rmse - math.sqrt(sse1 / n) >= base.noise,
+            identified=not at_bound,
+            refuted=refuted,
+        ),
+        reason=(
+            f"{effect.physics}; {effect.parameter} = {value:.4g} {effect.unit} takes the envelope error from "
+            f"{base.rmse:.3g} to {math.sqrt(sse1 / n):.3g} N m over {n} bins at the limit"
+            + (f" ({moved})" if moved else "")
+            + (
+                f" (refuted: {spill:.1%} of the samples lie more than {REFUTE:.0%} of the torque limit past "
+                "its edges; the log makes torque it forbids)"
+                if refuted
+                else ""
             )
-        )
+            + (" (at the bound of its search: not identified)" if at_bound else "")
+        ),
+        refit=refit,
+    )
+
+
+def _with_evidence(out: list[Suggestion], log: EnvelopeLog, inputs: EnvelopeInputs) -> list[Suggestion]:
+    """The suggestions with what the logged bus voltage and current settle (a sag contradicted, support)."""
     # Logged channels settle what the envelope alone cannot: a sagging bus, inductance and a saturating core all
     # shorten the motoring edge at speed; the bus voltage and the current say which it is.
     for named, evidence in (("bus_sag", bus_evidence(log, inputs)), ("kt_saturation", current_evidence(log, inputs))):
@@ -220,7 +247,7 @@ def suggest(log: EnvelopeLog, walls: Walls, model: Mapping[str, float], inputs: 
                 )
             elif sug.effect == named and sug.explained > EVIDENCE_EXPLAINED:
                 out[k] = replace(sug, reason=sug.reason + f"; {evidence.text}", supported=evidence.significant)
-    return rank(out, verdict_first=False)
+    return out
 
 
 @dataclass(frozen=True)

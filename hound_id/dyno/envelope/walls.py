@@ -284,26 +284,9 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
     lasting_lo = sliding_window_view(-short, persist).min(axis=1)[whole]
     thr_up = max(float(np.max(lasting_up)), floor)
     thr_lo = max(float(np.max(lasting_lo)), floor)
-
-    def runs(mask: NDArray[np.bool_]) -> NDArray[np.bool_]:
-        edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
-        out = np.zeros(n, dtype=bool)
-        for start, stop in zip(edges[::2], edges[1::2], strict=True):
-            if stop - start < persist:
-                continue
-            if not ordered:
-                out[start:stop] = True
-                continue
-            settled = float(np.median(tau[start + (stop - start) // 2 : stop]))
-            off = np.abs(tau[start:stop] - settled) > SETTLE_SIGMAS * noise
-            first = int(np.argmin(off)) if not off.all() else stop - start
-            first = min(first, (stop - start) // 2)
-            out[start + first : stop] = True
-        return out
-
     return CommandLimits(
-        upper=runs(short > thr_up),
-        lower=runs(-short > thr_lo),
+        upper=_settled_runs(short > thr_up, tau, persist, ordered, noise),
+        lower=_settled_runs(-short > thr_lo, tau, persist, ordered, noise),
         lag=lag,
         gain=float(gain),
         bias=float(bias),
@@ -311,6 +294,24 @@ def command_limits(log: EnvelopeLog, inputs: EnvelopeInputs) -> CommandLimits:
         noise=noise,
         persist=persist,
     )
+
+
+def _settled_runs(mask: NDArray[np.bool_], tau: Array, persist: int, ordered: bool, noise: float) -> NDArray[np.bool_]:
+    """The runs of ``mask`` at least ``persist`` rows long, less their first rows while the torque still settles."""
+    edges = np.flatnonzero(np.diff(np.concatenate([[0], mask.astype(np.int8), [0]])))
+    out = np.zeros(tau.size, dtype=bool)
+    for start, stop in zip(edges[::2], edges[1::2], strict=True):
+        if stop - start < persist:
+            continue
+        if not ordered:
+            out[start:stop] = True
+            continue
+        settled = float(np.median(tau[start + (stop - start) // 2 : stop]))
+        off = np.abs(tau[start:stop] - settled) > SETTLE_SIGMAS * noise
+        first = int(np.argmin(off)) if not off.all() else stop - start
+        first = min(first, (stop - start) // 2)
+        out[start + first : stop] = True
+    return out
 
 
 def time_ordered(x: Array) -> bool:
@@ -423,30 +424,41 @@ def find_walls(
     centres = 0.5 * (edges[:-1] + edges[1:])
     rho = _autocorrelation(log, upper + lower, pooled=log.torque_cmd is not None)
     if log.torque_cmd is None:  # a limit spans a range of speeds: isolated walls and walls off the edge are chance
-        tol = STEP * inputs.spec.linear_torque_limit
-        floor = LEVEL_FLOOR * inputs.spec.linear_torque_limit
-        empty = np.array([], dtype=np.int64)
-        margins = {1: log.torque - hi, -1: lo - log.torque}
-        noise = _noise_scale(log, upper + lower)
-        for side, walls_ in ((1, upper), (-1, lower)):
-            margin = margins[side]
-            for b, i in enumerate(walls_):
-                if not i.size:
-                    continue
-                m = margin[i]
-                # one pass of a moving command spreads more than the noise; passes of a limit sit on one curve in
-                # speed (drifting against a model that is wrong there), passes of commands at several levels
-                line = _about_parabola(w[i], m) if np.ptp(w[i]) > 0 else m
-                i = _agreeing_passes(i, line, rho, floor)
-                drifts = (side, b) in drifting  # its passes were checked to drift alike (_passes_agree)
-                if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
-                    i = empty
-                walls_[b] = i
-            kept, vouched = _continuous(walls_, margin, w, tol, (hi if side > 0 else lo, side))
-            walls_[:] = _contiguous(kept, vouched)
+        upper, lower = _drop_chance_walls(log, inputs, (upper, lower), (lo, hi), rho, drifting)
         rho = _autocorrelation(log, upper + lower)
     method = "command" if log.torque_cmd is not None else "wall"
     return Walls(centres, tuple(upper), tuple(lower), method, rho, commanded)
+
+
+def _drop_chance_walls(
+    log: EnvelopeLog,
+    inputs: EnvelopeInputs,
+    walls: tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]],
+    edges: tuple[Array, Array],
+    rho: float,
+    drifting: Set[tuple[int, int]],
+) -> tuple[list[NDArray[np.int64]], list[NDArray[np.int64]]]:
+    """The (upper, lower) walls of a log without a command, less passes that disagree and walls off a run of them."""
+    (upper, lower), (lo, hi), w = (list(walls[0]), list(walls[1])), edges, log.velocity
+    tol, floor = (k * inputs.spec.linear_torque_limit for k in (STEP, LEVEL_FLOOR))
+    empty = np.array([], dtype=np.int64)
+    noise = _noise_scale(log, upper + lower)
+    for side, walls_, margin in ((1, upper, log.torque - hi), (-1, lower, lo - log.torque)):
+        for b, i in enumerate(walls_):
+            if not i.size:
+                continue
+            m = margin[i]
+            # one pass of a moving command spreads more than the noise; passes of a limit sit on one curve in
+            # speed (drifting against a model that is wrong there), passes of commands at several levels
+            line = _about_parabola(w[i], m) if np.ptp(w[i]) > 0 else m
+            i = _agreeing_passes(i, line, rho, floor)
+            drifts = (side, b) in drifting  # its passes were checked to drift alike (_passes_agree)
+            if i.size < MIN_WALL or (not drifts and _one_pass(i) and float(np.std(margin[i])) > FLAT * noise):
+                i = empty
+            walls_[b] = i
+        kept, vouched = _continuous(walls_, margin, w, tol, (hi if side > 0 else lo, side))
+        walls_[:] = _contiguous(kept, vouched)
+    return upper, lower
 
 
 def _pass_bounds(idx: NDArray[np.int64]) -> tuple[NDArray[np.int64], NDArray[np.int64]]:

@@ -289,8 +289,46 @@ def log_from_frame(
     found = resolve_columns(names, dict(columns or {}), source)
     unit_of = resolve_units(found, dict(units or {}), names, source)
     notes = list(format_notes)
+    data, bad_cells = _read_channels(frame, found, unit_of, notes, source)
+    timed = _check_units(data, unit_of, names, rows_read, notes, source)
+    core, rows, current_limit, ranges = _clean_rows(data, found, bad_cells, timed, rows_read, notes, source)
+    torque = orient_torque(core["current"], core["torque"], flip_torque, notes, source, auto_sign)
+    optional = _optional_channels(data, core, rows, timed, notes)
+    for array, name in ((core["time"], "time"), (core["current"], "current"), (torque, "torque")):
+        if array is not data[name]:  # made by the cleaning, so referenced nowhere else (not a view of the frame)
+            array.setflags(write=False)
+    for array in optional.values():
+        array.setflags(write=False)
+    return DynoLog(
+        time=core["time"],
+        current=core["current"],
+        torque=torque,
+        velocity=optional.get("velocity"),
+        position=optional.get("position"),
+        temperature=optional.get("temperature"),
+        bus_voltage=optional.get("bus_voltage"),
+        torque_cmd=optional.get("torque_cmd"),
+        current_cmd=optional.get("current_cmd"),
+        source=source,
+        notes=tuple(notes),
+        rows_read=rows_read,
+        timed=timed,
+        current_limit=current_limit,
+        current_range=ranges[0] if ranges else current_limit,
+    )
+
+
+def _read_channels(
+    frame: pd.DataFrame,
+    found: Mapping[str, str],
+    unit_of: Mapping[str, tuple[str, str]],
+    notes: list[CleaningNote],
+    source: str,
+) -> tuple[dict[str, NDArray[np.float64]], dict[str, tuple[int, str, int]]]:
+    """Each found channel as numbers in SI (timestamps to seconds, stated units converted), and its first bad cell."""
     data: dict[str, NDArray[np.float64]] = {}
     bad_cells: dict[str, tuple[int, str, int]] = {}
+    rows_read = len(frame)
     for name, column in found.items():
         values, timestamp, bad = numeric_column(frame, column, name, source)
         if bad is not None:
@@ -303,7 +341,18 @@ def log_from_frame(
             if note is not None:
                 notes.append(note)
         data[name] = values
+    return data, bad_cells
 
+
+def _check_units(
+    data: dict[str, NDArray[np.float64]],
+    unit_of: Mapping[str, tuple[str, str]],
+    names: list[str],
+    rows_read: int,
+    notes: list[CleaningNote],
+    source: str,
+) -> bool:
+    """Check the current's and time's units (numbering the rows of an untimed log); whether the log is timed."""
     if "current" in data and "torque" in data and "current" not in unit_of:
         check_current_unit(data["current"], data["torque"], source)
     timed = "time" in data
@@ -321,6 +370,19 @@ def log_from_frame(
                 "time",
             )
         )
+    return timed
+
+
+def _clean_rows(
+    data: dict[str, NDArray[np.float64]],
+    found: Mapping[str, str],
+    bad_cells: dict[str, tuple[int, str, int]],
+    timed: bool,
+    rows_read: int,
+    notes: list[CleaningNote],
+    source: str,
+) -> tuple[dict[str, NDArray[np.float64]], NDArray[np.int64], float | None, list[float]]:
+    """(core channels cleaned, 1-based file rows left, driver current limit, current ranges) of the log."""
     beyond_reason(data, found, source, notes)
     good = finite_rows(data, bad_cells, notes)
     good &= ~repeated_rows(data, found, timed, notes)
@@ -347,30 +409,19 @@ def log_from_frame(
     core, rows = remove_clipping(core, rows, noise, notes)
     check_enough(rows.size, rows_read, notes, source)
     check_varies(core, source)
-    torque = orient_torque(core["current"], core["torque"], flip_torque, notes, source, auto_sign)
+    return core, rows, current_limit, ranges
+
+
+def _optional_channels(
+    data: dict[str, NDArray[np.float64]],
+    core: dict[str, NDArray[np.float64]],
+    rows: NDArray[np.int64],
+    timed: bool,
+    notes: list[CleaningNote],
+) -> dict[str, NDArray[np.float64]]:
+    """The optional channels at the rows the cleaning kept (stale ones aligned in a timed log)."""
     positions = rows - 1
     optional = {name: np.take(values, positions) for name, values in data.items() if name not in CORE}
     if timed:
         optional = align_stale_channels(optional, rows, {**data, **core}, notes, STALE_OPTIONAL, core["time"])
-    for array, name in ((core["time"], "time"), (core["current"], "current"), (torque, "torque")):
-        if array is not data[name]:  # made by the cleaning, so referenced nowhere else (not a view of the frame)
-            array.setflags(write=False)
-    for array in optional.values():
-        array.setflags(write=False)
-    return DynoLog(
-        time=core["time"],
-        current=core["current"],
-        torque=torque,
-        velocity=optional.get("velocity"),
-        position=optional.get("position"),
-        temperature=optional.get("temperature"),
-        bus_voltage=optional.get("bus_voltage"),
-        torque_cmd=optional.get("torque_cmd"),
-        current_cmd=optional.get("current_cmd"),
-        source=source,
-        notes=tuple(notes),
-        rows_read=rows_read,
-        timed=timed,
-        current_limit=current_limit,
-        current_range=ranges[0] if ranges else current_limit,
-    )
+    return optional

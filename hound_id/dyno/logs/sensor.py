@@ -10,6 +10,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.dyno.artefacts import (
+    Plateau,
     asked_at_boundary,
     at_boundary,
     find_plateaus,
@@ -282,95 +283,120 @@ def current_plateaus(
     keep = np.ones(rows.size, dtype=bool)
     plateaus = find_plateaus(current, torque, cmd, ranges[0] if ranges else None)
     for plateau in plateaus:
-        lo, hi = plateau.torque_span
-        count = int(plateau.rows.size)
         if plateau.kind == "reply_clamp":
             exact = int(np.count_nonzero(current[plateau.rows] == plateau.level))
             if ranges is not None:
                 ranges.append(abs(plateau.level))
-            if plateau.asked is not None:
-                why = (
-                    f"while the command asks for {plateau.asked:.3g} A (median there, from the command-current "
-                    "relation elsewhere in the log)"
-                )
-            elif plateau.at_range_end and ranges:
-                why = f"at the end of the range its wrap-around shows (+-{ranges[0]:.4g} A)"
-            else:
-                why = "while it is noisy elsewhere (a pile at the top of the readings, none beyond)"
-            head = (
-                f"the current reply is held at {plateau.level:.4g} A, the top of its range, in {plural(count, 'row')} "
-                f"({exact} on exactly that value) {why}: the reply's encoding range ends there (a protocol clamp), not "
-                "the driver; "
-            )
-            beyond = "" if plateau.excess is None else f" ({100 * plateau.excess:+.2g} % of what the level makes)"
-            if plateau.usable:
-                tail = f"the torque there ({lo:.3g} to {hi:.3g} N m) stays with the level{beyond}, so the rows are data"
-                tail += " and kept"
-            else:
+            if not plateau.usable:
                 keep[plateau.rows] = False
-                tail = (
-                    f"the torque there ({lo:.3g} to {hi:.3g} N m) goes past what the level makes"
-                    f"{beyond or ' (no ramp to compare with)'}, so the current there is unknown and those rows were "
-                    "removed"
-                )
-            notes.append(
-                CleaningNote(
-                    "reply_clamp",
-                    0 if plateau.usable else count,
-                    f"{head}{tail}; to test beyond {abs(plateau.level):.3g} A, widen the reply's current range or log "
-                    "the current from a sensor of its own",
-                    "current",
-                )
-            )
+            notes.append(_reply_clamp_note(plateau, exact, ranges))
         elif plateau.kind == "clamp":
             keep[plateau.rows] = False
             if ranges is not None:
                 ranges.append(abs(plateau.level))
-            notes.append(
-                CleaningNote(
-                    "clamp",
-                    count,
-                    f"the reported current is clamped at {plateau.level:.4g} A in {plural(count, 'row')} (the reply's "
-                    f"encoding range or a saturated ADC): it stays there while the torque keeps moving ({lo:.3g} to "
-                    f"{hi:.3g} N m), so the true current is unknown and those rows were removed",
-                    "current",
-                )
-            )
+            notes.append(_clamp_note(plateau))
         else:
             limit = max(limit or 0.0, abs(plateau.level))
-            notes.append(
-                CleaningNote(
-                    "current_limit",
-                    0,
-                    f"driver current limit at {plateau.level:.4g} A: the current holds there in "
-                    f"{plural(count, 'row')} while the command asks for {plateau.asked:.3g} A (median there, from the "
-                    f"command-current relation elsewhere in the log) and the torque stays at {lo:.3g} to {hi:.3g} N m; "
-                    f"the rows are data and kept, and a peak torque beyond {abs(plateau.level):.3g} A needs a higher "
-                    "driver limit",
-                    "current",
-                )
-            )
+            notes.append(_limit_note(plateau))
     ends = [abs(p.level) for p in plateaus if p.kind in ("clamp", "reply_clamp")]
     if ends:
-        end = min(ends)
-        flipped = flipped_at_boundary(current, torque, end) & keep
-        count = int(np.count_nonzero(flipped))
-        if count:
-            keep &= ~flipped
-            first = int(np.argmax(flipped))
-            notes.append(
-                CleaningNote(
-                    "reply_flip",
-                    count,
-                    f"{plural(count, 'row')} read the current at the other end of the reply's range (+-{end:.4g} A) "
-                    f"from the torque, first at row {int(rows[first])} (t = {data['time'][first]:.4g} s): the reply "
-                    "crossed the end of its range and came back from the other, so its sign is wrong and its size "
-                    "unknown; those rows were removed",
-                    "current",
-                )
-            )
+        keep = _without_flipped(data, rows, min(ends), keep, notes)
     data, rows = keep_rows(data, rows, keep)
     return data, rows, limit
+
+
+def _reply_clamp_note(plateau: Plateau, exact: int, ranges: list[float] | None) -> CleaningNote:
+    """The note of a current reply held at the top of its range (its rows kept if the torque stays with it)."""
+    lo, hi = plateau.torque_span
+    count = int(plateau.rows.size)
+    if plateau.asked is not None:
+        why = (
+            f"while the command asks for {plateau.asked:.3g} A (median there, from the command-current "
+            "relation elsewhere in the log)"
+        )
+    elif plateau.at_range_end and ranges:
+        why = f"at the end of the range its wrap-around shows (+-{ranges[0]:.4g} A)"
+    else:
+        why = "while it is noisy elsewhere (a pile at the top of the readings, none beyond)"
+    head = (
+        f"the current reply is held at {plateau.level:.4g} A, the top of its range, in {plural(count, 'row')} "
+        f"({exact} on exactly that value) {why}: the reply's encoding range ends there (a protocol clamp), not "
+        "the driver; "
+    )
+    beyond = "" if plateau.excess is None else f" ({100 * plateau.excess:+.2g} % of what the level makes)"
+    if plateau.usable:
+        tail = f"the torque there ({lo:.3g} to {hi:.3g} N m) stays with the level{beyond}, so the rows are data"
+        tail += " and kept"
+    else:
+        tail = (
+            f"the torque there ({lo:.3g} to {hi:.3g} N m) goes past what the level makes"
+            f"{beyond or ' (no ramp to compare with)'}, so the current there is unknown and those rows were "
+            "removed"
+        )
+    return CleaningNote(
+        "reply_clamp",
+        0 if plateau.usable else count,
+        f"{head}{tail}; to test beyond {abs(plateau.level):.3g} A, widen the reply's current range or log "
+        "the current from a sensor of its own",
+        "current",
+    )
+
+
+def _clamp_note(plateau: Plateau) -> CleaningNote:
+    """The note of a current clamped while the torque moves (its rows removed)."""
+    lo, hi = plateau.torque_span
+    count = int(plateau.rows.size)
+    return CleaningNote(
+        "clamp",
+        count,
+        f"the reported current is clamped at {plateau.level:.4g} A in {plural(count, 'row')} (the reply's "
+        f"encoding range or a saturated ADC): it stays there while the torque keeps moving ({lo:.3g} to "
+        f"{hi:.3g} N m), so the true current is unknown and those rows were removed",
+        "current",
+    )
+
+
+def _limit_note(plateau: Plateau) -> CleaningNote:
+    """The note of a driver current limit (its rows kept: they are data)."""
+    lo, hi = plateau.torque_span
+    count = int(plateau.rows.size)
+    return CleaningNote(
+        "current_limit",
+        0,
+        f"driver current limit at {plateau.level:.4g} A: the current holds there in "
+        f"{plural(count, 'row')} while the command asks for {plateau.asked:.3g} A (median there, from the "
+        f"command-current relation elsewhere in the log) and the torque stays at {lo:.3g} to {hi:.3g} N m; "
+        f"the rows are data and kept, and a peak torque beyond {abs(plateau.level):.3g} A needs a higher "
+        "driver limit",
+        "current",
+    )
+
+
+def _without_flipped(
+    data: dict[str, NDArray[np.float64]],
+    rows: NDArray[np.int64],
+    end: float,
+    keep: NDArray[np.bool_],
+    notes: list[CleaningNote],
+) -> NDArray[np.bool_]:
+    """``keep`` less the rows whose reply crossed the end of its range and came back from the other (noted)."""
+    flipped = flipped_at_boundary(data["current"], data["torque"], end) & keep
+    count = int(np.count_nonzero(flipped))
+    if count:
+        keep = keep & ~flipped
+        first = int(np.argmax(flipped))
+        notes.append(
+            CleaningNote(
+                "reply_flip",
+                count,
+                f"{plural(count, 'row')} read the current at the other end of the reply's range (+-{end:.4g} A) "
+                f"from the torque, first at row {int(rows[first])} (t = {data['time'][first]:.4g} s): the reply "
+                "crossed the end of its range and came back from the other, so its sign is wrong and its size "
+                "unknown; those rows were removed",
+                "current",
+            )
+        )
+    return keep
 
 
 def remove_clipping(

@@ -53,7 +53,7 @@ import math
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field
 from types import MappingProxyType
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 from numpy.typing import ArrayLike, NDArray
@@ -585,40 +585,11 @@ def simulate(
     time = np.arange(n, dtype=np.float64) / rate
     current = sched.current(time)
     velocity, position = sched.speed_and_position(time)
+    grid, grid_temp, temperature = _temperatures(sched, time, current, rate, motor)
+    state = (current, velocity, position, temperature)
+    tau = _true_torque(sched, time, state, (grid, grid_temp), params, chosen, rate, motor)
 
-    if rate >= THERMAL_GRID_HZ:
-        grid, grid_temp = time, _winding_temperature(time, current, motor)
-        temperature = grid_temp
-    else:
-        grid = np.arange(int(math.floor(sched.duration * THERMAL_GRID_HZ)) + 2, dtype=np.float64) / THERMAL_GRID_HZ
-        grid_temp = _winding_temperature(grid, sched.current(grid), motor)
-        temperature = np.interp(time, grid, grid_temp)
-
-    delay = params["delay"]
-    dynamics = [e for e in ("lag", "resonance") if e in chosen]
-    if dynamics:  # the transducer's dynamics on a fine grid, read at the sample times
-        fine_rate = max(FILTER_GRID_HZ, 10.0 * rate)
-        fine = np.arange(int(math.floor(sched.duration * fine_rate + 1e-9)) + 1, dtype=np.float64) / fine_rate
-        lagged = fine - delay
-        w_lag, theta_lag = sched.speed_and_position(lagged)
-        temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
-        tau_fine = physical_torque(
-            sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged)
-        )
-        tau = np.interp(time, fine, _sensor_dynamics(tau_fine, fine_rate, params, dynamics))
-    elif delay > 0:
-        lagged = time - delay
-        w_lag, theta_lag = sched.speed_and_position(lagged)
-        temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
-        tau = physical_torque(sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged))
-    else:
-        tau = physical_torque(current, velocity, position, temperature, params, sched.acceleration(time))
-
-    rng = np.random.default_rng(int(seed))
-    torque = tau + params["offset"]
-    if params["noise_std"] > 0:
-        torque += params["noise_std"] * rng.standard_normal(n)
-    logged_current = current + sigma_i * rng.standard_normal(n) if sigma_i > 0 else current
+    torque, logged_current = _logged(tau, current, params, sigma_i, int(seed))
     bus = plan.bus_voltage - plan.bus_sag * np.abs(current)
 
     frame = pd.DataFrame(
@@ -642,3 +613,63 @@ def simulate(
         plan=plan,
         rate_hz=rate,
     )
+
+
+def _logged(
+    tau: NDArray[np.float64], current: NDArray[np.float64], params: Mapping[str, float], sigma_i: float, seed: int
+) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
+    """(logged torque, logged current): the offset and the seeded white noise of each channel added."""
+    n = tau.size
+    rng = np.random.default_rng(seed)
+    torque = tau + params["offset"]
+    if params["noise_std"] > 0:
+        torque += params["noise_std"] * rng.standard_normal(n)
+    logged_current = current + sigma_i * rng.standard_normal(n) if sigma_i > 0 else current
+    return torque, logged_current
+
+
+def _temperatures(
+    sched: Any, time: NDArray[np.float64], current: NDArray[np.float64], rate: float, motor: SimMotor
+) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
+    """(grid [s], winding temperature there [degC], at the sample times [degC]) from ambient."""
+    if rate >= THERMAL_GRID_HZ:
+        grid, grid_temp = time, _winding_temperature(time, current, motor)
+        temperature = grid_temp
+    else:
+        grid = np.arange(int(math.floor(sched.duration * THERMAL_GRID_HZ)) + 2, dtype=np.float64) / THERMAL_GRID_HZ
+        grid_temp = _winding_temperature(grid, sched.current(grid), motor)
+        temperature = np.interp(time, grid, grid_temp)
+    return grid, grid_temp, temperature
+
+
+def _true_torque(
+    sched: Any,
+    time: NDArray[np.float64],
+    state: tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]],
+    thermal: tuple[NDArray[np.float64], NDArray[np.float64]],
+    params: dict[str, float],
+    chosen: tuple[str, ...],
+    rate: float,
+    motor: SimMotor,
+) -> NDArray[np.float64]:
+    """The torque the sensor reads before offset and noise [N m]: delayed, through its dynamics if simulated."""
+    current, velocity, position, temperature = state
+    grid, grid_temp = thermal
+    delay = params["delay"]
+    dynamics = [e for e in ("lag", "resonance") if e in chosen]
+    if dynamics:  # the transducer's dynamics on a fine grid, read at the sample times
+        fine_rate = max(FILTER_GRID_HZ, 10.0 * rate)
+        fine = np.arange(int(math.floor(sched.duration * fine_rate + 1e-9)) + 1, dtype=np.float64) / fine_rate
+        lagged = fine - delay
+        w_lag, theta_lag = sched.speed_and_position(lagged)
+        temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
+        tau_fine = physical_torque(
+            sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged)
+        )
+        return np.interp(time, fine, _sensor_dynamics(tau_fine, fine_rate, params, dynamics))
+    if delay > 0:
+        lagged = time - delay
+        w_lag, theta_lag = sched.speed_and_position(lagged)
+        temp_lag = np.interp(lagged, grid, grid_temp, left=motor.ambient)
+        return physical_torque(sched.current(lagged), w_lag, theta_lag, temp_lag, params, sched.acceleration(lagged))
+    return physical_torque(current, velocity, position, temperature, params, sched.acceleration(time))
