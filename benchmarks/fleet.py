@@ -26,7 +26,7 @@ import tempfile
 import time
 from pathlib import Path
 
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.analyse import analyse
 from hound_id.dyno.fleet.engine import client_for, fit_log, run_fleet
 from hound_id.dyno.simulate.fleet import FAULTS, FLEET_COLUMNS, FLEET_MODEL, planted, simulate_fleet

@@ -118,7 +118,7 @@ DYNO_COLUMNS = {
 
 def step_fit_current(out: Path) -> StepResult:
     """Fit the sample dyno log with --auto: the ladder of effects, the plot, the fitted motor."""
-    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
+    from hound_id.dyno.current.run import FitCurrentOptions, fit_current, write_outputs
 
     options = FitCurrentOptions(
         auto=True,
@@ -151,7 +151,7 @@ def step_fleet(out: Path) -> StepResult:
     """Fit the sample fleet of twelve actuators on a local Dask cluster and flag the faulty ones."""
     import json
 
-    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.current.run import FitCurrentOptions
     from hound_id.dyno.fleet.run import FleetOptions, fleet, write_outputs
 
     folder = samples_dir() / "fleet"
@@ -215,7 +215,7 @@ def step_foot(out: Path) -> StepResult:
 
 def step_compare(out: Path) -> StepResult:
     """Compare the sample sagging-supply log with the ILM85's region and name what is missing."""
-    from hound_id.dyno.compare_envelope import CompareOptions, compare_envelope, write_outputs
+    from hound_id.dyno.envelope.run import CompareOptions, compare_envelope, write_outputs
     from hound_id.mor.region import measured_region, operating_region
     from hound_id.mor.spec_sheet import load_motor_spec
 

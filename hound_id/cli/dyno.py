@@ -58,7 +58,7 @@ def record_cmd(
     """
     from rich.progress import BarColumn, Progress, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.acquire.session import record_rig
+    from hound_id.dyno.acquire.run import record_rig
 
     _quiet_and_terminable()
     columns = (TextColumn("{task.description}"), BarColumn(), TextColumn("{task.fields[info]}"), TimeElapsedColumn())
@@ -126,7 +126,7 @@ def simulate_rig_cmd(
     ),
 ) -> None:
     """Serve a simulated motor and torque transducer over Modbus TCP (and a serial pty) on 127.0.0.1."""
-    from hound_id.dyno.acquire.session import serve_simulated_rig
+    from hound_id.dyno.acquire.run import serve_simulated_rig
 
     names = tuple(e.strip() for e in effects.split(",") if e.strip())
     _quiet_and_terminable()

@@ -13,7 +13,7 @@ from hound_id.cli._render import console, err_console, print_json, warn
 
 if TYPE_CHECKING:
     from hound_id.dyno.current.fit_report import FitReport
-    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.current.run import FitCurrentOptions
 
 
 def fit_current(
@@ -57,8 +57,8 @@ def fit_current(
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
     from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.fit_current import fit_current as run
-    from hound_id.dyno.fit_current import write_outputs
+    from hound_id.dyno.current.run import fit_current as run
+    from hound_id.dyno.current.run import write_outputs
 
     options = fit_options(
         model,
@@ -118,7 +118,7 @@ def fit_options(
     **extra: Any,
 ) -> FitCurrentOptions:
     """The fit's options as ``fit-current`` and ``fleet`` take them on the command line."""
-    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.current.run import FitCurrentOptions
 
     return FitCurrentOptions(
         model=model,

@@ -17,7 +17,7 @@ from hound_id.io import check_output
 from hound_id.units import RPM_PER_RAD_S
 
 if TYPE_CHECKING:
-    from hound_id.dyno.compare_envelope import CompareOptions, EnvelopeComparison
+    from hound_id.dyno.envelope.run import CompareOptions, EnvelopeComparison
     from hound_id.mor.run import MotorRegions
 
 
@@ -57,7 +57,7 @@ def mor(
             raise HoundIdError(
                 "mor --compare: give --spec MOTOR.yaml (the motor whose region the log is compared with)"
             )
-        from hound_id.dyno.compare_envelope import CompareOptions
+        from hound_id.dyno.envelope.run import CompareOptions
 
         options = CompareOptions(columns, units, robot, joint, tuple(add or ()), auto, plot, out)
         _mor_compare(spec, compare, options, json_out)
@@ -74,7 +74,7 @@ def mor(
 
 
 def _mor_compare(spec_path: Path, log_path: Path, options: CompareOptions, json_out: bool) -> None:
-    from hound_id.dyno.compare_envelope import compare_envelope, write_outputs
+    from hound_id.dyno.envelope.run import compare_envelope, write_outputs
 
     with console.status("comparing the log with the operating region"):
         result = compare_envelope(spec_path, log_path, options)

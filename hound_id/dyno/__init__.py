@@ -8,5 +8,8 @@ Data flows one way through the rooms of this package:
 * :mod:`~hound_id.dyno.current`: the current-torque family (effects, fit, diagnosis, curve, report, plot);
 * :mod:`~hound_id.dyno.envelope`: the torque-speed envelope family (walls, offsets, evidence, ladder, report);
 * :mod:`~hound_id.dyno.simulate`: seeded logs with known truth, for tests, samples and benchmarks;
-* :mod:`~hound_id.dyno.fit_current`, :mod:`~hound_id.dyno.compare_envelope`: one verb per command.
+* :mod:`~hound_id.dyno.fleet`: many logs at once on Dask.
+
+Each room's ``run`` module holds its commands' verbs: ``current.run`` (fit-current), ``envelope.run`` (mor
+--compare), ``fleet.run`` (fleet), ``acquire.run`` (dyno record, dyno simulate-rig).
 """

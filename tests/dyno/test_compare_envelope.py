@@ -5,7 +5,7 @@ import dataclasses
 import numpy as np
 import pytest
 
-from hound_id.dyno.compare_envelope import COVERAGE_FRACTION, CompareOptions, compare_envelope, write_outputs
+from hound_id.dyno.envelope.run import COVERAGE_FRACTION, CompareOptions, compare_envelope, write_outputs
 from hound_id.dyno.simulate.envelope import simulate_log
 from hound_id.errors import SpecError
 from hound_id.mor.envelope import EnvelopeInputs

@@ -3,7 +3,7 @@
 import pytest
 import yaml
 
-from hound_id.dyno.fit_current import FitCurrentOptions, fit_current, write_outputs
+from hound_id.dyno.current.run import FitCurrentOptions, fit_current, write_outputs
 from hound_id.dyno.simulate.current import simulate
 from hound_id.errors import FitError, HoundIdError
 from tests.conftest import SAMPLES

@@ -727,7 +727,7 @@ def test_a_table_of_26_operating_points_and_a_burst_written_16_times_are_read(tm
 def test_clean_small_tables_keep_every_row(n):
     """Clean tables of operating points: nothing is left out of the headline, Kt is within its error, and a noiseless
     table on an integer grid is not given a rounding floor it does not show."""
-    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
+    from hound_id.dyno.current.run import FitCurrentOptions, fit_current
 
     kts = []
     for seed in range(8):
@@ -751,7 +751,7 @@ def fit_current_frame(frame, options):
     import tempfile
     from pathlib import Path
 
-    from hound_id.dyno.fit_current import fit_current
+    from hound_id.dyno.current.run import fit_current
 
     with tempfile.TemporaryDirectory() as folder:
         path = Path(folder) / "table.csv"

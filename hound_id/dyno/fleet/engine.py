@@ -38,7 +38,7 @@ from hound_id.io import check_input
 if TYPE_CHECKING:
     from dask.distributed import Client
 
-    from hound_id.dyno.fit_current import FitCurrentOptions
+    from hound_id.dyno.current.run import FitCurrentOptions
 
 #: File suffixes taken from a folder.
 LOG_SUFFIXES = (".csv", ".parquet", ".pq")
@@ -176,7 +176,7 @@ def actuator_names(paths: Sequence[Path]) -> list[str]:
 def fit_log(name: str, source: str, data: bytes, options: FitCurrentOptions) -> ActuatorFit:
     """Fit one log from its bytes (runs on a worker); never raises: a failure is an :class:`ActuatorFit`."""
     import hound_id
-    from hound_id.dyno.fit_current import fit_current
+    from hound_id.dyno.current.run import fit_current
 
     start = time.perf_counter()
     where = f"{socket.gethostname()}:{os.getpid()}"

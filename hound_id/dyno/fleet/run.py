@@ -17,7 +17,7 @@ from pathlib import Path
 from typing import Any
 
 from hound_id import io
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.analyse import Z_THRESHOLD, ActuatorFit, FleetReport, analyse, check_z, parse_tolerances
 from hound_id.dyno.fleet.engine import FleetRun, find_logs, run_fleet, seconds_per_log
 

@@ -431,7 +431,7 @@ def test_a_log_that_breaks_midway_is_flagged_with_its_times(tmp_path, rig, start
     if "does not follow any model" in d.summary():
         assert f"outside the flagged stretches the cross-validated residual is {d.rmse_outside:.3g} N m" in d.summary()
     # the headline leaves the broken end out, says what it is from the channels, and repeats with an accepted option
-    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
+    from hound_id.dyno.current.run import FitCurrentOptions, fit_current
 
     path = write(frame(rig), tmp_path / "again.csv")
     result = fit_current(path, FitCurrentOptions(columns=MAP, auto=True))
@@ -614,7 +614,7 @@ def test_a_torque_channel_stuck_at_one_value_is_refused(tmp_path):
 def test_the_inertia_before_the_sensor_is_found_and_measured(tmp_path):
     """An opposing motor stepping the speed: the rotor and coupling between motor and sensor take J dw/dt; --auto
     names it, with J within 15 %, and the error falls."""
-    from hound_id.dyno.fit_current import FitCurrentOptions, fit_current
+    from hound_id.dyno.current.run import FitCurrentOptions, fit_current
 
     rig = Rig(truth=Truth(coulomb=0.25, inertia=0.02), speed_steps=True, speed_amplitude=4.0)
     result = fit_current(write(frame(rig), tmp_path / "inertia.csv"), FitCurrentOptions(columns=MAP, auto=True))

@@ -1,10 +1,10 @@
-"""hound_id.dyno.acquire.session.record_rig: a rig file in, a log out, against a real simulated rig (Modbus, pty)."""
+"""hound_id.dyno.acquire.run.record_rig: a rig file in, a log out, against a real simulated rig (Modbus, pty)."""
 
 import pandas as pd
 import pytest
 import yaml
 
-from hound_id.dyno.acquire.session import record_rig
+from hound_id.dyno.acquire.run import record_rig
 from hound_id.dyno.acquire.simulated_rig import SimulatedRig
 from hound_id.dyno.simulate.current import TestPlan
 from hound_id.errors import DynoDataError
@@ -32,7 +32,7 @@ def test_bad_settings_are_refused_before_the_rig_is_read(tmp_path):
 
 
 def test_the_simulated_rig_verb_serves_and_writes_a_rig_file_the_recorder_reads(tmp_path):
-    from hound_id.dyno.acquire.session import serve_simulated_rig
+    from hound_id.dyno.acquire.run import serve_simulated_rig
 
     rig_file = tmp_path / "sim.yaml"
     sim = serve_simulated_rig(("linear",), rig_file, port=0, serial=False, speedup=10.0)

@@ -22,7 +22,7 @@ import yaml
 
 from hound_id.dyno.acquire.rig import DEVICE_TYPES, register
 from hound_id.dyno.acquire.rig_file import load_rig, rig_from_mapping, rig_to_mapping
-from hound_id.dyno.acquire.session import record_rig
+from hound_id.dyno.acquire.run import record_rig
 from hound_id.dyno.acquire.transport import transports_for
 from hound_id.errors import SpecError
 from tests.conftest import ROOT

@@ -6,7 +6,7 @@ import shutil
 
 import pytest
 
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.analyse import ActuatorFit
 from hound_id.dyno.fleet.engine import actuator_names, common_model, find_logs, fit_log, run_fleet
 from hound_id.dyno.simulate.fleet import FLEET_MODEL

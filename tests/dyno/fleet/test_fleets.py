@@ -12,7 +12,7 @@ from functools import lru_cache
 import numpy as np
 import pytest
 
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.analyse import analyse
 from hound_id.dyno.fleet.engine import fit_log
 from hound_id.dyno.simulate.fleet import FAULTS, FLEET_COLUMNS, FLEET_MODEL, simulate_fleet

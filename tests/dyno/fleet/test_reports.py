@@ -14,7 +14,7 @@ from pathlib import Path
 
 import pytest
 
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.analyse import analyse
 from hound_id.dyno.fleet.engine import FleetRun, actuator_names, fit_log
 from hound_id.dyno.fleet.run import FleetOptions, FleetResult, write_outputs

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from hound_id.dyno.fit_current import FitCurrentOptions
+from hound_id.dyno.current.run import FitCurrentOptions
 from hound_id.dyno.fleet.engine import local_workers, run_fleet, usable_cpus
 from hound_id.dyno.simulate.fleet import FLEET_MODEL
 from hound_id.errors import FleetError
