@@ -298,15 +298,9 @@ LONG_FUNCTION = 80
 #: "module:function" (a method as ``Class.method``) -> why it stays longer than :data:`LONG_FUNCTION`. Every entry must
 #: still be over it: one split below it is dropped from here.
 LONG_FUNCTIONS = {
-    "hound_id.cli.fit_current:fit_current": "not yet split",
-    "hound_id.cli.fleet:_print": "not yet split",
-    "hound_id.cli.fleet:fleet": "not yet split",
     "hound_id.cli.foot:foot": "Typer command: its signature is its 31 option declarations; the body builds the options",
     "hound_id.dyno.acquire.recorder:record": "not yet split",
     "hound_id.dyno.current.effects:_builtin": "registry table of the shipped effects",
-    "hound_id.dyno.current.run:_narrow": "not yet split",
-    "hound_id.dyno.current.run:fit_current": "not yet split",
-    "hound_id.dyno.fleet.analyse:analyse": "not yet split",
     "hound_id.dyno.fleet.engine:run_fleet": "not yet split",
     "hound_id.export.bundle:build_bundle": "not yet split",
     "hound_id.export.formats:isaaclab_fields": "not yet split",

@@ -55,9 +55,7 @@ def fit_current(
     json_out: bool = typer.Option(False, "--json", help="Print JSON (schema hound-id/fit/3)."),
 ) -> None:
     """Fit a current-torque model to a dyno log, diagnose what is missing, and report Kt and peak torque."""
-    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
 
-    from hound_id.dyno.current.run import fit_current as run
     from hound_id.dyno.current.run import write_outputs
 
     options = fit_options(
@@ -76,6 +74,26 @@ def fit_current(
         plot=plot,
         out=out,
     )
+    result = _run_with_spinner(data, options)
+    write_outputs(result)
+    # Notes and warnings are printed once the command has succeeded: an error is then the only line.
+    if not json_out:
+        for message in result.notes:
+            err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
+    for w in [*result.log_warnings, *result.warnings]:
+        warn(w)
+    if json_out:
+        print_json(result.report_json() | {"plot": str(plot) if plot else None, "out": str(out) if out else None})
+        return
+    _print(result.report, result.fit, result.diagnosis, result.ladder, plot, out)
+
+
+def _run_with_spinner(data: Path, options: FitCurrentOptions) -> Any:
+    """The fit-current verb under a spinner that names each step (fitting, each rung of the ladder)."""
+    from rich.progress import Progress, SpinnerColumn, TaskID, TextColumn, TimeElapsedColumn
+
+    from hound_id.dyno.current.run import fit_current as run
+
     with Progress(
         SpinnerColumn(),
         TextColumn("{task.description}"),
@@ -92,18 +110,7 @@ def fit_current(
             else:
                 task.append(progress.add_task(description))
 
-        result = run(data, options, on_progress=on_progress)
-    write_outputs(result)
-    # Notes and warnings are printed once the command has succeeded: an error is then the only line.
-    if not json_out:
-        for message in result.notes:
-            err_console.print(f"note: {message}", highlight=False, markup=False, soft_wrap=True)
-    for w in [*result.log_warnings, *result.warnings]:
-        warn(w)
-    if json_out:
-        print_json(result.report_json() | {"plot": str(plot) if plot else None, "out": str(out) if out else None})
-        return
-    _print(result.report, result.fit, result.diagnosis, result.ladder, plot, out)
+        return run(data, options, on_progress=on_progress)
 
 
 def fit_options(

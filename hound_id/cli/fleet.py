@@ -66,15 +66,40 @@ def fleet(
 
     Every log is fitted with the same model on Dask (local cores, or --scheduler) and compared with the fleet's
     median. Exit 1 when a log failed."""
-    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
-
     from hound_id.dyno.fleet.run import FleetOptions, write_outputs
-    from hound_id.dyno.fleet.run import fleet as run
 
     fit = fit_options(
         model, add, auto, columns, units, flip_torque, window, robust, whole_log=whole_log, auto_sign=auto_sign
     )
     options = FleetOptions(scheduler, workers, z, tolerance, csv, plot, reports)
+    result = _run_with_progress(logs, fit, options, json_out)
+    write_outputs(result)
+    report = result.report
+    if json_out:
+        print_json(result.to_dict())
+    elif report.fitted:
+        _print(result.to_dict(), report)
+        for note in result.run.notes:
+            warn(note)
+    if not report.fitted:
+        err_console.print(
+            f"hound-id: error: none of the {len(report.actuators)} logs could be fitted (each one's reason is above)",
+            highlight=False,
+            markup=False,
+            soft_wrap=True,
+        )
+        raise typer.Exit(2)
+    if report.failed:
+        raise typer.Exit(1)
+
+
+def _run_with_progress(logs: list[str], fit: Any, options: Any, json_out: bool) -> Any:
+    """The fleet verb under a progress bar of its passes (a line per log as it is fitted; on a pipe, a line per
+    pass instead of the bar)."""
+    from rich.progress import BarColumn, MofNCompleteColumn, Progress, TaskID, TextColumn, TimeRemainingColumn
+
+    from hound_id.dyno.fleet.run import fleet as run
+
     with Progress(
         TextColumn("{task.description}"),
         BarColumn(),
@@ -102,25 +127,7 @@ def fleet(
                 line + (" [fleet model]" if again else ""), highlight=False, markup=False, soft_wrap=True
             )
 
-        result = run(logs, fit, options, on_result=on_result, on_pass=on_pass)
-    write_outputs(result)
-    report = result.report
-    if json_out:
-        print_json(result.to_dict())
-    elif report.fitted:
-        _print(result.to_dict(), report)
-        for note in result.run.notes:
-            warn(note)
-    if not report.fitted:
-        err_console.print(
-            f"hound-id: error: none of the {len(report.actuators)} logs could be fitted (each one's reason is above)",
-            highlight=False,
-            markup=False,
-            soft_wrap=True,
-        )
-        raise typer.Exit(2)
-    if report.failed:
-        raise typer.Exit(1)
+        return run(logs, fit, options, on_result=on_result, on_pass=on_pass)
 
 
 def _log_line(fit: ActuatorFit) -> str:
@@ -144,13 +151,10 @@ def _deviation(value: float | None, median: float | None) -> str:
     return f"{(value - median) / abs(median):+.0%}"
 
 
-def _print(data: dict[str, Any], report: FleetReport) -> None:
-    """Per actuator, each quantity's deviation from the fleet's median; then the medians and spreads in SI."""
+def _actuator_table(report: FleetReport, rows: tuple[ActuatorFit, ...]) -> Table:
+    """One row per actuator: each quantity's deviation from the fleet's median, its cogging order and verdict, what
+    is flagged in red."""
     stats = report.stats
-    flagged = {f.actuator for f in report.flags}
-    rows = report.actuators
-    if len(rows) > MAX_ROWS:
-        rows = tuple(a for a in rows if a.name in flagged or not a.ok)
     table = Table(
         title=f"{len(report.actuators)} actuators against the fleet's median (flagged in red)",
         title_justify="left",
@@ -180,11 +184,15 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
             cells.append(f"[bold red]{order_text}[/bold red]" if "cogging_order" in mine else order_text)
         verdict = "floor" if a.report.at_noise_floor else "missing"
         table.add_row(escape(a.name), *cells, f"[bold red]{verdict}[/bold red]" if "verdict" in mine else verdict)
-    console.print(table)
+    return table
+
+
+def _fleet_table(report: FleetReport) -> Table:
+    """The fleet's median, robust spread and flag rule of each quantity, in SI units."""
     fleet = Table(title=f"the fleet (model {'+'.join(report.model)})", title_justify="left", box=box.SIMPLE_HEAD)
     for col in ("quantity", "median", "robust spread", "unit", "n", "flagged if"):
         fleet.add_column(col, justify="right" if col in ("median", "robust spread", "n") else "left")
-    for s in stats:
+    for s in report.stats:
         m = s.metric
         rule = {"both": "off", "high": "above", "low": "below"}[m.side]
         fleet.add_row(
@@ -197,7 +205,17 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         )
     if report.fleet_order is not None:
         fleet.add_row("cogging order", f"{report.fleet_order:g}", "", "1/rev", "", "another")
-    console.print(fleet)
+    return fleet
+
+
+def _print(data: dict[str, Any], report: FleetReport) -> None:
+    """Per actuator, each quantity's deviation from the fleet's median; then the medians and spreads in SI."""
+    flagged = {f.actuator for f in report.flags}
+    rows = report.actuators
+    if len(rows) > MAX_ROWS:
+        rows = tuple(a for a in rows if a.name in flagged or not a.ok)
+    console.print(_actuator_table(report, rows))
+    console.print(_fleet_table(report))
     console.print(
         "spreads: the robust spread combined with the log's own standard error; the limit grows with the fleet so "
         "that a healthy fleet is flagged with chance below 1 %. verdict: floor = the fit is at its log's noise floor, "

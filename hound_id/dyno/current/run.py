@@ -218,9 +218,58 @@ def fit_current(
     Raises:
         HoundIdError: A bad input (log, option, spec, output path), or a fit the log cannot support.
     """
-    from hound_id.dyno.current.effects import Signals, load_effects_file, parse_model, parse_start_model
-    from hound_id.dyno.current.report import check_kt, fitted_motor, spec_checks, summarize
-    from hound_id.dyno.logs import load_log, parse_windows
+    from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.report import check_kt, fitted_motor, spec_checks
+
+    sheet, model = _checked(data, options)
+    log = _loaded(data, options)
+    whole = _fit_log(Signals.from_log(log), log.torque, model, options, on_progress)
+    fitted: Fitted = whole
+    left_out: tuple[Stretch, ...] = ()
+    option: str | None = None
+    if options.window is None and not options.whole_log and whole.diagnosis.disagreeing.any():
+        fitted, log, left_out, option = _headline(log, whole, model, options, on_progress)
+    peak, comp, report = _report(data, log, fitted, whole, left_out, option)
+    spec, out = options.spec, options.out
+    warnings = fit_warnings(report)
+    if report.headline is not None:
+        warnings.insert(0, report.headline.sentence)
+    check_kt(str(data), report.kt, sheet, str(spec))
+    if sheet is not None:
+        warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
+    motor = None
+    if out is not None:
+        motor = fitted_motor(report, out, spec, data.stem if sheet is None else None)
+        warnings += _motor_warnings(motor, out, report, fitted.diagnosis)
+    signals, fit, diagnosis = fitted.signals, fitted.fit, fitted.diagnosis
+    figure = _figure(signals, log.torque, fit, fitted.start, diagnosis, options) if options.plot is not None else None
+    return FitCurrentResult(
+        data=data,
+        options=options,
+        log=log,
+        signals=signals,
+        start=fitted.start,
+        fit=fit,
+        diagnosis=diagnosis,
+        ladder=fitted.ladder,
+        peak=peak,
+        compensation=comp,
+        report=replace(report, warnings=tuple(warnings)),
+        notes=tuple(n.message for n in log.notes if n.kind in NOTE_KINDS),
+        log_warnings=tuple(n.message for n in log.notes if n.kind not in NOTE_KINDS),
+        warnings=tuple(warnings),
+        motor=motor,
+        figure=figure,
+        whole=whole if left_out else None,
+        left_out=left_out,
+    )
+
+
+def _checked(data: Path, options: FitCurrentOptions) -> tuple[Any, tuple[str, ...]]:
+    """Every input checked before the work (the log is a file, the flags agree, the output paths, the window, the
+    spec sheet, the effects files, the model): the sheet (None without ``spec``) and the starting model."""
+    from hound_id.dyno.current.effects import load_effects_file, parse_model, parse_start_model
+    from hound_id.dyno.logs import parse_windows
     from hound_id.mor.spec_sheet import load_motor_spec
 
     spec, plot, out = options.spec, options.plot, options.out
@@ -239,7 +288,7 @@ def fit_current(
         )
     sources = (data, spec, *options.effects_files)
     io.check_output(plot, (".png",), "plot", inputs=sources)
-    ranges = parse_windows(options.window)
+    parse_windows(options.window)
     io.check_output(out, (".yaml", ".yml"), "fitted-motor", inputs=sources)
     sheet = load_motor_spec(spec) if spec is not None else None  # fail before the work on a bad sheet
     for path in options.effects_files:
@@ -250,6 +299,13 @@ def fit_current(
             if effect_name in names:
                 raise FitError(f"--add {effect_name}: the model already has it")
             names.append(effect_name)
+    return sheet, tuple(names)
+
+
+def _loaded(data: Path, options: FitCurrentOptions) -> DynoLog:
+    """The cleaned log, windowed when ``options.window`` asks."""
+    from hound_id.dyno.logs import load_log, parse_windows
+
     log = load_log(
         data,
         columns=_mapping(options.columns, "--columns"),
@@ -257,23 +313,21 @@ def fit_current(
         flip_torque=options.flip_torque,
         auto_sign=options.auto_sign,
     )
-    if options.window is not None:
-        log = log.windows(ranges)
-    model = tuple(names)
-    whole = _fit_log(Signals.from_log(log), log.torque, model, options, on_progress)
-    fitted: Fitted = whole
-    left_out: tuple[Stretch, ...] = ()
-    option: str | None = None
-    if options.window is None and not options.whole_log and whole.diagnosis.disagreeing.any():
-        fitted, log, left_out, option = _headline(log, whole, model, options, on_progress)
-    notes = tuple(n.message for n in log.notes if n.kind in NOTE_KINDS)
-    log_warnings = tuple(n.message for n in log.notes if n.kind not in NOTE_KINDS)
-    signals, torque = fitted.signals, log.torque
-    start, ladder, fit, diagnosis = fitted.start, fitted.ladder, fitted.fit, fitted.diagnosis
+    return log.windows(parse_windows(options.window)) if options.window is not None else log
+
+
+def _report(
+    data: Path, log: DynoLog, fitted: Fitted, whole: Fitted, left_out: tuple[Stretch, ...], option: str | None
+) -> tuple[PeakTorque, Compensation, FitReport]:
+    """The headline fit's peak torque, compensation and report; with stretches left out, the headline's reason and
+    the whole log's fit beside it."""
+    from hound_id.dyno.current.report import summarize
+
+    signals, ladder = fitted.signals, fitted.ladder
     peak, comp, report = summarize(
         str(data),
-        fit,
-        diagnosis,
+        fitted.fit,
+        fitted.diagnosis,
         signals.current,
         list(ladder) if ladder is not None else None,
         log.notes,
@@ -286,47 +340,24 @@ def fit_current(
     if left_out:
         headline = _headline_of(whole, left_out, option)
         report = replace(report, headline=headline, summary=_headline_summary(whole, left_out, report.summary))
-    warnings = fit_warnings(report)
-    if report.headline is not None:
-        warnings.insert(0, report.headline.sentence)
-    check_kt(str(data), report.kt, sheet, str(spec))
-    if sheet is not None:
-        warnings += [f"against {spec}: {w}" for w in spec_checks(report, sheet)]
-    motor = None
-    if out is not None:
-        motor = fitted_motor(report, out, spec, data.stem if sheet is None else None)
-        if "extrapolated" in motor:
-            warnings.append(
-                f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
-                f"(|i| <= {report.peak.max_measured_current:.3g} A); written with "
-                "'extrapolated: [peak_torque]'"
-            )
-        if not diagnosis.at_noise_floor:
-            warnings.append(
-                f"{out}: written from a fit that is not at the noise floor ({diagnosis.summary()}); "
-                "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
-            )
-    figure = _figure(signals, torque, fit, start, diagnosis, options) if plot is not None else None
-    return FitCurrentResult(
-        data=data,
-        options=options,
-        log=log,
-        signals=signals,
-        start=start,
-        fit=fit,
-        diagnosis=diagnosis,
-        ladder=ladder,
-        peak=peak,
-        compensation=comp,
-        report=replace(report, warnings=tuple(warnings)),
-        notes=notes,
-        log_warnings=log_warnings,
-        warnings=tuple(warnings),
-        motor=motor,
-        figure=figure,
-        whole=whole if left_out else None,
-        left_out=left_out,
-    )
+    return peak, comp, report
+
+
+def _motor_warnings(motor: Mapping[str, Any], out: Path, report: FitReport, diagnosis: Diagnosis) -> list[str]:
+    """What the user must know of the fitted-motor file: an extrapolated peak torque, a fit short of its floor."""
+    warnings = []
+    if "extrapolated" in motor:
+        warnings.append(
+            f"{out}: peak torque {motor['peak_torque']:.4g} N m is extrapolated beyond the measured currents "
+            f"(|i| <= {report.peak.max_measured_current:.3g} A); written with "
+            "'extrapolated: [peak_torque]'"
+        )
+    if not diagnosis.at_noise_floor:
+        warnings.append(
+            f"{out}: written from a fit that is not at the noise floor ({diagnosis.summary()}); "
+            "its Kt and peak torque may be biased: add the missing effects (--auto) and write it again"
+        )
+    return warnings
 
 
 def _fit_log(
@@ -448,13 +479,7 @@ def _narrow(
         done = attempt(keep, f"left out {int((~keep).sum())} rows of {what}", faults)
         if done is not None:
             return done  # type: ignore[return-value]
-    good = runs(~bad)
-    n_blocks = bad.size
-    motor_off = len(good) == 1 and (good[0][0] == 0 or good[0][1] == n_blocks)
-    if motor_off:
-        a0, b0 = int(edges[good[0][0]]), int(edges[good[0][1]])
-        motor_off = read(signals, log.torque, fitted.fit.residual, a0, b0, kt).kind == "motor off"
-    if not motor_off:
+    if not _motor_off(log, fitted):
         return _leave_out_flagged(fitted, attempt, on_progress)
     # the motor is off from some point to the end (or until late): the agreeing part shows no torque per amp; keep the
     # longest stretch that does
@@ -473,6 +498,23 @@ def _narrow(
         if done is not None:
             return done  # type: ignore[return-value]
     return None
+
+
+def _motor_off(log: DynoLog, fitted: Fitted) -> bool:
+    """Whether the agreeing blocks are one run at an end of the log whose channels show the motor off (no torque per
+    amp): the headline is then the longest stretch that exercises the current."""
+    import numpy as np
+
+    from hound_id.dyno.current.stretch import read, runs
+
+    bad = np.asarray(fitted.diagnosis.disagreeing, bool)
+    edges = fitted.fit.blocks.edges
+    good = runs(~bad)
+    if not (len(good) == 1 and (good[0][0] == 0 or good[0][1] == bad.size)):
+        return False
+    a0, b0 = int(edges[good[0][0]]), int(edges[good[0][1]])
+    residual, kt = fitted.fit.residual, fitted.diagnosis.kt_agreeing
+    return read(fitted.signals, log.torque, residual, a0, b0, kt).kind == "motor off"
 
 
 def _leave_out_flagged(

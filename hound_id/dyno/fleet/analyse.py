@@ -458,23 +458,12 @@ def analyse(
     compared = [replace(m, tolerance=(tolerances or {}).get(m.key, m.tolerance)) for m in metrics()]
     ordered = tuple(sorted(actuators, key=lambda a: a.name))
     fitted = [a for a in ordered if a.report is not None]
-    models = {frozenset(a.report.model): tuple(a.report.model) for a in fitted if a.report is not None}
-    if len(models) > 1:
-        raise FleetError(
-            "the logs were fitted with different models ("
-            + "; ".join(sorted("+".join(m) for m in models.values()))
-            + "): a fleet is compared on one model"
-        )
-    common = next(iter(models.values()), ())
-    if model is not None and fitted and set(model) != set(common):
-        raise FleetError(f"the logs were fitted with {'+'.join(common)}, not the model given ({'+'.join(model)})")
-    model = tuple(model) if model is not None else common
+    reports = {a.name: a.report for a in fitted if a.report is not None}
+    model = _fleet_model(list(reports.values()), model)
     values: dict[str, dict[str, Value]] = {}
     orders: dict[str, float | None] = {}
-    reports = {a.name: a.report for a in fitted if a.report is not None}
-    for a in fitted:
-        assert a.report is not None
-        values[a.name], orders[a.name] = values_of(a.report, compared)
+    for name, report in reports.items():
+        values[name], orders[name] = values_of(report, compared)
     notes: list[str] = []
     kts = {n: v["kt"].value for n, v in values.items() if v["kt"].value is not None}
     groups = scale_groups(kts, {n: r.current_range for n, r in reports.items()})
@@ -488,79 +477,18 @@ def analyse(
             present = {n: _scaled(v, ratio.get(n, 1.0)) for n, v in present.items()}
         if present and all(v.why == "not in the model" for v in present.values()):
             continue  # a friction or cogging term the fleet's model does not have
-        known = {n: v for n, v in present.items() if v.value is not None}
-        xs = [v.value for v in known.values() if v.value is not None]
-        median = _median(xs) if xs else None
-        spread = MAD_TO_SIGMA * _median([abs(x - median) for x in xs]) if median is not None else None
-        judged = len(xs) >= MIN_FLEET
-        limit = z_limit(z, len(xs))
-        st = Stats(metric, len(xs), median, spread, judged, limit)
+        st, found = _judge(metric, present, z, ratio)
         stats.append(st)
-        if not judged:
-            if fitted:
-                notes.append(
-                    f"{metric.label}: identified on {len(xs)} actuators; fewer than {MIN_FLEET} cannot show an "
-                    "outlier, so none is flagged"
-                )
-            continue
-        assert median is not None and spread is not None
-        for name, v in known.items():
-            assert v.value is not None
-            dev = v.value - median
-            side = "high" if dev > 0 else "low"
-            if metric.side not in ("both", side):
-                continue
-            scale = math.hypot(spread, v.stderr or 0.0)
-            zscore = abs(dev) / scale if scale > 0 else math.inf
-            if zscore > limit and abs(dev) > metric.tolerance * abs(median):
-                reading = metric.high if side == "high" else metric.low
-                scaled = metric.per_amp and ratio.get(name, 1.0) != 1.0
-                against = "its current-scale group's median" if scaled else "the fleet's median"
-                percent = f"{dev / median:+.0%} against {against}" if median else ""
-                flags.append(
-                    Flag(
-                        name,
-                        metric.key,
-                        v.value,
-                        median,
-                        _num(zscore),
-                        f"{reading} ({percent})" if percent else reading,
-                    )
-                )
-    low_kt = {f.actuator for f in flags if f.metric == "kt" and f.value < f.fleet}
-    flags = [
-        replace(f, reading=f.reading.replace(PEAK_LOW, "peak torque low: it follows the low Kt"))
-        if f.metric == "peak_torque" and f.actuator in low_kt
-        else f
-        for f in flags
-    ]
-    raised = sorted({round(st.z, 2) for st in stats if st.judged and st.z > z})
-    if raised:
-        notes.append(
-            f"the z limit used is {', '.join(f'{r:g}' for r in raised)}, above the {z:g} asked for: with this many "
-            "actuators a lower limit would flag a healthy fleet with chance above 1 %"
-        )
-    missing = [a for a in fitted if a.report is not None and not a.report.at_noise_floor]
-    if fitted and 2 * len(missing) > len(fitted):
-        notes.append(
-            f"{len(missing)} of {len(fitted)} fits are not at their noise floor: the model misses effects the logs "
-            "show, so faults in those effects cannot be flagged; run again with --auto or a fuller --model"
-        )
+        flags += found
+        if not st.judged and fitted:
+            notes.append(
+                f"{metric.label}: identified on {st.n} actuators; fewer than {MIN_FLEET} cannot show an "
+                "outlier, so none is flagged"
+            )
+    flags = _peak_follows_kt(flags)
+    notes += _fleet_notes(stats, z, fitted)
     fleet_order = _fleet_order(orders, notes)
-    if fleet_order is not None:
-        for name, order in orders.items():
-            if order is not None and order != fleet_order:
-                flags.append(
-                    Flag(
-                        name,
-                        "cogging_order",
-                        order,
-                        fleet_order,
-                        None,
-                        f"cogging order {order:g}/rev against the fleet's {fleet_order:g}/rev: a different motor "
-                        "(another slot and pole count)",
-                    )
-                )
+    flags += _order_flags(orders, fleet_order)
     flags += _verdict_flags(fitted)
     flags = [_qualified(f, reports[f.actuator]) for f in flags]
     columns = [m.key for m in compared]
@@ -577,6 +505,104 @@ def analyse(
         notes=tuple(notes),
         scale_groups=groups,
     )
+
+
+def _fleet_model(reports: Sequence[FitReport], model: Sequence[str] | None) -> tuple[str, ...]:
+    """The one model every fit used, in ``model``'s order when given (FleetError when the fits differ or it does)."""
+    models = {frozenset(r.model): tuple(r.model) for r in reports}
+    if len(models) > 1:
+        raise FleetError(
+            "the logs were fitted with different models ("
+            + "; ".join(sorted("+".join(m) for m in models.values()))
+            + "): a fleet is compared on one model"
+        )
+    common = next(iter(models.values()), ())
+    if model is not None and reports and set(model) != set(common):
+        raise FleetError(f"the logs were fitted with {'+'.join(common)}, not the model given ({'+'.join(model)})")
+    return tuple(model) if model is not None else common
+
+
+def _judge(
+    metric: Metric, present: Mapping[str, Value], z: float, ratio: Mapping[str, float]
+) -> tuple[Stats, list[Flag]]:
+    """One metric over the fleet: its median, robust spread and z limit, and the actuators past both the limit and
+    the metric's tolerance, on its faulty side (none when fewer than :data:`MIN_FLEET` values are known)."""
+    known = {n: v for n, v in present.items() if v.value is not None}
+    xs = [v.value for v in known.values() if v.value is not None]
+    median = _median(xs) if xs else None
+    spread = MAD_TO_SIGMA * _median([abs(x - median) for x in xs]) if median is not None else None
+    judged = len(xs) >= MIN_FLEET
+    limit = z_limit(z, len(xs))
+    st = Stats(metric, len(xs), median, spread, judged, limit)
+    if not judged:
+        return st, []
+    assert median is not None and spread is not None
+    flags = []
+    for name, v in known.items():
+        assert v.value is not None
+        dev = v.value - median
+        side = "high" if dev > 0 else "low"
+        if metric.side not in ("both", side):
+            continue
+        scale = math.hypot(spread, v.stderr or 0.0)
+        zscore = abs(dev) / scale if scale > 0 else math.inf
+        if zscore > limit and abs(dev) > metric.tolerance * abs(median):
+            reading = metric.high if side == "high" else metric.low
+            scaled = metric.per_amp and ratio.get(name, 1.0) != 1.0
+            against = "its current-scale group's median" if scaled else "the fleet's median"
+            percent = f"{dev / median:+.0%} against {against}" if median else ""
+            reading = f"{reading} ({percent})" if percent else reading
+            flags.append(Flag(name, metric.key, v.value, median, _num(zscore), reading))
+    return st, flags
+
+
+def _peak_follows_kt(flags: Sequence[Flag]) -> list[Flag]:
+    """A low peak torque on an actuator whose Kt is flagged low is read as following it."""
+    low_kt = {f.actuator for f in flags if f.metric == "kt" and f.value < f.fleet}
+    return [
+        replace(f, reading=f.reading.replace(PEAK_LOW, "peak torque low: it follows the low Kt"))
+        if f.metric == "peak_torque" and f.actuator in low_kt
+        else f
+        for f in flags
+    ]
+
+
+def _fleet_notes(stats: Sequence[Stats], z: float, fitted: Sequence[ActuatorFit]) -> list[str]:
+    """What the user must know of the comparison itself: a z limit raised for the fleet's size, and a model that
+    most fits find short."""
+    notes = []
+    raised = sorted({round(st.z, 2) for st in stats if st.judged and st.z > z})
+    if raised:
+        notes.append(
+            f"the z limit used is {', '.join(f'{r:g}' for r in raised)}, above the {z:g} asked for: with this many "
+            "actuators a lower limit would flag a healthy fleet with chance above 1 %"
+        )
+    missing = [a for a in fitted if a.report is not None and not a.report.at_noise_floor]
+    if fitted and 2 * len(missing) > len(fitted):
+        notes.append(
+            f"{len(missing)} of {len(fitted)} fits are not at their noise floor: the model misses effects the logs "
+            "show, so faults in those effects cannot be flagged; run again with --auto or a fuller --model"
+        )
+    return notes
+
+
+def _order_flags(orders: Mapping[str, float | None], fleet_order: float | None) -> list[Flag]:
+    """Actuators whose identified cogging order is not the fleet's: another motor."""
+    if fleet_order is None:
+        return []
+    return [
+        Flag(
+            name,
+            "cogging_order",
+            order,
+            fleet_order,
+            None,
+            f"cogging order {order:g}/rev against the fleet's {fleet_order:g}/rev: a different motor (another slot "
+            "and pole count)",
+        )
+        for name, order in orders.items()
+        if order is not None and order != fleet_order
+    ]
 
 
 def _scaled(v: Value, ratio: float) -> Value:
