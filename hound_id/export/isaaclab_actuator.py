@@ -5,16 +5,22 @@ It is Isaac Lab's ``IdealPDActuator`` (the PD law k_p (q* - q) + k_d (qd* - qd) 
 curved edges of a saturating current-torque curve and the back-EMF braking past overspeed, as in the bundle. Import it
 where Isaac Lab is installed (it imports ``isaaclab``)::
 
+    import yaml
     from hound_id.export.isaaclab_actuator import HoundIdActuatorCfg
 
+    joints = yaml.safe_load(open("out/hound_like_isaaclab.yaml"))["joints"]   # per joint, joint side
     actuators = {
         "legs": HoundIdActuatorCfg(
             joint_names_expr=[".*_HAA", ".*_HFE", ".*_KFE"],    # every joint of the bundle, in any order
             bundle="out/hound_like_bundle.json",
             stiffness=40.0, damping=1.0,
-            armature=..., friction=...,                         # from <robot>_isaaclab.yaml
+            armature={name: j["armature"] for name, j in joints.items()},
+            friction={name: j["friction"] for name, j in joints.items()},
+            viscous_friction={name: j["viscous_friction"] for name, j in joints.items()},
         )
     }
+
+(``docs/export.md`` carries the same snippet, run as printed in Isaac Lab by ``tests/export/test_doc_snippets.py``.)
 
 The group must hold every joint of the bundle: the clip couples joints through the motors, so one group holds all
 of them (the runtime is told the group's joint order, which Isaac Lab sets breadth-first).
