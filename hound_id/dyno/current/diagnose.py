@@ -40,7 +40,7 @@ from typing import Any
 
 import numpy as np
 
-from hound_id.dyno.current.effects import Signals, get
+from hound_id.dyno.current.effects import Signals, get, inputs
 from hound_id.dyno.current.fit import FitResult, fit_model
 from hound_id.dyno.current.flags import (
     BLOCK_FACTOR,
@@ -64,10 +64,10 @@ from hound_id.dyno.current.trials import (
     MATERIAL,
     ORDER_TRIALS,
     candidates_for,
-    delay_trial,
     dynamics_trace,
     effect_trial,
     filter_trial,
+    shift_trial,
     trials,
 )
 from hound_id.dyno.current.wander import Wander, wander
@@ -238,7 +238,7 @@ class _Baseline:
 
     design: Design
     shifted: Signals
-    """The signals at the fit's delay."""
+    """The signals the fit's columns are built from (shifted by its delay)."""
     Z: Array
     """The model's columns with a column of ones first."""
     stats: Stats
@@ -276,7 +276,7 @@ def diagnose(
 def _baseline(signals: Signals, torque: Array, fit: FitResult) -> _Baseline:
     """The fit's columns, statistics and cross-validated error on the log, its agreeing half and the noise floor."""
     design = Design(signals, torque)
-    shifted = signals.shifted(fit.hypers.get("delay", 0.0))
+    shifted = inputs(signals, fit.model, fit.hypers)
     X = design.model_columns(fit.model, fit.hypers, shifted)
     Z = design.with_ones(X)
     stats = Stats(Z, design.torque, design.blocks)
@@ -303,8 +303,8 @@ def _try(
 ) -> Suggestion | str:
     """One candidate's trial scored as a suggestion (of ``candidates`` tried), or why it could not be tried."""
     try:
-        if name == "delay":
-            trial = delay_trial(signals, torque, fit)
+        if get(name).shift:
+            trial = shift_trial(name, signals, torque, fit)
         elif name in FILTERS:
             trial = dynamics if dynamics is not None else filter_trial(name, signals, torque, fit)
         else:

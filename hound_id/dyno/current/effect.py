@@ -191,13 +191,19 @@ class Effect:
     parameters: tuple[Parameter, ...]
     """Linear parameters, one per regressor column."""
     regressors: Callable[[Signals, Mapping[str, float]], Array] | None
-    """Columns (n, len(parameters)) from the signals and the hyper values; None for ``delay``."""
+    """Columns (n, len(parameters)) from the signals and the hyper values; None for an effect that adds no column (a
+    :attr:`shift` of the inputs, a filter of the torque channel)."""
     requires: tuple[str, ...] = ()
     """Channels needed besides time and current."""
     hypers: tuple[Hyper, ...] = ()
     """Nonlinear parameters."""
     shape: bool = False
     """True for terms of the current-torque curve itself (used for the peak torque and compensation)."""
+    shift: bool = False
+    """True for a shift of the inputs in time rather than a term: its one hyper d [s] says how much later the torque
+    channel reads than the input channels, and every other effect's columns are built from the signals as they were d
+    earlier (:meth:`Signals.shifted`, :func:`inputs`). It adds no column (no parameters, no regressors); a model holds
+    at most one."""
     evidence: Callable[[Mapping[str, float], Signals], str] | None = None
     """Sentence describing what the fitted term shows in the data, from its fitted values."""
     friction: str | None = None
@@ -248,6 +254,12 @@ def register(effect: Effect, *, replace: bool = False) -> Effect:
     """Add an effect to the library (kept sorted by name). Parameter names must be unique."""
     if effect.name in REGISTRY and not replace:
         raise FitError(f"effect '{effect.name}' is already registered; pick another name or pass replace=True")
+    if effect.shift and (effect.parameters or effect.regressors is not None or len(effect.hypers) != 1):
+        raise FitError(
+            f"effect '{effect.name}': a shift of the inputs has one hyper (the shift [s]) and no parameters or "
+            f"regressors; it has {len(effect.parameters)} parameters, {len(effect.hypers)} hypers"
+            f"{' and regressors' if effect.regressors is not None else ''}"
+        )
 
     def names(e: Effect) -> list[str]:
         return [p.name for p in e.parameters] + [h.name for h in e.hypers]
@@ -293,6 +305,28 @@ def parse_start_model(text: str) -> tuple[str, ...]:
             model=text,
         )
     return names
+
+
+def shift_of(model: Sequence[str]) -> Effect | None:
+    """The model's shift of the inputs (:attr:`Effect.shift`), or None when its inputs are read as logged.
+
+    Raises:
+        FitError: The model names more than one shift.
+    """
+    shifts = [e for e in (get(name) for name in model) if e.shift]
+    if len(shifts) > 1:
+        raise FitError(
+            f"the model names {len(shifts)} shifts of the inputs ({', '.join(e.name for e in shifts)}); keep one",
+            effects=[e.name for e in shifts],
+        )
+    return shifts[0] if shifts else None
+
+
+def inputs(signals: Signals, model: Sequence[str], hypers: Mapping[str, float]) -> Signals:
+    """The signals every column of ``model`` is built from: as they were the model's shift earlier (its hyper's value
+    in ``hypers``, 0 if absent), or as logged when the model has no shift."""
+    shift = shift_of(model)
+    return signals.shifted(0.0 if shift is None else hypers.get(shift.hypers[0].name, 0.0))
 
 
 def load_effects_file(path: str | Path) -> list[str]:

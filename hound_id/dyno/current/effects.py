@@ -6,10 +6,11 @@ finds by search. The model of the measured torque is
 
     torque(t) = sum over effects of  X_e(signals(t - delay); hypers) @ beta_e
 
-``delay``, ``lag`` and ``resonance`` add no column: the delay shifts every input channel,
-because the torque channel lags the current channel; ``lag`` and ``resonance`` pass the
-model's torque through the transducer's own dynamics
-(:mod:`hound_id.dyno.current.transducer`), which filters every column alike.
+``delay``, ``lag`` and ``resonance`` add no column. ``delay`` is a shift of the inputs
+(:attr:`~hound_id.dyno.current.effect.Effect.shift`): the torque channel lags the current
+channel, so every other effect's columns are built from the signals as they were ``delay``
+earlier; ``lag`` and ``resonance`` pass the model's torque through the transducer's own
+dynamics (:mod:`hound_id.dyno.current.transducer`), which filters every column alike.
 
 Conventions shared with :mod:`hound_id.dyno.simulate.current` (same names, same signs):
 eps = 0.01 rad/s and sgn(w) = tanh(w / eps); temperatures in degC relative to
@@ -43,12 +44,14 @@ from hound_id.dyno.current.effect import (
     Signals,
     describe,
     get,
+    inputs,
     load_effects_file,
     parse_model,
     parse_start_model,
     register,
     requirements_missing,
     sgn,
+    shift_of,
 )
 from hound_id.dyno.current.transducer import DAMPING_RANGE, frequency_range, overshoot
 from hound_id.parameter import Parameter
@@ -641,6 +644,7 @@ def _builtin() -> None:
             regressors=None,
             requires=("time",),
             hypers=(Hyper("delay", "s", lambda s, r: np.array([0.0])),),
+            shift=True,
             evidence=_evidence_delay,
             trainer="a lag between the log's channels, not the drive's command-to-torque latency: none is set",
         )
@@ -672,10 +676,12 @@ __all__ = [
     "T_REF",
     "describe",
     "get",
+    "inputs",
     "load_effects_file",
     "parse_model",
     "parse_start_model",
     "register",
     "requirements_missing",
     "sgn",
+    "shift_of",
 ]

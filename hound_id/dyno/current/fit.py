@@ -4,7 +4,8 @@ Linear parameters are found by least squares within their physical bounds (Kt > 
 friction >= 0, saturation bending the curve down; :class:`~hound_id.dyno.current.effects.Parameter`),
 optionally Huber-robust, nonlinear ones by search: a candidate grid from the data
 (orders from the residual's spectrum over rotor angle, speeds and currents on
-log/linear grids), then a bounded scalar refinement. The delay is found by
+log/linear grids), then a bounded scalar refinement. The delay, a shift of every
+input channel in time (:attr:`~hound_id.dyno.current.effect.Effect.shift`), is found by
 Gauss-Newton on the first-order expansion torque(t - d) ~ torque(t) - d dtorque/dt,
 iterated with the shifted signals, within +-:data:`DELAY_WINDOW` (or two samples).
 
@@ -39,12 +40,12 @@ import numpy as np
 from numpy.typing import NDArray
 
 from hound_id.arrays import frozen
-from hound_id.dyno.current.effects import Effect, Signals, get, requirements_missing
+from hound_id.dyno.current.effects import Effect, Signals, get, inputs, requirements_missing, shift_of
 from hound_id.dyno.current.identifiable import identifiability
 from hound_id.dyno.current.search import (
     FILTERS,
-    SPECIAL,
     Design,
+    apart,
     bounds_of,
     delay_window,
     estimate_delay,
@@ -136,6 +137,7 @@ class FitResult:
 
 def _check_model(model: Sequence[str], signals: Signals) -> list[Effect]:
     effects = [get(name) for name in model]
+    shift_of(model)  # at most one shift of the inputs
     for e in effects:
         missing = requirements_missing(e, signals)
         if missing == ["time"]:
@@ -180,15 +182,19 @@ def fit_model(
     fixed = dict(hypers or {})
     delay_stderr = float("nan")
     linear_names = [
-        e.name for e in effects if e.name not in SPECIAL and (not e.hypers or all(h.name in fixed for h in e.hypers))
+        e.name for e in effects if not apart(e.name) and (not e.hypers or all(h.name in fixed for h in e.hypers))
     ]
-    searched = [e for e in effects if e.name not in SPECIAL and e.name not in linear_names]
-    has_delay = "delay" in model
-    delay = fixed.get("delay", 0.0)
+    searched = [e for e in effects if not apart(e.name) and e.name not in linear_names]
+    shift_effect = shift_of(model)
+    # the shift of the inputs (the delay) by its hyper's name; None when the inputs are read as logged
+    shift = None if shift_effect is None else shift_effect.hypers[0].name
+    free = shift is not None and shift not in fixed
+    delay = 0.0 if shift is None else fixed.get(shift, 0.0)
     current = dict(fixed)
-    if has_delay and "delay" not in fixed:
+    if free:
         delay, delay_stderr = estimate_delay(design, linear_names, current)
-    current["delay"] = delay
+    if shift is not None:
+        current[shift] = delay
     shifted = signals.shifted(delay)
     base_names = list(linear_names)
     rows = design.search
@@ -199,35 +205,42 @@ def fit_model(
         value, _ = search_hyper(e, base, torque[rows], sub, torque[rows] - base @ beta, current)
         current.update(value)
         base_names.append(e.name)
-    if has_delay and "delay" not in fixed and searched:
-        delay, delay_stderr = estimate_delay(design, [m for m in model if m != "delay"], current, start=delay)
-        current["delay"] = delay
-        shifted = signals.shifted(delay)
-    stderr = {"delay": delay_stderr}
-    plain = [m for m in model if m not in SPECIAL]
+    if shift is not None and free and searched:
+        delay, delay_stderr = estimate_delay(design, model, current, start=delay)
+        current[shift] = delay
+    stderr = {} if shift is None else {shift: delay_stderr}
+    inner = [m for m in model if m not in FILTERS]  # the columns and the shift, before the filters
     filters = [m for m in model if m in FILTERS]
     # a filter and a free delay both shift the reading in time: they are found together
-    joint = has_delay and "delay" not in fixed and bool(filters)
+    joint = free and bool(filters)
     for name in filters:
         if joint or not all(h.name in fixed for h in get(name).hypers):
             others = [m for m in filters if m != name and all(h.name in current for h in get(m).hypers)]
-            current.update(estimate_filter(design, [*plain, *others], current, name, free_delay=joint))
-    delay = current.get("delay", 0.0)
-    shifted = signals.shifted(delay)
-    window = delay_window(signals) if has_delay else math.inf
-    if abs(delay) > window:
-        raise FitError(
-            f"the delay fits only at {1e3 * delay:+.3g} ms, outside the +-{1e3 * window:.3g} ms a "
-            "transducer filter or a bus can explain; check the time column's unit (--units time=ms) or leave "
-            "'delay' out",
-            delay=delay,
-        )
-    X = design.model_columns(model, current, shifted)
+            current.update(estimate_filter(design, [*inner, *others], current, name, free_delay=joint))
+    _check_window(signals, model, current)
+    X = design.model_columns(model, current, inputs(signals, model, current))
     held: set[str] = set()
     for name in filters:
         stderr.update(filter_stderr(design, model, current, name, with_delay=joint))
         held |= filter_held(name, current, signals)
     return _finish(design, model, effects, X, current, stderr, robust, held)
+
+
+def _check_window(signals: Signals, model: Sequence[str], hypers: Mapping[str, float]) -> None:
+    """Refuse a model whose shift of the inputs (its delay, in ``hypers``) is beyond what a transducer filter or a bus
+    makes."""
+    shift = shift_of(model)
+    if shift is None:
+        return
+    delay = hypers[shift.hypers[0].name]
+    window = delay_window(signals)
+    if abs(delay) > window:
+        raise FitError(
+            f"the delay fits only at {1e3 * delay:+.3g} ms, outside the +-{1e3 * window:.3g} ms a "
+            "transducer filter or a bus can explain; check the time column's unit (--units time=ms) or leave "
+            f"'{shift.name}' out",
+            delay=delay,
+        )
 
 
 def _finish(

@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from hound_id.dyno.current import transducer
-from hound_id.dyno.current.effects import Effect, Signals, get
+from hound_id.dyno.current.effects import Effect, Signals, get, inputs, shift_of
 from hound_id.dyno.current.stats import Array, Blocks, Stats, robust_cov, solve, solve_normal
 from hound_id.errors import FitError
 
@@ -20,8 +20,6 @@ from hound_id.errors import FitError
 MIN_FIT_ROWS = 10
 #: Filters of the torque channel (:mod:`.transducer`): effects that add no column but pass the others through.
 FILTERS = transducer.FILTERS
-#: Effects that add no column: fit_model handles them apart from the linear search.
-SPECIAL = ("delay", *FILTERS)
 
 
 #: Rows used to evaluate hyper-parameter candidates (a strided subset of the log): a 100 s log at 1 kHz is searched
@@ -43,6 +41,12 @@ DELAY_WINDOW = 0.03
 #: as seconds (1 s steps) lies far beyond. Calibrated on
 #: test_polled_rig::test_time_in_ms_without_a_unit_is_a_warning_and_no_delay_is_fitted.
 DELAY_MAX = 0.25
+
+
+def apart(name: str) -> bool:
+    """Whether an effect adds no column and fit_model handles it apart from the linear search: a shift of the inputs
+    (:attr:`~hound_id.dyno.current.effect.Effect.shift`) or a filter of the torque channel (:data:`FILTERS`)."""
+    return get(name).shift or name in FILTERS
 
 
 class Design:
@@ -71,7 +75,7 @@ class Design:
     def model_columns(self, model: Sequence[str], hypers: Mapping[str, float], signals: Signals) -> Array:
         """Columns of the model's linear parameters on every row of (delay-shifted) ``signals``, passed through the
         model's filters of the torque channel (:mod:`.transducer`)."""
-        X = self.columns([m for m in model if m not in SPECIAL], hypers, signals)
+        X = self.columns([m for m in model if not apart(m)], hypers, signals)
         for name in model:
             if name in FILTERS:
                 X = transducer.apply(name, hypers, signals.time, X)
@@ -175,7 +179,7 @@ def _delay_step(
     """Gauss-Newton step for the delay on the search rows: (step [s], its robust stderr [s], RSS at ``delay``)."""
     rows = design.search
     shifted = design.signals.shifted(delay, rows, _channels(model))
-    X = design.columns([m for m in model if m != "delay"], hypers, shifted)
+    X = design.columns(model, hypers, shifted)
     y = design.torque[rows]
     beta, _ = solve(X, y)
     pred = X @ beta
@@ -193,7 +197,7 @@ def _delay_step(
 def _delay_rss(design: Design, model: Sequence[str], hypers: Mapping[str, float], delay: float) -> float:
     rows = design.search
     shifted = design.signals.shifted(delay, rows, _channels(model))
-    X = design.columns([m for m in model if m != "delay"], hypers, shifted)
+    X = design.columns(model, hypers, shifted)
     y = design.torque[rows]
     beta, _ = solve(X, y)
     r = y - X @ beta
@@ -203,7 +207,9 @@ def _delay_rss(design: Design, model: Sequence[str], hypers: Mapping[str, float]
 def estimate_delay(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], start: float = 0.0
 ) -> tuple[float, float]:
-    """Delay of the torque channel behind the current channel [s] and its (robust) standard error.
+    """Delay of the torque channel behind the current channel [s] and its (robust) standard error: the shift of the
+    inputs (:attr:`~hound_id.dyno.current.effect.Effect.shift`) that fits ``model``'s columns best (the shift itself
+    adds none).
 
     Gauss-Newton on the time shift gives the direction; a line search on the residual
     sum of squares (steps x1, x2, x4, ... and halving) takes it as far as it pays. The
@@ -258,28 +264,34 @@ def _filter_rss(design: Design, X: Array, name: str, hypers: Mapping[str, float]
 
 
 class _FilterSearch:
-    """The residual of a model whose filter (and, with ``free_delay``, whose delay) are trial values: the point is
-    the filter's hypers in log space, then the delay [s]."""
+    """The residual of a model whose filter (and, with ``free_delay``, whose shift of the inputs) are trial values: the
+    point is the filter's hypers in log space, then the delay [s]."""
 
     def __init__(
         self, design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, free_delay: bool
     ) -> None:
         self.design, self.model, self.hypers, self.name, self.free_delay = design, model, hypers, name, free_delay
+        shift = shift_of(model)
+        if free_delay and shift is None:
+            raise FitError(f"the filter '{name}' is searched with a delay, and the model has no shift of the inputs")
+        self.shift = None if shift is None else shift.hypers[0].name
         signals = design.signals
         lo, hi = transducer.search_bounds(name, signals.time)
         if free_delay:
             reach = 1.5 * delay_window(signals)
             lo, hi = np.append(lo, -reach), np.append(hi, reach)
         self.lo, self.hi = lo, hi
-        self._fixed_X = (
-            None if free_delay else design.model_columns(model, hypers, signals.shifted(hypers.get("delay", 0.0)))
-        )
+        self._fixed_X = None if free_delay else design.model_columns(model, hypers, inputs(signals, model, hypers))
+
+    def delay(self) -> float:
+        """The shift's value in the hypers [s] (0 without a shift)."""
+        return 0.0 if self.shift is None else self.hypers.get(self.shift, 0.0)
 
     def values(self, point: Array) -> dict[str, float]:
         p = np.clip(point, self.lo, self.hi)
         out = transducer.from_point(self.name, p[: p.size - int(self.free_delay)])
-        if self.free_delay:
-            out["delay"] = float(p[-1])
+        if self.shift is not None and self.free_delay:
+            out[self.shift] = float(p[-1])
         return out
 
     def columns(self, point: Array) -> Array:
@@ -297,7 +309,8 @@ def estimate_filter(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, *, free_delay: bool = False
 ) -> dict[str, float]:
     """The filter's hypers (``lag_tau``, or ``resonance_f0`` and ``resonance_zeta``) that fit the torque best with the
-    model's columns on every row (a filter needs the rows in sequence), and with ``free_delay`` the delay with them:
+    model's columns on every row (a filter needs the rows in sequence), and with ``free_delay`` the model's shift of
+    the inputs with them:
     the candidates of its hypers on a grid (their product for a resonance) at the current delay, then a Nelder-Mead
     refinement in log space (and the delay) within the range the log can show."""
     from scipy.optimize import minimize
@@ -306,7 +319,7 @@ def estimate_filter(
     effect = get(name)
     grids = [np.log(np.unique(h.candidates(design.signals, design.torque))) for h in effect.hypers]
     if free_delay:
-        grids.append(np.array([float(hypers.get("delay", 0.0))]))
+        grids.append(np.array([float(search.delay())]))
     points = np.array(np.meshgrid(*grids, indexing="ij")).reshape(len(grids), -1).T
     costs = [search.rss(p) for p in points]
     start = points[int(np.argmin(costs))]
@@ -318,15 +331,15 @@ def estimate_filter(
 def filter_stderr(
     design: Design, model: Sequence[str], hypers: Mapping[str, float], name: str, *, with_delay: bool = False
 ) -> dict[str, float]:
-    """Cluster-robust standard errors of a filter's hypers (and of the delay found with it): the prediction's
-    sensitivity to each (central differences, in log space for the filter), the linear parameters beside them, with
-    the time blocks as clusters."""
-    others = [m for m in model if m != name and m != "delay"]
+    """Cluster-robust standard errors of a filter's hypers (and of the model's shift of the inputs found with it): the
+    prediction's sensitivity to each (central differences, in log space for the filter), the linear parameters beside
+    them, with the time blocks as clusters."""
+    others = [m for m in model if m != name]
     search = _FilterSearch(design, others, hypers, name, with_delay)
+    delay = search.delay()
     point = transducer.to_point(name, hypers)
     if with_delay:
-        point = np.append(point, hypers.get("delay", 0.0))
-    delay = hypers.get("delay", 0.0)
+        point = np.append(point, delay)
     X = transducer.apply(name, hypers, design.signals.time, search.columns(point))
     Z = design.with_ones(X)
     beta, _ = solve(Z, design.torque)
@@ -355,6 +368,6 @@ def filter_stderr(
     out = {}
     for j, key in enumerate(values):
         var = float(cov[Z.shape[1] + j, Z.shape[1] + j])
-        scale = 1.0 if key == "delay" else values[key]  # d value = value d log value
+        scale = 1.0 if key == search.shift else values[key]  # d value = value d log value
         out[key] = scale * math.sqrt(var) if var >= 0 else float("nan")
     return out

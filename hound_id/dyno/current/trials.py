@@ -1,5 +1,6 @@
 """The trials of a diagnosis (:mod:`hound_id.dyno.current.diagnose`): which effects a log can test, and each candidate
-effect, the delay and the transducer's filter tried against the fitted model with a cluster-robust Wald test."""
+effect, the shift of the inputs (the delay) and the transducer's filter tried against the fitted model with a
+cluster-robust Wald test."""
 
 from __future__ import annotations
 
@@ -14,7 +15,7 @@ from hound_id.dyno.current.effects import REGISTRY, Signals, get, requirements_m
 from hound_id.dyno.current.fit import FitResult, fit_model
 from hound_id.dyno.current.flags import share_of
 from hound_id.dyno.current.identifiable import identifiability
-from hound_id.dyno.current.search import FILTERS, SPECIAL, Design, bounds_of, parameters_of, search_hyper
+from hound_id.dyno.current.search import FILTERS, Design, apart, bounds_of, parameters_of, search_hyper
 from hound_id.dyno.current.stats import Array, Stats, cross_validate, robust_cov, solve_bounded, solve_normal
 from hound_id.errors import DynoDataError, FitError
 
@@ -121,7 +122,7 @@ def effect_trial(
 ) -> _Trial | str:
     """Add one effect to the fitted model, reusing the model's per-block sums; a string says why not."""
     effect = get(name)
-    model = [m for m in fit.model if m not in SPECIAL]
+    model = [m for m in fit.model if not apart(m)]
     hypers = dict(fit.hypers)
     tried = 1
     rows = design.search
@@ -167,14 +168,17 @@ def effect_trial(
     return _Trial(values, hypers, cv.sse, wald, q, tried, unphysical, wald_free)
 
 
-def delay_trial(signals: Signals, torque: Array, fit: FitResult) -> _Trial | str:
+def shift_trial(name: str, signals: Signals, torque: Array, fit: FitResult) -> _Trial | str:
+    """The model refitted with a shift of its inputs (:attr:`~hound_id.dyno.current.effect.Effect.shift`, the
+    delay), the other hypers held; the shift's z-statistic squared is its Wald statistic."""
     try:
-        trial = fit_model(signals, torque, (*fit.model, "delay"), robust=fit.robust, hypers=fit.hypers)
+        trial = fit_model(signals, torque, (*fit.model, name), robust=fit.robust, hypers=fit.hypers)
     except (FitError, DynoDataError) as err:
         return str(err)
-    est = trial.parameters["delay"]
+    shift = get(name).hypers[0].name
+    est = trial.parameters[shift]
     if not est.stderr > 0:
-        return "the delay has no defined standard error on this log"
+        return f"the {shift} has no defined standard error on this log"
     z2 = (est.value / est.stderr) ** 2
     return _Trial(trial.values(), dict(trial.hypers), trial.rmse_test**2 * trial.n_test, z2, 1, 1)
 

@@ -100,6 +100,38 @@ def test_parameter_names_must_be_unique():
     assert "dup_user" not in REGISTRY
 
 
+def test_a_shift_of_the_inputs_is_declared_once_and_checked():
+    """The delay is a shift of the inputs (Effect.shift): no column, one hyper; the signals every column is built from
+    are read that much earlier. A shift with a column or without its one hyper is refused, and so is a model with
+    two."""
+    import dataclasses
+
+    from hound_id.dyno.current.effects import Hyper, Signals, inputs, shift_of
+
+    delay = get("delay")
+    assert delay.shift and delay.regressors is None and not delay.parameters and len(delay.hypers) == 1
+    assert [e.name for e in REGISTRY.values() if e.shift] == ["delay"]
+    assert shift_of(("linear", "lag")) is None and shift_of(("linear", "delay")) is delay
+    t = np.arange(10) * 1e-3
+    s = Signals(time=t, current=2.0 * t, velocity=3.0 * t)
+    assert inputs(s, ("linear",), {"delay": 2e-3}) is s  # no shift in the model: the inputs as logged
+    late = inputs(s, ("linear", "delay"), {"delay": 2e-3})
+    np.testing.assert_allclose(late.current[2:], 2.0 * (t[2:] - 2e-3), atol=1e-15)
+    np.testing.assert_allclose(late.velocity[2:], 3.0 * (t[2:] - 2e-3), atol=1e-15)
+    grid = Hyper("skew_user", "s", lambda s, r: np.array([0.0]))
+    with pytest.raises(FitError, match="'skew_user': a shift of the inputs has one hyper .* 1 parameters, 1 hypers"):
+        register(dataclasses.replace(delay, name="skew_user", parameters=(Parameter("skew_k", "1"),), hypers=(grid,)))
+    with pytest.raises(FitError, match="'skew_user': a shift .* 0 parameters, 0 hypers and regressors"):
+        register(dataclasses.replace(delay, name="skew_user", hypers=(), regressors=lambda s, h: s.current))
+    assert "skew_user" not in REGISTRY
+    try:
+        register(dataclasses.replace(delay, name="skew_user", hypers=(grid,), builtin=False))
+        with pytest.raises(FitError, match=r"the model names 2 shifts of the inputs \(delay, skew_user\); keep one"):
+            shift_of(("linear", "delay", "skew_user"))
+    finally:
+        REGISTRY.pop("skew_user", None)
+
+
 def test_why_a_log_cannot_identify_a_parameter_comes_from_its_effect(monkeypatch):
     """The identifiability check asks the pair's effects for the reason in the log's terms: a held current (the
     curve), one quadrant (load-dependent friction), one direction (friction against an offset), and a toy effect's

@@ -59,6 +59,34 @@ def test_delay_has_a_standard_error():
     assert 0 < est.stderr < 1e-4
 
 
+def test_a_shift_of_the_inputs_is_found_by_its_declaration_not_its_name(monkeypatch):
+    """An effect declared a shift of the inputs (Effect.shift) under another name and hyper fits, is tried by the
+    diagnosis and is refused outside its window exactly as the delay is: nothing reads the name "delay"."""
+    import dataclasses
+
+    from hound_id.dyno.current.effects import REGISTRY, Hyper, get
+    from hound_id.dyno.current.trials import shift_trial
+
+    skew = dataclasses.replace(
+        get("delay"), name="skew_user", hypers=(Hyper("skew_s", "s", lambda s, r: np.array([0.0])),)
+    )
+    monkeypatch.setitem(REGISTRY, "skew_user", skew)
+    model = ("linear", "saturation", "delay")
+    signals, torque, _ = simulated(model, 6)
+    by_name = fit_model(signals, torque, model)
+    declared = fit_model(signals, torque, ("linear", "saturation", "skew_user"))
+    assert declared.parameters["skew_s"] == dataclasses.replace(by_name.parameters["delay"], effect="skew_user")
+    assert declared.values()["kt"] == by_name.values()["kt"]
+    assert declared.rmse_test == by_name.rmse_test
+    base = fit_model(signals, torque, ("linear", "saturation"))
+    tried, named = shift_trial("skew_user", signals, torque, base), shift_trial("delay", signals, torque, base)
+    assert not isinstance(tried, str) and not isinstance(named, str)
+    assert tried.values["skew_s"] == named.values["delay"] and tried.wald == named.wald
+    late = signals.shifted(-0.08)  # the current 80 ms late: beyond any transducer or bus
+    with pytest.raises(FitError, match=r"the delay fits only at .* or leave 'skew_user' out"):
+        fit_model(late, torque, ("linear", "saturation", "skew_user"))
+
+
 def test_robust_fit_resists_outliers():
     signals, torque, sim = simulated(("linear", "saturation"), 7)
     dirty = torque.copy()
