@@ -379,3 +379,19 @@ def test_the_long_function_rule_catches_a_new_long_function_and_a_stale_reason()
     assert long_function_problems(added, {**reasons, "hound_id.grown:grown": " "}) == [
         "hound_id.grown:grown: no reason given"
     ]
+
+
+#: No module longer than this many lines: a module over it does more than one job.
+LONG_MODULE = 700
+
+
+def long_modules(sources: dict[str, str], limit: int = LONG_MODULE) -> dict[str, int]:
+    """Module -> its line count, for every module over ``limit`` lines."""
+    return {name: n for name, text in sources.items() if (n := len(text.splitlines())) > limit}
+
+
+def test_no_module_is_over_700_lines():
+    assert long_modules({name: path.read_text() for name, path in MODULES.items()}) == {}
+    assert long_modules({"hound_id.big": "x = 1\n" * (LONG_MODULE + 1), "hound_id.ok": "x = 1\n" * LONG_MODULE}) == {
+        "hound_id.big": LONG_MODULE + 1
+    }

@@ -25,7 +25,7 @@ if TYPE_CHECKING:
     from hound_id.dyno.current.diagnose import Diagnosis, Step
     from hound_id.dyno.current.effects import Signals
     from hound_id.dyno.current.fit import FitResult
-    from hound_id.dyno.current.fit_report import FitReport, Headline
+    from hound_id.dyno.current.fit_report import FitReport
     from hound_id.dyno.current.stretch import Stretch
     from hound_id.dyno.logs import DynoLog
 
@@ -321,6 +321,7 @@ def _report(
 ) -> tuple[PeakTorque, Compensation, FitReport]:
     """The headline fit's peak torque, compensation and report; with stretches left out, the headline's reason and
     the whole log's fit beside it."""
+    from hound_id.dyno.current.headline import headline_of, headline_summary
     from hound_id.dyno.current.report import summarize
 
     signals, ladder = fitted.signals, fitted.ladder
@@ -338,8 +339,8 @@ def _report(
     )
     report = replace(report, current_range=log.current_range)
     if left_out:
-        headline = _headline_of(whole, left_out, option)
-        report = replace(report, headline=headline, summary=_headline_summary(whole, left_out, report.summary))
+        parts = (whole.signals, whole.fit, whole.diagnosis, left_out)
+        report = replace(report, headline=headline_of(*parts, option), summary=headline_summary(*parts, report.summary))
     return peak, comp, report
 
 
@@ -442,6 +443,7 @@ def _narrow(
     import numpy as np
 
     from hound_id.dyno.current.effects import Signals
+    from hound_id.dyno.current.headline import span
     from hound_id.dyno.current.stretch import FAULTS, UNINFORMATIVE, candidates, read, runs
     from hound_id.dyno.logs import MIN_ROWS
 
@@ -475,7 +477,7 @@ def _narrow(
             keep[s.start : s.stop] = False
         if on_progress is not None:
             on_progress("fitting the log without its broken stretches")
-        what = ", ".join(f"{_span(signals, s.start, s.stop)} ({s.kind})" for s in faults)
+        what = ", ".join(f"{span(signals, s.start, s.stop)} ({s.kind})" for s in faults)
         done = attempt(keep, f"left out {int((~keep).sum())} rows of {what}", faults)
         if done is not None:
             return done  # type: ignore[return-value]
@@ -485,7 +487,7 @@ def _narrow(
     # longest stretch that does
     for a, b in candidates(signals, edges, bad, MIN_ROWS)[:HEADLINE_TRIES]:
         if on_progress is not None:
-            on_progress(f"fitting the stretch {_span(signals, a, b)} on its own")
+            on_progress(f"fitting the stretch {span(signals, a, b)} on its own")
         keep = np.zeros(signals.current.size, dtype=bool)
         keep[a:b] = True
         outside = np.ones(bad.size, dtype=bool)
@@ -493,7 +495,7 @@ def _narrow(
         left = [
             read(signals, log.torque, fitted.fit.residual, int(edges[x]), int(edges[y]), kt) for x, y in runs(outside)
         ]
-        message = f"kept {_span(signals, a, b)}, the longest stretch that exercises the current"
+        message = f"kept {span(signals, a, b)}, the longest stretch that exercises the current"
         done = attempt(keep, message, left)
         if done is not None:
             return done  # type: ignore[return-value]
@@ -527,6 +529,8 @@ def _leave_out_flagged(
     :data:`HIGH_KEPT` of its rows above half that current."""
     import numpy as np
 
+    from hound_id.dyno.current.headline import span
+
     stretches = sorted(fitted.diagnosis.stretches, key=lambda s: s.start)
     if not stretches:
         return None
@@ -543,7 +547,7 @@ def _leave_out_flagged(
             return None  # the stretches hold the top of the current: they stay in, flagged
     if on_progress is not None:
         on_progress("fitting the log without its flagged stretches")
-    what = ", ".join(f"{_span(signals, s.start, s.stop)} ({s.kind})" for s in stretches)
+    what = ", ".join(f"{span(signals, s.start, s.stop)} ({s.kind})" for s in stretches)
     return attempt(keep, f"left out {int((~keep).sum())} rows the model does not follow: {what}", stretches)
 
 
@@ -551,82 +555,20 @@ def _window_option(signals: Signals, rows: Any) -> str | None:
     """``--window`` ranges that keep exactly ``rows`` of the whole log (at most four ranges), else None."""
     import numpy as np
 
+    from hound_id.dyno.current.headline import window_keys
+
     breaks = np.flatnonzero(np.diff(rows) > 1)
     starts = np.concatenate(([rows[0]], rows[breaks + 1]))
     stops = np.concatenate((rows[breaks], [rows[-1]]))
     if starts.size > 4:
         return None
-    keys = [_window_keys(signals, int(a), int(b) + 1) for a, b in zip(starts, stops, strict=True)]
+    keys = [window_keys(signals, int(a), int(b) + 1) for a, b in zip(starts, stops, strict=True)]
     # the log's own ends stay open, so that a printed bound cannot cut a row
     n = signals.current.size
     text = []
     for (lo, hi), a, b in zip(keys, starts, stops, strict=True):  # 10 digits: a printed bound cuts no row
         text.append(f"{'' if a == 0 else f'{lo:.10g}'}:{'' if b == n - 1 else f'{hi:.10g}'}")
     return "--window " + ",".join(text)
-
-
-def _window_keys(signals: Signals, a: int, b: int) -> tuple[float, float]:
-    """The --window bounds that keep rows a..b-1 (seconds, or 1-based data rows of a steady-state table)."""
-    if signals.timed:
-        return float(signals.time[a]), float(signals.time[b - 1])
-    return float(signals.time[a]) + 1.0, float(signals.time[b - 1]) + 1.0
-
-
-def _span(signals: Signals, a: int, b: int) -> str:
-    lo, hi = _window_keys(signals, a, b)
-    return f"t = {lo:.4g}-{hi:.4g} s" if signals.timed else f"data rows {lo:.0f}-{hi:.0f}"
-
-
-def _headline_summary(whole: Fitted, left_out: tuple[Stretch, ...], summary: str) -> str:
-    """The headline's verdict, said to hold for the rest of the log only when stretches that look ordinary (another
-    regime, a step transient: maybe an effect the library lacks) were left out of it."""
-    from hound_id.dyno.current.stretch import FAULTS, UNINFORMATIVE
-
-    ordinary = [s for s in left_out if s.kind not in FAULTS and s.kind not in UNINFORMATIVE]
-    if not ordinary:
-        return summary
-    spans = "; ".join(f"{_span(whole.signals, s.start, s.stop)}: {s.kind}" for s in ordinary)
-    error, floor = whole.fit.rmse_test, whole.diagnosis.noise_floor
-    ratio = f", {error / floor:.3g}x its floor" if floor > 0 else ""
-    return (
-        f"the log as a whole does not follow one model: the headline leaves out {spans} (the whole log's "
-        f"cross-validated error is {error:.3g} N m{ratio}); on the rest: {summary}"
-    )
-
-
-def _headline_of(whole: Fitted, left_out: tuple[Stretch, ...], option: str | None) -> Headline:
-    """What the headline leaves out and why, the option that repeats it, a sentence, and the whole log's fit."""
-    from hound_id.dyno.current.fit_report import Headline, LeftOut, WholeLog
-
-    signals = whole.signals
-    kt = whole.fit.parameters.get("kt")
-    kt_text = f"Kt = {kt.value:.4g} +- {kt.stderr:.2g} N m/A" if kt is not None else "no Kt"
-    parts = "; ".join(f"{_span(signals, s.start, s.stop)}: {s.kind} ({s.reading})" for s in left_out)
-    repeat = f" ({option})" if option is not None else ""
-    sentence = (
-        f"part of the log disagrees with the rest, so the headline fit leaves it out{repeat}: {parts}. The whole log "
-        f"gives {kt_text} with a cross-validated error of {whole.fit.rmse_test:.3g} N m (pass --whole-log to make "
-        "it the headline)"
-    )
-    whole_log = WholeLog(
-        model=tuple(whole.fit.model),
-        parameters=dict(whole.fit.parameters),
-        rmse_test=whole.fit.rmse_test,
-        noise_floor=whole.diagnosis.noise_floor,
-        at_noise_floor=whole.diagnosis.at_noise_floor,
-        flags=tuple(whole.diagnosis.flags),
-        summary=whole.diagnosis.summary(),
-    )
-    spans = tuple(
-        LeftOut(
-            rows=(s.start, s.stop - 1),
-            kind=s.kind,
-            reading=s.reading,
-            time=(float(signals.time[s.start]), float(signals.time[s.stop - 1])) if signals.timed else None,
-        )
-        for s in left_out
-    )
-    return Headline(option=option, sentence=sentence, whole_log=whole_log, left_out=spans)
 
 
 def _figure(
