@@ -307,7 +307,6 @@ LONG_FUNCTIONS = {
     "hound_id.dyno.current.run:_narrow": "not yet split",
     "hound_id.dyno.current.run:fit_current": "not yet split",
     "hound_id.dyno.fleet.analyse:analyse": "not yet split",
-    "hound_id.dyno.fleet.engine:run_fleet": "not yet split",
     "hound_id.export.mjlab:mjlab_module": "text template of the generated module",
     "hound_id.export.newton:newton_module": "text template of the generated module",
 }
