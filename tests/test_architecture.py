@@ -302,7 +302,6 @@ LONG_FUNCTIONS = {
     "hound_id.cli.fleet:_print": "not yet split",
     "hound_id.cli.fleet:fleet": "not yet split",
     "hound_id.cli.foot:foot": "Typer command: its signature is its 31 option declarations; the body builds the options",
-    "hound_id.dyno.acquire.recorder:record": "not yet split",
     "hound_id.dyno.current.effects:_builtin": "registry table of the shipped effects",
     "hound_id.dyno.current.run:_narrow": "not yet split",
     "hound_id.dyno.current.run:fit_current": "not yet split",
