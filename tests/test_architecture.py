@@ -299,11 +299,7 @@ LONG_FUNCTION = 80
 #: still be over it: one split below it is dropped from here.
 LONG_FUNCTIONS = {
     "hound_id.cli.foot:foot": "Typer command: its signature is its 31 option declarations; the body builds the options",
-    "hound_id.dyno.acquire.recorder:record": "not yet split",
     "hound_id.dyno.current.effects:_builtin": "registry table of the shipped effects",
-    "hound_id.dyno.fleet.engine:run_fleet": "not yet split",
-    "hound_id.export.bundle:build_bundle": "not yet split",
-    "hound_id.export.formats:isaaclab_fields": "not yet split",
     "hound_id.export.mjlab:mjlab_module": "text template of the generated module",
     "hound_id.export.newton:newton_module": "text template of the generated module",
 }

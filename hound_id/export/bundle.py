@@ -258,47 +258,10 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
     """The bundle of a robot (fits already applied with :func:`apply_fits`); see the module docstring."""
     regions = robot_regions(robot)
     sat = Saturation.from_robot(robot)
-    motors = []
-    for i, (motor, region) in enumerate(zip(robot.motors, regions.motors, strict=True)):
-        spec = robot.motor_specs[motor]
-        params, friction, comp = _effects(spec)
-        r = region.to_dict()
-        motors.append(
-            {
-                "name": motor,
-                "joint": robot.joints[i],
-                "spec": spec.name,
-                "kt": spec.kt,
-                "kv": spec.kv,
-                "resistance": spec.resistance,
-                "bus_voltage": spec.bus_voltage,
-                "peak_torque": spec.peak_torque,
-                "max_current": spec.max_current,
-                "torque_limit": float(sat.torque_limit[i]),
-                "linear_torque_limit": spec.linear_torque_limit,
-                "limit_current": spec.limit_current,
-                "stall_torque": float(sat.stall_torque[i]),
-                "no_load_speed": r["no_load_speed"],
-                "max_speed": spec.max_speed,
-                "rotor_inertia": spec.rotor_inertia,
-                "halfspaces": r["halfspaces"],
-                "fitted": spec.fit is not None,
-                "effects": params,
-                "friction": friction,
-                "current_curve": spec.current_curve.to_dict(),
-                "compensation": spec.current_curve.compensation(),
-                "compensation_polynomial": comp,
-                "envelope": spec.envelope.to_dict() if spec.envelope else None,
-                "drive": r["drive"],
-                "bus_voltage_range": None if spec.bus_voltage_range is None else list(spec.bus_voltage_range),
-                "thermal": None if spec.thermal is None else spec.thermal.to_dict(),
-            }
-        )
-    rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
-    reflected = None
-    if all(j is not None for j in rotor):
-        J = np.diag([float(j) for j in rotor if j is not None])
-        reflected = (sat.A_inv.T @ J @ sat.A_inv).tolist()
+    motors = [
+        _motor_fields(robot.motor_specs[motor], motor, robot.joints[i], region.to_dict(), sat, i)
+        for i, (motor, region) in enumerate(zip(robot.motors, regions.motors, strict=True))
+    ]
     bundle = {
         "schema": SCHEMA,
         "robot": robot.name,
@@ -314,56 +277,118 @@ def build_bundle(robot: Robot, foot: dict[str, Any] | None = None, sources: dict
             j.joint: {"inner": j.inner_box.to_dict(), "outer": j.outer_box.to_dict(), "coupled": j.coupled}
             for j in regions.joints
         },
-        "reflected_inertia": reflected,
-        "saturation": {
-            "A": sat.A.tolist(),
-            "stall_torque": sat.stall_torque.tolist(),
-            "back_emf_damping": sat.back_emf_damping.tolist(),
-            "torque_limit": sat.torque_limit.tolist(),
-            "limit_x": (sat.torque_limit if sat.limit_x is None else sat.limit_x).tolist(),
-            "curve_q": (np.zeros(sat.n) if sat.curve_q is None else sat.curve_q).tolist(),
-            "top_torque": [None] * sat.n if sat.top_torque is None else _nan_to_none(sat.top_torque),
-            "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
-            "polylines": [
-                {
-                    "speeds": p[0].tolist(),
-                    "lower": _nan_to_none(p[1]),
-                    "upper": _nan_to_none(p[2]),
-                    "held": bool(sat.held and sat.held[k]),
-                }
-                if p is not None
-                else None
-                for k, p in enumerate(sat.polylines or (None,) * len(robot.motors))
-            ],
-            "bus_voltage": None if sat.bus_voltage is None else sat.bus_voltage.tolist(),
-            "drive": None
-            if sat.drive_k_rho is None or sat.drive_circle_x is None or sat.drive_fw is None
-            else {
-                "k_rho": sat.drive_k_rho.tolist(),
-                "circle_x": sat.drive_circle_x.tolist(),
-                "field_weakening": [bool(f) for f in sat.drive_fw],
-                "units": {"k_rho": "1/(N m)", "circle_x": "N m"},
-            },
-            "thermal": None
-            if sat.thermal is None
-            else {
-                "alpha_resistance": sat.thermal[0].tolist(),
-                "alpha_kt": sat.thermal[1].tolist(),
-                "derate_start": _inf_to_none(sat.thermal[2]),
-                "winding_limit": _inf_to_none(sat.thermal[3]),
-                "current_x": sat.thermal[4].tolist(),
-                "units": {
-                    "alpha_resistance, alpha_kt": "1/K",
-                    "derate_start, winding_limit": "degC (null: no thermal model)",
-                    "current_x": "N m (Kt x the drive's current limit)",
-                },
-            },
-        },
+        "reflected_inertia": _reflected_inertia(robot, sat),
+        "saturation": _saturation_fields(sat, len(robot.motors)),
         "foot": foot,
     }
     # plain numbers and lists only (numpy scalars from the regions), so YAML and JSON agree
     content: dict[str, Any] = json.loads(json.dumps(bundle, default=lambda o: o.tolist()))
     return Bundle.from_dict(content)
+
+
+def _motor_fields(
+    spec: MotorSpec, motor: str, joint: str, r: Mapping[str, Any], sat: Saturation, i: int
+) -> dict[str, Any]:
+    """The bundle's entry of motor ``i`` (named ``motor``, driving ``joint``), from its spec, its region's
+    dictionary ``r`` and the robot's saturation."""
+    params, friction, comp = _effects(spec)
+    return {
+        "name": motor,
+        "joint": joint,
+        "spec": spec.name,
+        "kt": spec.kt,
+        "kv": spec.kv,
+        "resistance": spec.resistance,
+        "bus_voltage": spec.bus_voltage,
+        "peak_torque": spec.peak_torque,
+        "max_current": spec.max_current,
+        "torque_limit": float(sat.torque_limit[i]),
+        "linear_torque_limit": spec.linear_torque_limit,
+        "limit_current": spec.limit_current,
+        "stall_torque": float(sat.stall_torque[i]),
+        "no_load_speed": r["no_load_speed"],
+        "max_speed": spec.max_speed,
+        "rotor_inertia": spec.rotor_inertia,
+        "halfspaces": r["halfspaces"],
+        "fitted": spec.fit is not None,
+        "effects": params,
+        "friction": friction,
+        "current_curve": spec.current_curve.to_dict(),
+        "compensation": spec.current_curve.compensation(),
+        "compensation_polynomial": comp,
+        "envelope": spec.envelope.to_dict() if spec.envelope else None,
+        "drive": r["drive"],
+        "bus_voltage_range": None if spec.bus_voltage_range is None else list(spec.bus_voltage_range),
+        "thermal": None if spec.thermal is None else spec.thermal.to_dict(),
+    }
+
+
+def _reflected_inertia(robot: Robot, sat: Saturation) -> list[list[float]] | None:
+    """The rotors' inertia reflected to the joints, A^-T diag(J) A^-1 [kg m^2]; None when a motor has none."""
+    rotor = [robot.motor_specs[m].rotor_inertia for m in robot.motors]
+    if not all(j is not None for j in rotor):
+        return None
+    J = np.diag([float(j) for j in rotor if j is not None])
+    reflected: list[list[float]] = (sat.A_inv.T @ J @ sat.A_inv).tolist()
+    return reflected
+
+
+def _saturation_fields(sat: Saturation, n_motors: int) -> dict[str, Any]:
+    """The bundle's ``saturation`` block: the clip's arrays as lists, ``n_motors`` entries each."""
+    return {
+        "A": sat.A.tolist(),
+        "stall_torque": sat.stall_torque.tolist(),
+        "back_emf_damping": sat.back_emf_damping.tolist(),
+        "torque_limit": sat.torque_limit.tolist(),
+        "limit_x": (sat.torque_limit if sat.limit_x is None else sat.limit_x).tolist(),
+        "curve_q": (np.zeros(sat.n) if sat.curve_q is None else sat.curve_q).tolist(),
+        "top_torque": [None] * sat.n if sat.top_torque is None else _nan_to_none(sat.top_torque),
+        "max_speed": [v if math.isfinite(v) else None for v in sat.max_speed.tolist()],
+        "polylines": [
+            {
+                "speeds": p[0].tolist(),
+                "lower": _nan_to_none(p[1]),
+                "upper": _nan_to_none(p[2]),
+                "held": bool(sat.held and sat.held[k]),
+            }
+            if p is not None
+            else None
+            for k, p in enumerate(sat.polylines or (None,) * n_motors)
+        ],
+        "bus_voltage": None if sat.bus_voltage is None else sat.bus_voltage.tolist(),
+        "drive": _drive_fields(sat),
+        "thermal": _thermal_fields(sat),
+    }
+
+
+def _drive_fields(sat: Saturation) -> dict[str, Any] | None:
+    """The saturation's drive block (the dq model at speed); None when the clip has none."""
+    if sat.drive_k_rho is None or sat.drive_circle_x is None or sat.drive_fw is None:
+        return None
+    return {
+        "k_rho": sat.drive_k_rho.tolist(),
+        "circle_x": sat.drive_circle_x.tolist(),
+        "field_weakening": [bool(f) for f in sat.drive_fw],
+        "units": {"k_rho": "1/(N m)", "circle_x": "N m"},
+    }
+
+
+def _thermal_fields(sat: Saturation) -> dict[str, Any] | None:
+    """The saturation's thermal block (the winding's derating); None when the clip has none."""
+    if sat.thermal is None:
+        return None
+    return {
+        "alpha_resistance": sat.thermal[0].tolist(),
+        "alpha_kt": sat.thermal[1].tolist(),
+        "derate_start": _inf_to_none(sat.thermal[2]),
+        "winding_limit": _inf_to_none(sat.thermal[3]),
+        "current_x": sat.thermal[4].tolist(),
+        "units": {
+            "alpha_resistance, alpha_kt": "1/K",
+            "derate_start, winding_limit": "degC (null: no thermal model)",
+            "current_x": "N m (Kt x the drive's current limit)",
+        },
+    }
 
 
 def _inf_to_none(values: Any) -> list[float | None]:

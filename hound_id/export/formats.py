@@ -59,7 +59,6 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
         coupled = bool(np.any(A[~np.eye(len(A), dtype=bool)] != 0))
         for k, joint in enumerate(tx["joints"]):
             i = index[joint]
-            m = b.motors[i]
             entry: dict[str, Any] = {
                 "coupled": coupled,
                 "armature": float(reflected[i, i]) if reflected is not None else 0.0,
@@ -68,72 +67,10 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
                 "inner_box": dict(b.joint_boxes[joint]["inner"]),
             }
             if coupled:
-                entry["use"] = "hound_id.runtime"
-                entry["reason"] = (
-                    f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
-                    "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
-                    "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle, joint_names)"
-                    ".saturate(tau, qd) to the group (see docs/export.md); armature is the diagonal of the reflected "
-                    "inertia (the off-diagonal terms are in reflected_inertia_group), friction the worst case "
-                    "sum |A^-T| f_c"
-                )
-                if reflected is not None:
-                    idx = [index[j] for j in tx["joints"]]
-                    entry["reflected_inertia_group"] = group_inertia(reflected[np.ix_(idx, idx)], list(tx["joints"]))
+                entry |= _coupled_fields(joint, tx, A, index, reflected)
             else:
                 gear = float(1.0 / abs(A[k, k]))  # motor turns per joint turn
-                entry["gear_ratio"] = gear
-                entry["dcmotor"] = {  # Isaac Lab 3.0's names (ActuatorBaseCfg)
-                    "saturation_effort": m.stall_torque * gear,
-                    "actuator_effort_limit": m.torque_limit * gear,
-                    "actuator_velocity_limit": m.no_load_speed / gear,
-                    "armature": (m.rotor_inertia or 0.0) * gear**2,
-                    # static friction: Coulomb + the Stribeck excess at rest; kinetic: Coulomb; viscous: G^2 b
-                    "friction": float(coulomb[i]) + float(m.friction.get("stribeck", 0.0)) * gear,
-                    "dynamic_friction": float(coulomb[i]),
-                    "viscous_friction": float(viscous[i]),
-                }
-                entry["dcmotor_isaaclab2"] = {  # Isaac Lab 2.x's names (deprecated in 3.0)
-                    **{k: v for k, v in entry["dcmotor"].items() if not k.startswith("actuator_")},
-                    "effort_limit": m.torque_limit * gear,
-                    "velocity_limit": m.no_load_speed / gear,
-                }
-                if m.envelope:  # DCMotor holds straight lines; the measured edge is a polyline
-                    entry["use"] = "hound_id.runtime"
-                    entry["reason"] = (
-                        f"motor {m.name} has a measured envelope (mor --compare --out); DCMotor's straight lines "
-                        f"allow up to {_over_promise(m) * gear:.4g} N m more than it at the joint. The dcmotor "
-                        "fields hold the spec sheet; apply hound_id.runtime.load(bundle, joint_names).saturate(tau, "
-                        "qd) for the measured edge"
-                    )
-                else:
-                    gap = ex.straight_gap(m.name)
-                    past, reach = ex.past_overspeed(m.name)
-                    entry["dcmotor_error"] = {
-                        "over": gap[0] * gear,
-                        "under": gap[1] * gear,
-                        "past_overspeed": past * gear,
-                        "past_overspeed_to": reach / gear,
-                        "units": "N m, joint side: the most DCMotor's clip passes (over) or falls short of (under) "
-                        "hound-id's within +-overspeed; past_overspeed: how much more braking hound-id's clip forces "
-                        "than DCMotor's torque limit, from the overspeed to past_overspeed_to [rad/s, joint side]",
-                    }
-                    if gap[0] > DCMOTOR_EXACT * m.torque_limit:
-                        entry["use"] = "hound_id.runtime"
-                        spec = ex.robot.motor_specs[m.name]
-                        bends = (
-                            ["its current-torque curve bends its voltage edges"]
-                            if spec.current_curve.form != "linear"
-                            else []
-                        ) + (["its rated speed cuts them (braking only above max_speed)"] if spec.max_speed else [])
-                        entry["reason"] = (
-                            f"motor {m.name}: {' and '.join(bends)} (torque limit {m.torque_limit * gear:.4g} N m "
-                            f"at the joint): DCMotor's straight line passes hound-id's edges by up to "
-                            f"{gap[0] * gear:.4g} N m at the joint within the overspeed, and past overspeed DCMotor "
-                            "returns the torque limit where the back-EMF forces more braking. The dcmotor fields are "
-                            "the closest straight model; use HoundIdActuator (hound_id.export.isaaclab_actuator) or "
-                            "hound_id.runtime.load(bundle, joint_names).saturate(tau, qd) for the exact clip"
-                        )
+                entry |= _uncoupled_fields(ex, b.motors[i], gear, float(coulomb[i]), float(viscous[i]))
             joints[joint] = entry
     return {
         "schema": ISAACLAB_SCHEMA,
@@ -142,26 +79,120 @@ def isaaclab_fields(ex: Export) -> dict[str, Any]:
         "actuator": "isaaclab.actuators.DCMotorCfg (per uncoupled joint: DCMotorCfg(..., **joints[name]['dcmotor']) in "
         "Isaac Lab 3.0, **joints[name]['dcmotor_isaaclab2'] in 2.x)",
         "joints": joints,
-        "notes": [
-            "dcmotor holds Isaac Lab 3.0's field names (actuator_effort_limit, actuator_velocity_limit, friction = "
-            "static, dynamic_friction = kinetic, viscous_friction), as its ActuatorBaseCfg defines them; "
-            "dcmotor_isaaclab2 the names of 2.x (effort_limit, velocity_limit; deprecated in 3.0). "
-            "saturation_effort = stall torque Kt V/R x G, (actuator_)velocity_limit "
-            "= no-load speed / G, (actuator_)effort_limit = the torque limit x G (the current-torque curve's torque at "
-            "the driver's limit, or the peak torque). "
-            "DCMotor's torque-speed line is straight: for a motor whose curve saturates, hound-id's voltage edges "
-            "bend inwards and dcmotor_error says by how much DCMotor passes them; for a linear curve (kt_curve: "
-            "linear, or a fit without saturation) DCMotor's clip equals hound-id's within +-overspeed in releases "
-            "that first clamp the joint speed to the speed at the effort limit (vel_at_effort_lim, as mjlab's "
-            "DcMotorActuator does). Past overspeed DCMotor returns the torque limit; hound-id the braking torque the "
-            "back-EMF forces (larger)",
-            "friction (static: Coulomb plus the fitted Stribeck excess at rest) and dynamic_friction (kinetic: "
-            "Coulomb) are in N m, joint side, as Isaac Sim >= 5.0 takes them (Isaac Sim 4.5 took unitless "
-            "coefficients); viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's actuator 'damping' "
-            "is a PD gain: do not put viscous friction there",
-            *ex.friction_not_held("isaaclab"),
-        ],
+        "notes": [*_ISAACLAB_NOTES, *ex.friction_not_held("isaaclab")],
     }
+
+
+#: The notes of the Isaac Lab fields file, before what the format does not hold of each friction term.
+_ISAACLAB_NOTES = (
+    "dcmotor holds Isaac Lab 3.0's field names (actuator_effort_limit, actuator_velocity_limit, friction = "
+    "static, dynamic_friction = kinetic, viscous_friction), as its ActuatorBaseCfg defines them; "
+    "dcmotor_isaaclab2 the names of 2.x (effort_limit, velocity_limit; deprecated in 3.0). "
+    "saturation_effort = stall torque Kt V/R x G, (actuator_)velocity_limit "
+    "= no-load speed / G, (actuator_)effort_limit = the torque limit x G (the current-torque curve's torque at "
+    "the driver's limit, or the peak torque). "
+    "DCMotor's torque-speed line is straight: for a motor whose curve saturates, hound-id's voltage edges "
+    "bend inwards and dcmotor_error says by how much DCMotor passes them; for a linear curve (kt_curve: "
+    "linear, or a fit without saturation) DCMotor's clip equals hound-id's within +-overspeed in releases "
+    "that first clamp the joint speed to the speed at the effort limit (vel_at_effort_lim, as mjlab's "
+    "DcMotorActuator does). Past overspeed DCMotor returns the torque limit; hound-id the braking torque the "
+    "back-EMF forces (larger)",
+    "friction (static: Coulomb plus the fitted Stribeck excess at rest) and dynamic_friction (kinetic: "
+    "Coulomb) are in N m, joint side, as Isaac Sim >= 5.0 takes them (Isaac Sim 4.5 took unitless "
+    "coefficients); viscous_friction is the fitted viscous term in N m s/rad. Isaac Lab's actuator 'damping' "
+    "is a PD gain: do not put viscous friction there",
+)
+
+
+def _coupled_fields(
+    joint: str, tx: Mapping[str, Any], A: np.ndarray, index: Mapping[str, int], reflected: np.ndarray | None
+) -> dict[str, Any]:
+    """The fields of a coupled joint beyond its armature and friction: why it points to the runtime."""
+    fields: dict[str, Any] = {
+        "use": "hound_id.runtime",
+        "reason": (
+            f"{joint} shares motors {', '.join(tx['motors'])} with {', '.join(tx['joints'])} through "
+            "A = " + str(A.tolist()) + "; Isaac Lab's per-joint DCMotor clips each joint alone and cannot "
+            "express the coupled motor-space limits. Apply hound_id.runtime.load(bundle, joint_names)"
+            ".saturate(tau, qd) to the group (see docs/export.md); armature is the diagonal of the reflected "
+            "inertia (the off-diagonal terms are in reflected_inertia_group), friction the worst case "
+            "sum |A^-T| f_c"
+        ),
+    }
+    if reflected is not None:
+        idx = [index[j] for j in tx["joints"]]
+        fields["reflected_inertia_group"] = group_inertia(reflected[np.ix_(idx, idx)], list(tx["joints"]))
+    return fields
+
+
+def _uncoupled_fields(ex: Export, m: BundleMotor, gear: float, coulomb: float, viscous: float) -> dict[str, Any]:
+    """The fields of an uncoupled joint beyond its armature and friction: its gear ratio, its ``DCMotorCfg``
+    keyword arguments (Isaac Lab 3.0 and 2.x) and how far DCMotor's straight lines are from hound-id's clip.
+
+    ``gear`` is motor turns per joint turn; ``coulomb`` [N m] and ``viscous`` [N m s/rad] are joint side.
+    """
+    dcmotor = {  # Isaac Lab 3.0's names (ActuatorBaseCfg)
+        "saturation_effort": m.stall_torque * gear,
+        "actuator_effort_limit": m.torque_limit * gear,
+        "actuator_velocity_limit": m.no_load_speed / gear,
+        "armature": (m.rotor_inertia or 0.0) * gear**2,
+        # static friction: Coulomb + the Stribeck excess at rest; kinetic: Coulomb; viscous: G^2 b
+        "friction": coulomb + float(m.friction.get("stribeck", 0.0)) * gear,
+        "dynamic_friction": coulomb,
+        "viscous_friction": viscous,
+    }
+    fields: dict[str, Any] = {
+        "gear_ratio": gear,
+        "dcmotor": dcmotor,
+        "dcmotor_isaaclab2": {  # Isaac Lab 2.x's names (deprecated in 3.0)
+            **{k: v for k, v in dcmotor.items() if not k.startswith("actuator_")},
+            "effort_limit": m.torque_limit * gear,
+            "velocity_limit": m.no_load_speed / gear,
+        },
+    }
+    if m.envelope:  # DCMotor holds straight lines; the measured edge is a polyline
+        fields["use"] = "hound_id.runtime"
+        fields["reason"] = (
+            f"motor {m.name} has a measured envelope (mor --compare --out); DCMotor's straight lines "
+            f"allow up to {_over_promise(m) * gear:.4g} N m more than it at the joint. The dcmotor "
+            "fields hold the spec sheet; apply hound_id.runtime.load(bundle, joint_names).saturate(tau, "
+            "qd) for the measured edge"
+        )
+        return fields
+    return fields | _straight_error_fields(ex, m, gear)
+
+
+def _straight_error_fields(ex: Export, m: BundleMotor, gear: float) -> dict[str, Any]:
+    """``dcmotor_error`` of a motor without a measured envelope (joint side, ``gear`` motor turns per joint turn),
+    and a pointer to the runtime when DCMotor's straight line passes hound-id's edges."""
+    gap = ex.straight_gap(m.name)
+    past, reach = ex.past_overspeed(m.name)
+    fields: dict[str, Any] = {
+        "dcmotor_error": {
+            "over": gap[0] * gear,
+            "under": gap[1] * gear,
+            "past_overspeed": past * gear,
+            "past_overspeed_to": reach / gear,
+            "units": "N m, joint side: the most DCMotor's clip passes (over) or falls short of (under) "
+            "hound-id's within +-overspeed; past_overspeed: how much more braking hound-id's clip forces "
+            "than DCMotor's torque limit, from the overspeed to past_overspeed_to [rad/s, joint side]",
+        }
+    }
+    if gap[0] > DCMOTOR_EXACT * m.torque_limit:
+        fields["use"] = "hound_id.runtime"
+        spec = ex.robot.motor_specs[m.name]
+        bends = (
+            ["its current-torque curve bends its voltage edges"] if spec.current_curve.form != "linear" else []
+        ) + (["its rated speed cuts them (braking only above max_speed)"] if spec.max_speed else [])
+        fields["reason"] = (
+            f"motor {m.name}: {' and '.join(bends)} (torque limit {m.torque_limit * gear:.4g} N m "
+            f"at the joint): DCMotor's straight line passes hound-id's edges by up to "
+            f"{gap[0] * gear:.4g} N m at the joint within the overspeed, and past overspeed DCMotor "
+            "returns the torque limit where the back-EMF forces more braking. The dcmotor fields are "
+            "the closest straight model; use HoundIdActuator (hound_id.export.isaaclab_actuator) or "
+            "hound_id.runtime.load(bundle, joint_names).saturate(tau, qd) for the exact clip"
+        )
+    return fields
 
 
 #: A DCMotor whose clip passes hound-id's by less than this share of the torque limit reproduces it (rounding).

@@ -357,24 +357,66 @@ def record(
     """
     check_settings(rate_hz, duration, flush_interval)
     log = CsvLog(out, columns, overwrite)
-    side = sidecar_path(out)
     started = datetime.now(timezone.utc).isoformat(timespec="milliseconds")
-    period = 1.0 / rate_hz
-    state = _State(period, policy.stall_after)
-    status, message = "recording", ""
-    t0 = time.monotonic()
+    state = _State(1.0 / rate_hz, policy.stall_after)
+    run = _Run(log, out, sidecar_path(out), started, rate_hz, flush_interval, metadata, live, state, time.monotonic())
+    run.first_sidecar()
+    writer = _Writer(log, state, run.write_sidecar, flush_interval, _progress(run, on_progress))
+    writer.start()
+    try:
+        _sample(run, writer, read_sample, columns, duration, policy, should_stop)
+    except KeyboardInterrupt:
+        run.status = "interrupted"
+    finally:
+        final, write_error = _finish(run, writer)
+    _raise_failure(run, writer, final, write_error)
+    return final
+
+
+@dataclass
+class _Run:
+    """One run's files, settings and outcome so far (``status``, ``message``, ``stop_t``), read by the writer thread
+    through :meth:`snapshot`."""
+
+    log: CsvLog
+    out: Path
+    side: Path
+    started: str
+    rate_hz: float
+    flush_interval: float
+    metadata: Mapping[str, Any] | None
+    live: Callable[[], Mapping[str, Any]] | None
+    state: _State
+    t0: float
+    status: str = "recording"
+    message: str = ""
     stop_t: float | None = None
 
-    def result(now: float, gaps: Sequence[Gap], lost: int) -> RecordResult:
-        elapsed = max(now - t0, 1e-9)
-        rows = log.rows
-        return RecordResult(out, side, status, rows, state.missed, lost, elapsed, rows / elapsed, tuple(gaps), message)
+    def result(self, now: float, gaps: Sequence[Gap], lost: int) -> RecordResult:
+        """The run's totals at monotonic time ``now``, with its ``gaps`` and the ticks ``lost`` in them."""
+        elapsed = max(now - self.t0, 1e-9)
+        rows = self.log.rows
+        return RecordResult(
+            self.out,
+            self.side,
+            self.status,
+            rows,
+            self.state.missed,
+            lost,
+            elapsed,
+            rows / elapsed,
+            tuple(gaps),
+            self.message,
+        )
 
-    def snapshot() -> tuple[RecordResult, dict[str, Any]]:
-        now = time.monotonic()
+    def snapshot(self) -> tuple[RecordResult, dict[str, Any]]:
+        """The running totals and what the sidecar says now."""
+        now, state, stop_t = time.monotonic(), self.state, self.stop_t
         with state.lock:
-            gaps, lost = state.all_gaps(None if stop_t is not None else now, now - t0 if stop_t is None else stop_t)
-            r = result(now, gaps, lost)
+            gaps, lost = state.all_gaps(
+                None if stop_t is not None else now, now - self.t0 if stop_t is None else stop_t
+            )
+            r = self.result(now, gaps, lost)
             longest = state.max_interval
             faults = list(state.faults)
         data = {
@@ -383,9 +425,9 @@ def record(
             "message": r.message,
             "software": f"hound-id {__version__}",
             "pid": os.getpid(),
-            "started": started,
+            "started": self.started,
             "updated": datetime.now(timezone.utc).isoformat(timespec="milliseconds"),
-            "rate_requested": rate_hz,
+            "rate_requested": self.rate_hz,
             "rate_achieved": r.achieved_rate,
             "duration": r.duration,
             "samples": r.samples,
@@ -394,142 +436,208 @@ def record(
             "failed_ticks": r.failed,
             "gaps": [g.to_dict() for g in r.gaps],
             "faults": faults,
-            "columns": log.columns,
-            "flush_interval": flush_interval,
-            **dict(metadata or {}),
-            **dict(live() if live is not None else {}),
+            "columns": self.log.columns,
+            "flush_interval": self.flush_interval,
+            **dict(self.metadata or {}),
+            **dict(self.live() if self.live is not None else {}),
         }
         return r, data
 
-    def write_sidecar() -> None:  # beside the hidden file until it replaces an old log
-        save_sidecar(sidecar_path(log.writing), snapshot()[1])
+    def write_sidecar(self) -> None:
+        """Rewrite the sidecar (beside the hidden file until it replaces an old log)."""
+        save_sidecar(sidecar_path(self.log.writing), self.snapshot()[1])
+
+    def first_sidecar(self) -> None:
+        """Write the first sidecar; if it cannot be written, release the log and raise :class:`OutputError`."""
+        try:
+            self.write_sidecar()
+        except OSError as err:
+            self.log.close()
+            raise OutputError(
+                f"{sidecar_path(self.log.writing)}: cannot write ({err.strerror or err}); choose another --out",
+                path=str(self.side),
+            ) from err
+
+
+def _progress(run: _Run, on_progress: Callable[[RecordResult], None] | None) -> Callable[[], None] | None:
+    """What the writer calls at every sidecar rewrite: ``on_progress`` with the running totals (None: nothing)."""
+    if on_progress is None:
+        return None
+    callback = on_progress
 
     def progress() -> None:
-        if on_progress is not None:
-            on_progress(snapshot()[0])
+        callback(run.snapshot()[0])
 
-    try:
-        write_sidecar()
-    except OSError as err:
-        log.close()
-        raise OutputError(
-            f"{sidecar_path(log.writing)}: cannot write ({err.strerror or err}); choose another --out", path=str(side)
-        ) from err
-    writer = _Writer(log, state, write_sidecar, flush_interval, progress if on_progress is not None else None)
-    writer.start()
+    return progress
+
+
+def _sample(
+    run: _Run,
+    writer: _Writer,
+    read_sample: Callable[[], Mapping[str, float]],
+    columns: Sequence[str],
+    duration: float | None,
+    policy: RetryPolicy,
+    should_stop: Callable[[], bool] | None,
+) -> None:
+    """The sampling loop: one tick per period until the duration, ``should_stop``, a write error, a crash of the
+    writer, or reads failing for longer than ``policy.give_up_after``; it books every tick in ``run.state`` and sets
+    ``run.status`` and ``run.message`` when it ends the run itself."""
+    state, t0, period = run.state, run.t0, run.state.period
     first_failure: float | None = None
     tick = 0
-    try:
-        while writer.error is None and writer.crash is None:
-            due = t0 + tick * period
-            if duration is not None and due - t0 >= duration:
-                status = "complete"
-                break
-            if should_stop is not None and should_stop():
-                status = "complete"
-                break
+    while writer.error is None and writer.crash is None:
+        due = t0 + tick * period
+        if (duration is not None and due - t0 >= duration) or (should_stop is not None and should_stop()):
+            run.status = "complete"
+            return
+        now = time.monotonic()
+        if now < due:
+            time.sleep(due - now)
+        elif now - due > period:  # late by more than a period: skip to the next tick due in the future
+            skip = _skipped(now, due, period, duration, tick)
+            if skip == 0:
+                run.status = "complete"
+                return
+            with state.lock:
+                state.skip(skip)
+            tick += skip
+            continue
+        state.reading_due = due
+        since = state.reading_since = time.monotonic()
+        sample, error, before, after = _read(read_sample, policy.retries, since)
+        state.reading_since = None
+        if sample is None:
+            with state.lock:
+                state.fail(error)
             now = time.monotonic()
-            if now < due:
-                time.sleep(due - now)
-            elif now - due > period:  # late by more than a period: skip to the next tick due in the future
-                skip = int((now - due) / period)
-                if duration is not None:  # ticks past the end of the run are not missed: they were never due
-                    skip = min(skip, max(math.ceil(duration / period - 1e-9) - tick, 0))
-                    if skip == 0:
-                        status = "complete"
-                        break
-                with state.lock:
-                    state.skip(skip)
-                tick += skip
-                continue
-            sample, error = None, ""
-            state.reading_due = due
-            before = after = state.reading_since = time.monotonic()
-            for _ in range(policy.retries + 1):
-                before = time.monotonic()
-                try:
-                    sample = read_sample()
-                    after = time.monotonic()
-                    break
-                except ReadError as err:
-                    error = str(err)
-            state.reading_since = None
-            if sample is None:
-                with state.lock:
-                    state.fail(error)
-                now = time.monotonic()
-                first_failure = first_failure if first_failure is not None else now
-                if now - first_failure > policy.give_up_after:
-                    status = "failed"
-                    message = f"reads failed for more than {policy.give_up_after:g} s; last error: {error}"
-                    break
-            else:
-                first_failure = None
-                stalled = after - before > policy.stall_after
-                # the loop was held up by a hung read, or by attempts that failed before this one
-                held = f"a read blocked for {after - before:.2f} s" if stalled else error
-                # a row is stamped at the middle of its read; a hung peer answered at the end of it
-                t = (after if stalled else 0.5 * (before + after)) - t0
-                # numbers only, so a plain join is valid CSV; repr keeps every digit of the float
-                row = f"{t:.6f}," + ",".join([repr(float(sample[c])) for c in columns]) + "\n"
-                with state.lock:
-                    state.take(t, row, held)
-            tick += 1
-    except KeyboardInterrupt:
-        status = "interrupted"
-    finally:
-        writer.join()
-        writer.flush()
-        stop_t = time.monotonic() - t0
-        if writer.error is None:
-            try:
-                log.sync()
-            except OSError as err:
-                writer.error = err
-        write_error = writer.error
-        if write_error is not None:
-            status = "failed"
-            message = (
-                f"cannot write the log ({write_error.strerror or write_error}) after {log.rows} rows "
-                f"({stop_t:.1f} s); the file holds whole rows only"
-            )
-        elif status == "complete" and log.rows == 0:
-            status = "failed"
-            message = "no sample was read" + (f"; last error: {state.faults[-1]}" if state.faults else "")
-        if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
-            status, message = "failed", "the recorder stopped on an unexpected error"
-        kept = not log.replaced
-        if kept and log.rows == 0 and status != "failed":  # Ctrl-C before the first sample
-            message = "stopped before the first sample"
-        if kept:
-            message = f"{message}; {out} was left as it was" if message else f"{out} was left as it was"
-        final, data = snapshot()
-        final = dataclasses.replace(final, metadata=MappingProxyType(data), kept_existing=kept)
+            first_failure = first_failure if first_failure is not None else now
+            if now - first_failure > policy.give_up_after:
+                run.status = "failed"
+                run.message = f"reads failed for more than {policy.give_up_after:g} s; last error: {error}"
+                return
+        else:
+            first_failure = None
+            t, held = _stamp(before, after, error, policy.stall_after)
+            t -= t0
+            with state.lock:
+                state.take(t, _row(t, sample, columns), held)
+        tick += 1
+
+
+def _skipped(now: float, due: float, period: float, duration: float | None, tick: int) -> int:
+    """Ticks to skip when tick ``tick`` (due at monotonic ``due``) is late by more than a ``period`` at ``now`` [s];
+    0 when every tick left is past the end of a run of ``duration`` [s]."""
+    skip = int((now - due) / period)
+    if duration is not None:  # ticks past the end of the run are not missed: they were never due
+        skip = min(skip, max(math.ceil(duration / period - 1e-9) - tick, 0))
+    return skip
+
+
+def _read(
+    read_sample: Callable[[], Mapping[str, float]], retries: int, since: float
+) -> tuple[Mapping[str, float] | None, str, float, float]:
+    """One tick's read, retried ``retries`` times: (the sample or None, the last failure's message, the monotonic
+    times the successful attempt began and ended; both ``since`` if no attempt ran)."""
+    sample, error = None, ""
+    before = after = since
+    for _ in range(retries + 1):
+        before = time.monotonic()
         try:
-            save_sidecar(sidecar_path(log.writing), data)
+            sample = read_sample()
+            after = time.monotonic()
+            break
+        except ReadError as err:
+            error = str(err)
+    return sample, error, before, after
+
+
+def _stamp(before: float, after: float, error: str, stall_after: float) -> tuple[float, str]:
+    """A sample's monotonic time stamp [s] and why its read held the loop up ("" for a plain read), from its read's
+    begin and end [s], the failed attempts' last message, and how long a read blocks before it is a hung peer [s]."""
+    stalled = after - before > stall_after
+    # the loop was held up by a hung read, or by attempts that failed before this one
+    held = f"a read blocked for {after - before:.2f} s" if stalled else error
+    # a row is stamped at the middle of its read; a hung peer answered at the end of it
+    return (after if stalled else 0.5 * (before + after)), held
+
+
+def _row(t: float, sample: Mapping[str, float], columns: Sequence[str]) -> str:
+    """The CSV row of a sample at ``t`` [s since the start]."""
+    # numbers only, so a plain join is valid CSV; repr keeps every digit of the float
+    return f"{t:.6f}," + ",".join([repr(float(sample[c])) for c in columns]) + "\n"
+
+
+def _finish(run: _Run, writer: _Writer) -> tuple[RecordResult, OSError | None]:
+    """End a run, however it ended: stop the writer, write the last rows, sync, settle the status and message,
+    write the final sidecar and close the log (removing a new file that got no sample). Returns the final result
+    and the write error of the sync or the final sidecar, if any."""
+    log, out, side = run.log, run.out, run.side
+    writer.join()
+    writer.flush()
+    run.stop_t = stop_t = time.monotonic() - run.t0
+    if writer.error is None:
+        try:
+            log.sync()
         except OSError as err:
-            if write_error is None:
-                write_error = err
-        log.close()
-        if log.rows == 0 and log.created and log.replaced and write_error is None:  # a new file with no sample
-            for made in (out, side):
-                made.unlink(missing_ok=True)
-            said = final.message or "stopped before the first sample"
-            final = dataclasses.replace(final, message=f"{said}; nothing was written", kept_existing=True)
+            writer.error = err
+    write_error = writer.error
+    run.status, run.message = _outcome(run.status, run.message, write_error, log.rows, stop_t, run.state.faults)
+    kept = not log.replaced
+    if kept and log.rows == 0 and run.status != "failed":  # Ctrl-C before the first sample
+        run.message = "stopped before the first sample"
+    if kept:
+        run.message = f"{run.message}; {out} was left as it was" if run.message else f"{out} was left as it was"
+    final, data = run.snapshot()
+    final = dataclasses.replace(final, metadata=MappingProxyType(data), kept_existing=kept)
+    try:
+        save_sidecar(sidecar_path(log.writing), data)
+    except OSError as err:
+        if write_error is None:
+            write_error = err
+    log.close()
+    if log.rows == 0 and log.created and log.replaced and write_error is None:  # a new file with no sample
+        for made in (out, side):
+            made.unlink(missing_ok=True)
+        said = final.message or "stopped before the first sample"
+        final = dataclasses.replace(final, message=f"{said}; nothing was written", kept_existing=True)
+    return final, write_error
+
+
+def _outcome(
+    status: str, message: str, write_error: OSError | None, rows: int, stop_t: float, faults: Sequence[str]
+) -> tuple[str, str]:
+    """The run's final status and message from the loop's, a write error, the rows on disk, the stop time [s since
+    the start] and the faults."""
+    if write_error is not None:
+        status = "failed"
+        message = (
+            f"cannot write the log ({write_error.strerror or write_error}) after {rows} rows "
+            f"({stop_t:.1f} s); the file holds whole rows only"
+        )
+    elif status == "complete" and rows == 0:
+        status = "failed"
+        message = "no sample was read" + (f"; last error: {faults[-1]}" if faults else "")
+    if status == "recording":  # an unexpected exception: say so in the sidecar, then let it propagate
+        status, message = "failed", "the recorder stopped on an unexpected error"
+    return status, message
+
+
+def _raise_failure(run: _Run, writer: _Writer, final: RecordResult, write_error: OSError | None) -> None:
+    """Raise what stopped the writer (its crash, or the log's write error), or the final sidecar's write error."""
     if writer.crash is not None:
         raise writer.crash
     if writer.error is not None:
         raise OutputError(
-            f"{out}: {message}; free space on the disk (or choose another --out) and record again",
-            path=str(out),
+            f"{run.out}: {run.message}; free space on the disk (or choose another --out) and record again",
+            path=str(run.out),
             rows=final.samples,
             result=final,
         ) from writer.error
     if write_error is not None:
         raise OutputError(
-            f"{side}: cannot write the sidecar ({getattr(write_error, 'strerror', None) or write_error}); "
-            f"the log {out} holds {final.samples} rows",
-            path=str(side),
+            f"{run.side}: cannot write the sidecar ({getattr(write_error, 'strerror', None) or write_error}); "
+            f"the log {run.out} holds {final.samples} rows",
+            path=str(run.side),
             result=final,
         ) from write_error
-    return final

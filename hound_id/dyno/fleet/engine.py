@@ -25,7 +25,7 @@ import tempfile
 import time
 import traceback
 from collections import Counter
-from collections.abc import Callable, Iterator, Sequence
+from collections.abc import Callable, Iterator, Mapping, Sequence
 from contextlib import contextmanager
 from dataclasses import dataclass, replace
 from pathlib import Path
@@ -357,16 +357,7 @@ def run_fleet(
     Raises:
         FleetError: Options a fleet cannot take, or a cluster that cannot be had.
     """
-    from hound_id.dyno.current.effects import parse_model, parse_start_model
-
-    for given, option in ((options.plot, "--plot"), (options.out, "--out"), (options.spec, "--spec")):
-        if given is not None:
-            raise FleetError(f"{option}: not taken by a fleet run; fit one log with 'hound-id fit-current' for it")
-    if options.effects_files:
-        raise FleetError("--effects-file: not taken by a fleet run (workers cannot run your file)")
-    start_model = [*parse_start_model(options.model)]
-    for extra in options.add:
-        start_model += [e for e in parse_model(extra) if e not in start_model]
+    start_model = _start_model(options)
     jobs = list(zip(actuator_names(logs), logs, strict=True))
     local = local_workers(workers, len(jobs)) if scheduler is None else None  # a remote cluster decides its own
     with client_for(scheduler, workers if local is None else local.count) as client:
@@ -374,20 +365,9 @@ def run_fleet(
         versions = client.run(_version)
         count = len(versions)
         begin = time.perf_counter()
-
-        def counted(total: int) -> Callable[[ActuatorFit], None]:
-            seen = [0]
-
-            def call(fit: ActuatorFit) -> None:
-                seen[0] += 1
-                if on_result is not None:
-                    on_result(fit, seen[0], total)
-
-            return call
-
         if on_pass is not None:
             on_pass("fitting", len(jobs))
-        fits = {f.name: f for f in _map(client, jobs, options, counted(len(jobs)))}
+        fits = {f.name: f for f in _map(client, jobs, options, _counted(on_result, len(jobs)))}
         model = common_model(list(fits.values()), start_model)
         again = [
             (name, path)
@@ -398,15 +378,10 @@ def run_fleet(
             if on_pass is not None:
                 on_pass(f"fitting again with the fleet's model {'+'.join(model)}", len(again))
             common = replace(options, model="+".join(model), add=(), auto=False)
-            for fit in _map(client, again, common, counted(len(again))):
+            for fit in _map(client, again, common, _counted(on_result, len(again))):
                 fits[fit.name] = fit
         seconds = time.perf_counter() - begin
-    import hound_id
-
-    mine = getattr(hound_id, "__version__", "")
-    notes = tuple(
-        f"worker {w} runs hound-id {v}, this machine {mine}: fits may differ" for w, v in versions.items() if v != mine
-    )
+    notes = _version_notes(versions)
     fitted = [f for f in fits.values() if f.report is not None]
     return FleetRun(
         actuators=tuple(sorted(fits.values(), key=lambda f: f.name)),
@@ -418,6 +393,44 @@ def run_fleet(
         notes=notes,
         workers_asked=None if local is None else local.asked,
         capped=None if local is None else local.capped,
+    )
+
+
+def _start_model(options: FitCurrentOptions) -> list[str]:
+    """The model every log starts from (``--model`` and each ``--add``), after refusing the options a fleet cannot
+    take."""
+    from hound_id.dyno.current.effects import parse_model, parse_start_model
+
+    for given, option in ((options.plot, "--plot"), (options.out, "--out"), (options.spec, "--spec")):
+        if given is not None:
+            raise FleetError(f"{option}: not taken by a fleet run; fit one log with 'hound-id fit-current' for it")
+    if options.effects_files:
+        raise FleetError("--effects-file: not taken by a fleet run (workers cannot run your file)")
+    start_model = [*parse_start_model(options.model)]
+    for extra in options.add:
+        start_model += [e for e in parse_model(extra) if e not in start_model]
+    return start_model
+
+
+def _counted(on_result: Callable[[ActuatorFit, int, int], None] | None, total: int) -> Callable[[ActuatorFit], None]:
+    """A callback for one pass of ``total`` logs that calls ``on_result`` with each outcome and the count done."""
+    seen = [0]
+
+    def call(fit: ActuatorFit) -> None:
+        seen[0] += 1
+        if on_result is not None:
+            on_result(fit, seen[0], total)
+
+    return call
+
+
+def _version_notes(versions: Mapping[str, str]) -> tuple[str, ...]:
+    """A note for each worker (address -> its hound-id version) that runs another version than this machine."""
+    import hound_id
+
+    mine = getattr(hound_id, "__version__", "")
+    return tuple(
+        f"worker {w} runs hound-id {v}, this machine {mine}: fits may differ" for w, v in versions.items() if v != mine
     )
 
 
