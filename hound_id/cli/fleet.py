@@ -16,6 +16,7 @@ from hound_id.cli.fit_current import fit_options
 
 if TYPE_CHECKING:
     from hound_id.dyno.fleet.analyse import ActuatorFit, FleetReport
+    from hound_id.dyno.fleet.run import FleetResult
 
 #: Beyond this many actuators the table lists only the flagged and failed ones (the CSV has all).
 MAX_ROWS = 40
@@ -78,7 +79,7 @@ def fleet(
     if json_out:
         print_json(result.to_dict())
     elif report.fitted:
-        _print(result.to_dict(), report)
+        _print(result)
         for note in result.run.notes:
             warn(note)
     if not report.fitted:
@@ -208,8 +209,11 @@ def _fleet_table(report: FleetReport) -> Table:
     return fleet
 
 
-def _print(data: dict[str, Any], report: FleetReport) -> None:
+def _print(result: FleetResult) -> None:
     """Per actuator, each quantity's deviation from the fleet's median; then the medians and spreads in SI."""
+    from hound_id.dyno.fleet.engine import seconds_per_log
+
+    report, run, options = result.report, result.run, result.options
     flagged = {f.actuator for f in report.flags}
     rows = report.actuators
     if len(rows) > MAX_ROWS:
@@ -226,17 +230,16 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         console.print(
             f"{len(report.actuators) - len(rows)} healthy actuators not listed (--csv has every one)", highlight=False
         )
-    engine = data["engine"]
-    per_log = engine["seconds_per_log"]
+    per_log = seconds_per_log(run)
     console.print(
-        f"{len(report.fitted)} fitted, {len(report.failed)} failed on {engine['workers']} Dask workers "
-        f"({'local cluster' if engine['local_cluster'] else engine['scheduler']}) in {engine['seconds']:.1f} s"
-        + (f", {per_log:.2f} s per log" if per_log is not None else "")
-        + (f"; fitted again with the fleet's model: {', '.join(engine['refitted'])}" if engine["refitted"] else ""),
+        f"{len(report.fitted)} fitted, {len(report.failed)} failed on {run.workers} Dask workers "
+        f"({'local cluster' if options.scheduler is None else run.scheduler}) in {run.seconds:.1f} s"
+        + (f", {per_log:.2f} s per log" if not math.isnan(per_log) else "")
+        + (f"; fitted again with the fleet's model: {', '.join(run.refitted)}" if run.refitted else ""),
         highlight=False,
     )
-    if engine["capped"]:
-        console.print(f"note: {escape(engine['capped'])}", highlight=False)
+    if run.capped:
+        console.print(f"note: {escape(run.capped)}", highlight=False)
     if report.flags:
         console.print(f"[bold]flagged ({len(flagged)} actuator{'s' if len(flagged) != 1 else ''}):[/bold]")
         for f in report.flags:
@@ -247,6 +250,6 @@ def _print(data: dict[str, Any], report: FleetReport) -> None:
         console.print(f"[red]failed[/red] {escape(a.name)}: {escape((a.error or '').splitlines()[0])}", highlight=False)
     for note in report.notes:
         console.print(f"note: {escape(note)}", highlight=False)
-    for what in ("csv", "plot", "reports"):
-        if data[what]:
-            console.print(f"{what} written to {data[what]}", highlight=False)
+    for what, path in (("csv", options.csv), ("plot", options.plot), ("reports", options.reports)):
+        if path is not None:
+            console.print(f"{what} written to {path}", highlight=False)
