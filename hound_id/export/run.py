@@ -29,7 +29,8 @@ class ExportOptions:
     urdf: Path | None = None
     """The robot's URDF, instead of the robot file's ``urdf:``."""
     mujoco_actuator: str = "dcmotor"
-    """``dcmotor`` (the region in MuJoCo) or ``motor`` (saturate with the runtime)."""
+    """``dcmotor`` (the region in MuJoCo, voltage input), ``dcmotor-ff`` (torque feed-forward, MuJoCo >= 4.0) or
+    ``motor`` (saturate with the runtime)."""
 
 
 def run_export(robot_path: Path, out: Path, options: ExportOptions = ExportOptions()) -> ExportResult:

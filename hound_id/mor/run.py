@@ -217,7 +217,7 @@ def saturate_commands(
         commands: CSV or Parquet with ``tau_<joint>`` [N m] and ``qd_<joint>`` [rad/s] columns.
         robot: Robot YAML whose motors and transmissions apply.
         out: Write the table with ``tau_sat_<joint>`` columns added here (None: not written).
-        plot: Keep up to :data:`hound_id.mor.saturation.PLOT_ROWS` rows for :meth:`SaturateRun.figure`.
+        plot: Keep up to :data:`hound_id.mor.saturate_log.PLOT_ROWS` rows for :meth:`SaturateRun.figure`.
     """
     from hound_id.mor.robot import load_robot
     from hound_id.mor.saturate_log import PLOT_ROWS, saturate_file

@@ -468,7 +468,7 @@ def saturate_file(
     """Saturate a CSV or Parquet log of any length, batch by batch (``hound-id saturate``).
 
     Memory is bounded by a batch (:data:`hound_id.table_stream.BATCH_ROWS` rows of Parquet or
-    :data:`hound_id.tables.CSV_BLOCK_BYTES` of CSV), not by the length of the log. The summary
+    :data:`hound_id.table_stream.CSV_BLOCK_BYTES` of CSV), not by the length of the log. The summary
     equals :meth:`LogSaturation.to_dict` of the whole log (bit for bit within one batch, to
     rounding beyond). Bad rows are named by their data row, counted over the whole file.
 
